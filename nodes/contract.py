@@ -1,0 +1,89 @@
+"""The node contract: a node's logic is a pure step function over ROS 2 message objects.
+
+A step node never reads a clock, never sleeps and never touches a transport. It draws
+every random number from ``self.rng``, seeded from the scenario seed and the node name.
+The runtime (``nodes.runtime``) or the in-process driver calls it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+
+@dataclass(frozen=True)
+class Tick:
+    """One exchange period: index ``k`` and its exact time ``k * tick_ns`` in nanoseconds."""
+
+    index: int
+    time_ns: int
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    """What a node is told at reset: its name, parameters, world, timing and the scenario goal."""
+
+    name: str
+    params: BaseModel
+    tick_ns: int
+    period_ns: int
+    world: Path | None = None
+    goal: dict[str, float] | None = None
+    scenario_dir: Path = field(default_factory=Path.cwd)
+
+
+class NoParams(BaseModel):
+    """Parameters of a node that takes none: any key is refused."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+def node_seed(scenario_seed: int, node_name: str) -> int:
+    """A 64-bit seed derived from the scenario seed and the node name, stable across runs."""
+    digest = hashlib.sha256(f"{scenario_seed}:{node_name}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+class StepNode:
+    """Base class of every node's logic.
+
+    Subclasses set ``Params`` (a pydantic model, checked when the scenario loads),
+    ``needs_world`` and implement ``outputs``, ``step`` and optionally ``setup`` and
+    ``metrics``. ``step`` returns one message per declared output topic.
+    """
+
+    Params: ClassVar[type[BaseModel]] = NoParams
+    needs_world: ClassVar[bool] = False
+
+    @classmethod
+    def outputs(cls, params: BaseModel) -> dict[str, type]:
+        """Topic -> ROS 2 message class of everything this node publishes each activation."""
+        raise NotImplementedError
+
+    @classmethod
+    def accepted_inputs(cls, params: BaseModel) -> set[str] | None:
+        """The input topics this node understands, or None when it takes any topic."""
+        return None
+
+    def reset(self, seed: int, config: NodeConfig) -> None:
+        """Start over: seed the generator, keep the config, then call ``setup``."""
+        self.config = config
+        self.params = config.params
+        self.rng = np.random.default_rng(node_seed(seed, config.name))
+        self.setup()
+
+    def setup(self) -> None:
+        """Build the node's state from ``self.config``; called by ``reset``."""
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Advance to ``tick`` given the scheduled input messages; return the output messages."""
+        raise NotImplementedError
+
+    def metrics(self) -> dict[str, float]:
+        """Numbers this node contributes to the run's outcome (collisions, goal reached, ...)."""
+        return {}

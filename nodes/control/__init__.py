@@ -1,0 +1,1 @@
+"""cosim control node."""

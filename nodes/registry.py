@@ -1,0 +1,36 @@
+"""Node kinds by name, and loading of user classes given as 'package.module:Class'."""
+
+from __future__ import annotations
+
+import importlib
+
+from nodes.contract import StepNode
+
+KINDS: dict[str, str] = {
+    "physics": "nodes.physics.node:PhysicsNode",
+    "sensors": "nodes.sensors.node:SensorsNode",
+    "control": "nodes.control.node:ControlNode",
+    "counter": "nodes.testing:CounterNode",
+    "integrator": "nodes.testing:IntegratorNode",
+    "wallclock": "nodes.testing:WallClockNode",
+    "faulty": "nodes.testing:FaultyNode",
+}
+
+
+def load_class(ref: str) -> type[StepNode]:
+    """Import 'package.module:Class' and check that it is a StepNode subclass."""
+    module_name, _, class_name = ref.partition(":")
+    if not module_name or not class_name:
+        raise ValueError(f"{ref!r} is not of the form 'package.module:Class'")
+    module = importlib.import_module(module_name)
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        raise ValueError(f"module {module_name!r} has no class {class_name!r}")
+    if not (isinstance(cls, type) and issubclass(cls, StepNode)):
+        raise ValueError(f"{ref} is not a subclass of nodes.contract.StepNode")
+    return cls
+
+
+def kind_class(kind: str) -> type[StepNode]:
+    """The step class of a built-in node kind."""
+    return load_class(KINDS[kind])

@@ -1,0 +1,115 @@
+"""Small purpose-built nodes for protocol tests and benchmarks (not used by the nav scenario)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+from std_msgs.msg import Float64, Int64
+
+from nodes.contract import StepNode, Tick
+
+
+class CounterParams(BaseModel):
+    """Parameters of a counter: its output topic and an optional seeded noise amplitude."""
+
+    model_config = ConfigDict(extra="forbid")
+    output: str
+    noise: int = 0
+
+
+class CounterNode(StepNode):
+    """Publishes Int64 = activations so far + tick index + sum of every input (+ seeded noise)."""
+
+    Params = CounterParams
+
+    @classmethod
+    def outputs(cls, params: CounterParams) -> dict[str, type]:
+        """One Int64 topic."""
+        return {params.output: Int64}
+
+    def setup(self) -> None:
+        """Start counting from zero."""
+        self.count = 0
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Count, add the inputs (in topic order) and publish."""
+        self.count += 1
+        value = self.count * 1000 + tick.index
+        for topic in sorted(inputs):
+            value = (value * 31 + inputs[topic].data) % (1 << 62)
+        if self.params.noise:
+            value += int(self.rng.integers(0, self.params.noise))
+        return {self.params.output: Int64(data=value)}
+
+    def metrics(self) -> dict[str, float]:
+        """How many times it stepped."""
+        return {"activations": float(self.count)}
+
+
+class IntegratorParams(BaseModel):
+    """Parameters of an integrator: output topic, gain on the input and initial value."""
+
+    model_config = ConfigDict(extra="forbid")
+    output: str
+    gain: float = -0.5
+    initial: float = 1.0
+
+
+class IntegratorNode(StepNode):
+    """x' = gain * u (or x' = 1 with no input): forward Euler over the node's own period."""
+
+    Params = IntegratorParams
+
+    @classmethod
+    def outputs(cls, params: IntegratorParams) -> dict[str, type]:
+        """One Float64 topic."""
+        return {params.output: Float64}
+
+    def setup(self) -> None:
+        """Start at the initial value."""
+        self.x = self.params.initial
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Integrate the input over one period; an absent input (tick 0 of a delayed edge) is 0."""
+        u = sum(msg.data for _, msg in sorted(inputs.items())) if inputs else 1.0
+        self.x += self.params.gain * u * self.config.period_ns / 1e9
+        return {self.params.output: Float64(data=self.x)}
+
+
+class WallClockNode(CounterNode):
+    """Deliberately non-deterministic: publishes the wall time. The digest must catch it."""
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Publish time.time_ns(), which differs between runs."""
+        return {self.params.output: Int64(data=time.time_ns())}
+
+
+class FaultyParams(CounterParams):
+    """A counter that fails on purpose at a given tick, in a given way."""
+
+    fail_at: int = -1
+    mode: str = "raise"  # raise | exit | hang | kill
+
+
+class FaultyNode(CounterNode):
+    """Counter that raises, exits, hangs or kills itself at ``fail_at`` (fault-injection tests)."""
+
+    Params = FaultyParams
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Fail as configured at ``fail_at``, otherwise count."""
+        if tick.index == self.params.fail_at:
+            if self.params.mode == "raise":
+                raise RuntimeError(f"injected failure at tick {tick.index}")
+            if self.params.mode == "exit":
+                os._exit(7)
+            if self.params.mode == "kill":
+                os.kill(os.getpid(), signal.SIGKILL)
+            if self.params.mode == "hang":
+                while True:
+                    time.sleep(1)
+        return super().step(tick, inputs)

@@ -1,0 +1,88 @@
+"""The in-process reference: the same step classes and schedule, one process, no transport."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from nodes.contract import NodeConfig, StepNode, Tick
+from nodes.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
+from orchestrator.errors import SimulationError
+from orchestrator.scenario import Scenario
+
+Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
+"""Called after each activation with (tick, node, [(topic, bytes)])."""
+
+
+@dataclass
+class RunResult:
+    """What a run produced: digest, ticks run, per-node metrics and whether it stopped early."""
+
+    digest: str
+    ticks: int
+    metrics: dict[str, dict[str, float]] = field(default_factory=dict)
+    stopped_early: bool = False
+
+
+def node_config(scenario: Scenario, name: str) -> NodeConfig:
+    """The NodeConfig every driver gives node ``name`` at reset."""
+    plan = scenario.nodes[name]
+    goal = scenario.model.goal.model_dump() if scenario.model.goal else None
+    return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
+                      period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
+                      scenario_dir=scenario.file.parent.resolve())
+
+
+def make_node(scenario: Scenario, name: str) -> StepNode:
+    """Instantiate and reset node ``name``'s step class."""
+    node = scenario.nodes[name].step_class()()
+    node.reset(scenario.model.seed, node_config(scenario, name))
+    return node
+
+
+def goal_reached(metrics: dict[str, dict[str, float]]) -> bool:
+    """Whether any node reports the goal reached (the run may then stop early)."""
+    return any(m.get("goal_reached", 0) >= 1 for m in metrics.values())
+
+
+def run_in_process(scenario: Scenario, observer: Observer | None = None) -> RunResult:
+    """Run every node in this process in schedule order; return the digest and metrics."""
+    sched = scenario.schedule
+    nodes = {name: make_node(scenario, name) for name in sched.order}
+    histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
+                 for plan in scenario.nodes.values() for inp in plan.inputs}
+    consumers: dict[str, list[InputHistory]] = {}
+    for plan in scenario.nodes.values():
+        for inp in plan.inputs:
+            consumers.setdefault(inp.graph_topic, []).append(histories[(plan.name, inp.topic)])
+    digest = RunDigest()
+    stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
+    for k in range(sched.n_ticks):
+        tick = Tick(k, sched.time_ns(k))
+        for name in sched.due(k):
+            plan = scenario.nodes[name]
+            inputs = {}
+            for edge, inp in zip(sched.inputs_of[name], plan.inputs, strict=True):
+                wanted = sched.input_tick(edge, k)
+                if wanted is not None:
+                    inputs[inp.topic] = histories[(name, inp.topic)].take(wanted)
+            try:
+                outputs = nodes[name].step(tick, inputs)
+                items = prepare_outputs(name, plan.declared_outputs,
+                                        plan.output_names, tick, outputs)
+            except Exception as exc:
+                raise SimulationError(f"node {name} failed at tick {k}: "
+                                      f"{type(exc).__name__}: {exc}", node=name, tick=k) from exc
+            digest.add(k, name, output_digest(k, items))
+            for topic, data in items:
+                for history in consumers.get(topic, ()):
+                    history.push_bytes(k, data)
+            if observer:
+                observer(k, name, items)
+        if stop and goal_reached({n: nodes[n].metrics() for n in nodes}):
+            return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), stopped_early=True)
+    return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes))
+
+
+def _metrics(nodes: dict[str, StepNode]) -> dict[str, dict[str, float]]:
+    return {name: node.metrics() for name, node in nodes.items()}

@@ -1,0 +1,99 @@
+"""The typed scenario model: what a scenario YAML file may contain (unknown keys are refused)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
+
+from orchestrator.timeutil import parse_duration_ns, rate_to_period_ns
+
+DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
+"""A duration given as '30s', '10ms', '250us', '100ns' or seconds, held as integer ns."""
+
+PeriodNs = Annotated[int, BeforeValidator(rate_to_period_ns)]
+"""A rate given in Hz, held as its period in integer ns."""
+
+RATE_HELP = "a rate in Hz whose period is a whole number of ns and of ticks, e.g. 10, 50, 100"
+DURATION_HELP = "a duration greater than zero such as '30s', '10ms', '250us' or 30"
+
+Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
+Topic = Annotated[str, Field(pattern=r"^/[A-Za-z0-9_/]*[A-Za-z0-9_]$")]
+
+
+class Strict(BaseModel):
+    """Base of every scenario section: unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class InputSpec(Strict):
+    """One input edge: the topic a node consumes and whether it waits for this tick's sample."""
+
+    topic: Topic = Field(description="a ROS 2 topic name such as /scan")
+    mode: Literal["same_tick", "delayed"] = Field(
+        description="same_tick (wait for this tick's sample) or delayed (use the previous one)")
+
+
+class DebugSpec(Strict):
+    """Test-only runtime knobs that must never change an output."""
+
+    step_delay: DurationNs | None = Field(None, description=DURATION_HELP)
+
+
+class NodeSpec(Strict):
+    """One node: what runs (kind or module), how often, its parameters, inputs and remaps."""
+
+    name: Name = Field(description="letters, digits and _, starting with a letter")
+    kind: str | None = None
+    module: str | None = None
+    rate: PeriodNs = Field(description=RATE_HELP)
+    params: dict[str, Any] = Field(default_factory=dict)
+    inputs: list[InputSpec] = Field(default_factory=list)
+    remap: dict[Topic, Topic] = Field(default_factory=dict)
+    debug: DebugSpec = Field(default_factory=DebugSpec)
+
+    @property
+    def period_ns(self) -> int:
+        """The node's period in nanoseconds."""
+        return self.rate
+
+
+class GoalSpec(Strict):
+    """Where the robot must get to, and how close counts."""
+
+    x: float
+    y: float
+    yaw: float = 0.0
+    position_tolerance: float = Field(0.25, gt=0)
+    yaw_tolerance: float = Field(3.2, gt=0)
+
+
+class SuccessSpec(Strict):
+    """What a successful run means: goal reached (if a goal is given) and few enough collisions."""
+
+    reach_goal: bool = True
+    max_collisions: int = Field(0, ge=0)
+    stop_on_goal: bool = True
+
+
+class DeadlineSpec(Strict):
+    """How long to wait for every node to be ready, and for every due node to finish a tick."""
+
+    start: DurationNs = Field(30_000_000_000, description=DURATION_HELP)
+    tick: DurationNs = Field(10_000_000_000, description=DURATION_HELP)
+
+
+class ScenarioModel(Strict):
+    """A whole scenario file."""
+
+    name: Name = Field(description="letters, digits and _, starting with a letter")
+    seed: int = Field(0, ge=0, description="a whole number >= 0")
+    duration: DurationNs = Field(description=DURATION_HELP)
+    tick: DurationNs | None = Field(None, description=DURATION_HELP + "; default: gcd of periods")
+    transport: Literal["ros2", "zenoh"] = Field("ros2", description="ros2 or zenoh")
+    world: str | None = Field(None, description="path of the world file, relative to this file")
+    goal: GoalSpec | None = None
+    success: SuccessSpec = Field(default_factory=SuccessSpec)
+    deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
+    nodes: list[NodeSpec] = Field(min_length=1)

@@ -1,0 +1,323 @@
+"""Load a scenario file, check it completely, and resolve it into a runnable plan.
+
+Everything that can be wrong with a scenario is found here, before any process starts,
+and reported as a ``ScenarioError`` naming the file, the key path and what is accepted.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from nodes.contract import StepNode
+from nodes.registry import KINDS, kind_class, load_class
+from orchestrator.errors import ScenarioError
+from orchestrator.model import NodeSpec, ScenarioModel
+from orchestrator.schedule import Edge, Schedule, find_same_tick_cycle
+from orchestrator.timeutil import format_ns, format_rate
+from orchestrator.validation import describe_validation_error
+
+
+@dataclass(frozen=True)
+class InputPlan:
+    """A resolved input: the node's own topic name, the graph topic, its producer and type."""
+
+    topic: str
+    graph_topic: str
+    producer: str
+    mode: str
+    msg_type: type
+
+
+@dataclass(frozen=True)
+class NodePlan:
+    """A resolved node: its class, checked parameters, period and remapped topics."""
+
+    name: str
+    spec: NodeSpec
+    class_ref: str
+    params: BaseModel
+    period_ticks: int
+    outputs: dict[str, type]  # graph topic -> message class
+    output_names: dict[str, str]  # node's own topic -> graph topic
+    inputs: list[InputPlan]
+
+    @property
+    def declared_outputs(self) -> dict[str, type]:
+        """The node's own output topic names -> message classes (before remap)."""
+        return {own: self.outputs[graph] for own, graph in self.output_names.items()}
+
+    def step_class(self) -> type[StepNode]:
+        """Import and return the node's step class."""
+        return load_class(self.class_ref)
+
+
+@dataclass
+class Scenario:
+    """A checked scenario: the model, its file, tick, nodes in file order and the schedule."""
+
+    file: Path
+    model: ScenarioModel
+    tick_ns: int
+    nodes: dict[str, NodePlan]
+    schedule: Schedule
+    world: Path | None
+    sha256: str
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The scenario's name."""
+        return self.model.name
+
+    @property
+    def topics(self) -> dict[str, type]:
+        """Every published graph topic and its message class."""
+        out: dict[str, type] = {}
+        for plan in self.nodes.values():
+            out.update(plan.outputs)
+        return out
+
+    def producer_of(self, topic: str) -> str:
+        """The node that publishes a graph topic."""
+        for plan in self.nodes.values():
+            if topic in plan.outputs:
+                return plan.name
+        raise KeyError(topic)
+
+
+def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read, check and resolve a scenario file; raise ScenarioError on anything wrong."""
+    path = Path(path)
+    raw, text = _read_yaml(path)
+    overrides = dict(overrides or {})
+    for key, value in overrides.items():
+        _apply_override(raw, key, value, path)
+    try:
+        model = ScenarioModel.model_validate(raw)
+    except ValidationError as exc:
+        key, problem, accepted = describe_validation_error(exc, raw)
+        raise ScenarioError(path, key, problem, accepted) from None
+    return _resolve(path, model, hashlib.sha256(text).hexdigest(), overrides)
+
+
+def _read_yaml(path: Path) -> tuple[dict, bytes]:
+    if not path.is_file():
+        raise ScenarioError(path, "", "the scenario file does not exist.",
+                            "the path of a YAML scenario file, e.g. scenarios/nav.yaml.")
+    text = path.read_bytes()
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ScenarioError(path, "", f"YAML syntax error{where}: {problem}.",
+                            "valid YAML; check indentation and quoting there.") from None
+    if raw is None:
+        raise ScenarioError(path, "", "the file is empty.",
+                            "a mapping with at least name, duration and nodes.")
+    if not isinstance(raw, dict):
+        raise ScenarioError(path, "", f"the top level is a {type(raw).__name__}, not a mapping.",
+                            "a mapping with keys such as name, seed, duration, nodes.")
+    return raw, text
+
+
+def _apply_override(raw: dict, key: str, value: Any, path: Path) -> None:
+    """Set a dotted key ('seed', 'nodes.control.params.max_speed') in the raw scenario."""
+    parts = key.split(".")
+    target: Any = raw
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(target, list):
+            matches = [n for n in target if isinstance(n, dict) and n.get("name") == part]
+            if not matches:
+                raise ScenarioError(path, key, f"override names no node {part!r}.",
+                                    "a node name from the scenario's nodes list.")
+            target = matches[0]
+        else:
+            if not isinstance(target.get(part, {}), (dict, list)):
+                raise ScenarioError(path, key, f"{'.'.join(parts[:i + 1])} is not a mapping.",
+                                    "a dotted path through mappings and node names.")
+            target = target.setdefault(part, {})
+    target[parts[-1]] = copy.deepcopy(value)
+
+
+def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
+    where = ScenarioContext(path, model)
+    where.check_unique_names()
+    classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
+    params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
+    world = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    tick_ns = where.tick_ns()
+    last_tick = where.last_tick(tick_ns)
+    outputs = {i: where.node_outputs(i, spec, classes[i][1], params[i])
+               for i, spec in enumerate(model.nodes)}
+    producers = where.producers(outputs)
+    nodes: dict[str, NodePlan] = {}
+    edges: list[Edge] = []
+    for i, spec in enumerate(model.nodes):
+        inputs = where.node_inputs(i, spec, classes[i][1], params[i], producers)
+        edges += [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode) for inp in inputs]
+        nodes[spec.name] = NodePlan(
+            name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
+            period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
+            output_names=outputs[i][1], inputs=inputs)
+    where.check_cycles(edges)
+    schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
+    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides)
+
+
+class ScenarioContext:
+    """The semantic checks that follow schema validation, each raising a precise ScenarioError."""
+
+    def __init__(self, path: Path, model: ScenarioModel):
+        self.path = path
+        self.model = model
+
+    def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
+        """Build the error for this file."""
+        return ScenarioError(self.path, key, problem, accepted)
+
+    def node_key(self, i: int, sub: str = "") -> str:
+        """'nodes[1] (sensors).rate'-style key path."""
+        key = f"nodes[{i}] ({self.model.nodes[i].name})"
+        return f"{key}.{sub}" if sub else key
+
+    def check_unique_names(self) -> None:
+        """Node names must be unique."""
+        seen: dict[str, int] = {}
+        for i, spec in enumerate(self.model.nodes):
+            if spec.name in seen:
+                raise self.fail(f"nodes[{i}].name", f"duplicate node name {spec.name!r} "
+                                f"(also nodes[{seen[spec.name]}]).", "a name used by one node only.")
+            seen[spec.name] = i
+
+    def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type[StepNode]]:
+        """The step class named by kind or module."""
+        if (spec.kind is None) == (spec.module is None):
+            raise self.fail(self.node_key(i), "give exactly one of 'kind' or 'module'.",
+                            f"kind: one of {', '.join(sorted(KINDS))}; "
+                            "or module: 'package.module:Class'.")
+        if spec.kind is not None:
+            if spec.kind not in KINDS:
+                raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
+                                f"one of {', '.join(sorted(KINDS))}.")
+            return KINDS[spec.kind], kind_class(spec.kind)
+        try:
+            return spec.module, load_class(spec.module)
+        except Exception as exc:  # noqa: BLE001 - any import failure is the user's to fix
+            raise self.fail(self.node_key(i, "module"), f"cannot load {spec.module!r}: {exc}.",
+                            "'package.module:Class' importable here, a StepNode subclass.") from None
+
+    def node_params(self, i: int, spec: NodeSpec, cls: type[StepNode]) -> BaseModel:
+        """The node's parameters checked against its class's Params model."""
+        try:
+            return cls.Params.model_validate(spec.params)
+        except ValidationError as exc:
+            key, problem, accepted = describe_validation_error(exc, spec.params, cls.Params)
+            raise self.fail(self.node_key(i, f"params.{key}" if key else "params"),
+                            problem, accepted) from None
+
+    def world_path(self, needed: bool) -> Path | None:
+        """The world file, resolved relative to the scenario file, which must exist."""
+        if self.model.world is None:
+            if needed:
+                raise self.fail("world", "a node of this scenario needs a world file, none given.",
+                                "world: path to an MJCF (.xml) file, relative to this file.")
+            return None
+        world = (self.path.parent / self.model.world).resolve()
+        if not world.is_file():
+            raise self.fail("world", f"world file {self.model.world!r} does not exist "
+                            f"(looked for {world}).", "a path relative to the scenario file.")
+        return world
+
+    def tick_ns(self) -> int:
+        """The tick: given, or the gcd of all node periods; every period a whole number of ticks."""
+        periods = [spec.period_ns for spec in self.model.nodes]
+        tick = self.model.tick or math.gcd(*periods)
+        for i, spec in enumerate(self.model.nodes):
+            if spec.period_ns % tick:
+                raise self.fail(self.node_key(i, "rate"),
+                                f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
+                                f"{format_ns(spec.period_ns)}, not a whole number of "
+                                f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick))
+        return tick
+
+    def last_tick(self, tick_ns: int) -> int:
+        """The index of the last tick; the duration must be a whole number of ticks."""
+        if self.model.duration % tick_ns:
+            raise self.fail("duration", f"{format_ns(self.model.duration)} is not a whole number "
+                            f"of {format_ns(tick_ns)} ticks.", "a multiple of the tick, e.g. "
+                            f"{format_ns((self.model.duration // tick_ns + 1) * tick_ns)}.")
+        return self.model.duration // tick_ns
+
+    def node_outputs(self, i: int, spec: NodeSpec, cls: type[StepNode], params: BaseModel
+                     ) -> tuple[dict[str, type], dict[str, str]]:
+        """The node's outputs under graph names (after remap), and own -> graph names."""
+        own = cls.outputs(params)
+        accepted = cls.accepted_inputs(params)
+        known = set(own) | {inp.topic for inp in spec.inputs} | (accepted or set())
+        for source in spec.remap:
+            if source not in known:
+                raise self.fail(self.node_key(i, f"remap.{source}"),
+                                f"the node has no topic {source!r} to remap.",
+                                f"one of its topics: {', '.join(sorted(known)) or 'none'}.")
+        names = {t: spec.remap.get(t, t) for t in own}
+        return {names[t]: msg for t, msg in own.items()}, names
+
+    def producers(self, outputs: dict[int, tuple[dict[str, type], dict]]) -> dict[str, tuple]:
+        """graph topic -> (producer name, message class); a topic has one publisher."""
+        producers: dict[str, tuple] = {}
+        for i, (topics, _) in outputs.items():
+            for topic, msg in topics.items():
+                if topic in producers:
+                    raise self.fail(self.node_key(i), f"topic {topic} is also published by node "
+                                    f"{producers[topic][0]!r}.", "one publisher per topic; "
+                                    "rename one with remap.")
+                producers[topic] = (self.model.nodes[i].name, msg)
+        return producers
+
+    def node_inputs(self, i: int, spec: NodeSpec, cls: type[StepNode], params: BaseModel,
+                    producers: dict[str, tuple]) -> list[InputPlan]:
+        """The node's inputs resolved to producers; every input needs a publisher."""
+        accepted = cls.accepted_inputs(params)
+        plans, seen = [], set()
+        for j, inp in enumerate(spec.inputs):
+            key = self.node_key(i, f"inputs[{j}].topic")
+            if inp.topic in seen:
+                raise self.fail(key, f"input {inp.topic} is listed twice.", "each topic once.")
+            seen.add(inp.topic)
+            if accepted is not None and inp.topic not in accepted:
+                raise self.fail(key, f"this node does not take {inp.topic}.",
+                                f"one of {', '.join(sorted(accepted))}.")
+            graph = spec.remap.get(inp.topic, inp.topic)
+            if graph not in producers:
+                raise self.fail(key, f"no node publishes {graph}.",
+                                f"a published topic: {', '.join(sorted(producers))}.")
+            producer, msg = producers[graph]
+            plans.append(InputPlan(inp.topic, graph, producer, inp.mode, msg))
+        return plans
+
+    def check_cycles(self, edges: list[Edge]) -> None:
+        """Refuse a cycle of same_tick edges, naming it."""
+        cycle = find_same_tick_cycle([n.name for n in self.model.nodes], edges)
+        if cycle:
+            raise self.fail("nodes", f"the same_tick inputs form an algebraic loop "
+                            f"{' -> '.join(cycle)} with no delay to break it.",
+                            "mark at least one input on that cycle mode: delayed.")
+
+
+def _rates_that_fit(period_ns: int, tick_ns: int) -> str:
+    """Nearby rates whose period is a whole number of ticks."""
+    k = max(1, period_ns // tick_ns)
+    fits = sorted({m * tick_ns for m in (k, k + 1, max(1, k - 1), 2 * k) if m > 0})
+    rates = [f"{format_rate(p)} Hz" for p in fits if 1_000_000_000 % p == 0]
+    shown = ", ".join(rates) if rates else f"a period that is a multiple of {format_ns(tick_ns)}"
+    return f"rates whose period is a multiple of the {format_ns(tick_ns)} tick, e.g. {shown}."

@@ -1,0 +1,151 @@
+"""The schedule: a pure function of the scenario saying who acts when and on which samples.
+
+Time is integer nanoseconds; tick ``k`` is at ``k * tick_ns``. A node with a period of
+``p`` ticks acts at every ``k`` with ``k % p == 0``. An input edge is ``same_tick`` (the
+consumer waits for the producer's sample at or before ``k``) or ``delayed`` (the latest
+sample strictly before ``k``: a zero-order hold that breaks algebraic loops).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+SAME_TICK = "same_tick"
+DELAYED = "delayed"
+
+
+@dataclass(frozen=True)
+class Edge:
+    """Consumer reads ``topic``, published by producer, with the given mode."""
+
+    consumer: str
+    producer: str
+    topic: str
+    mode: str
+
+
+class CycleError(ValueError):
+    """A cycle of same_tick edges: an algebraic loop with no delay to break it."""
+
+    def __init__(self, cycle: list[str]):
+        self.cycle = cycle
+        super().__init__(" -> ".join(cycle))
+
+
+def find_same_tick_cycle(nodes: list[str], edges: list[Edge]) -> list[str] | None:
+    """A cycle of same_tick edges as [a, b, ..., a], or None (depth-first, deterministic)."""
+    succ: dict[str, list[str]] = {n: [] for n in nodes}
+    for e in edges:
+        if e.mode == SAME_TICK:
+            succ[e.producer].append(e.consumer)
+    state: dict[str, int] = {}  # 1 = on the stack, 2 = done
+    stack: list[str] = []
+
+    def visit(n: str) -> list[str] | None:
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(set(succ[n])):
+            if state.get(m) == 1:
+                return stack[stack.index(m):] + [m]
+            if m not in state and (found := visit(m)):
+                return found
+        stack.pop()
+        state[n] = 2
+        return None
+
+    for n in sorted(nodes):
+        if n not in state and (found := visit(n)):
+            return found
+    return None
+
+
+class Schedule:
+    """Who acts at each tick, in which order, and which producer tick each input consumes."""
+
+    def __init__(self, tick_ns: int, last_tick: int, periods: dict[str, int], edges: list[Edge]):
+        if tick_ns <= 0 or last_tick < 0:
+            raise ValueError("tick_ns must be positive and last_tick non-negative")
+        for name, period in periods.items():
+            if not isinstance(period, int) or period <= 0:
+                raise ValueError(f"period of {name} must be a positive whole number of ticks")
+        self.tick_ns = tick_ns
+        self.last_tick = last_tick
+        self.periods = dict(periods)
+        self.edges = list(edges)
+        if cycle := find_same_tick_cycle(list(periods), self.edges):
+            raise CycleError(cycle)
+        self.order = self._topological_order()
+        self.inputs_of: dict[str, list[Edge]] = {n: [] for n in periods}
+        for e in self.edges:
+            self.inputs_of[e.consumer].append(e)
+
+    def _topological_order(self) -> list[str]:
+        """Nodes ordered so every same_tick producer precedes its consumers; ties by name."""
+        indegree = {n: 0 for n in self.periods}
+        succ: dict[str, set[str]] = {n: set() for n in self.periods}
+        for e in self.edges:
+            if e.mode == SAME_TICK and e.consumer not in succ[e.producer]:
+                succ[e.producer].add(e.consumer)
+                indegree[e.consumer] += 1
+        ready = [n for n, d in indegree.items() if d == 0]
+        heapq.heapify(ready)
+        order = []
+        while ready:
+            n = heapq.heappop(ready)
+            order.append(n)
+            for m in succ[n]:
+                indegree[m] -= 1
+                if indegree[m] == 0:
+                    heapq.heappush(ready, m)
+        return order
+
+    @property
+    def n_ticks(self) -> int:
+        """How many ticks the run has: 0 .. last_tick inclusive."""
+        return self.last_tick + 1
+
+    @cached_property
+    def hyperperiod(self) -> int:
+        """The schedule repeats with this many ticks: the lcm of all periods."""
+        return math.lcm(*self.periods.values())
+
+    def time_ns(self, tick: int) -> int:
+        """The time of a tick in nanoseconds."""
+        return tick * self.tick_ns
+
+    def is_due(self, node: str, tick: int) -> bool:
+        """Whether the node acts at this tick."""
+        return tick % self.periods[node] == 0
+
+    @cached_property
+    def _due_table(self) -> list[tuple[str, ...]]:
+        return [
+            tuple(n for n in self.order if k % self.periods[n] == 0)
+            for k in range(self.hyperperiod)
+        ]
+
+    def due(self, tick: int) -> tuple[str, ...]:
+        """The nodes acting at this tick, producers before same_tick consumers."""
+        if self.hyperperiod <= 100_000:
+            return self._due_table[tick % self.hyperperiod]
+        return tuple(n for n in self.order if tick % self.periods[n] == 0)
+
+    def input_tick(self, edge: Edge, tick: int) -> int | None:
+        """The producer tick whose sample the consumer uses at ``tick`` (None: no sample yet)."""
+        p = self.periods[edge.producer]
+        if edge.mode == SAME_TICK:
+            return (tick // p) * p
+        if tick == 0:
+            return None
+        return ((tick - 1) // p) * p
+
+    def activations(self, node: str) -> int:
+        """How many times the node acts in the whole run."""
+        return self.last_tick // self.periods[node] + 1
+
+    def history_depth(self, edge: Edge) -> int:
+        """Samples a consumer may have to hold between its activations, with margin."""
+        return -(-self.periods[edge.consumer] // self.periods[edge.producer]) + 2
