@@ -1,0 +1,86 @@
+"""Building the physics node's ROS messages from MuJoCo state (numpy in, messages out)."""
+
+from __future__ import annotations
+
+import array
+
+import numpy as np
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+# Ground truth: tiny but non-zero variances, so consumers that invert them do not blow up.
+TRUTH_COVARIANCE = array.array("d", np.diag(np.full(6, 1e-9)).ravel().tobytes())
+
+
+def f64(values: np.ndarray) -> array.array:
+    """A float64 array.array (what rclpy stores for float64[] fields, without a copy loop)."""
+    out = array.array("d")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
+
+
+def odometry(qpos: np.ndarray, qvel: np.ndarray, odom_frame: str, base_frame: str) -> Odometry:
+    """Odometry of a free-joint base: pose in ``odom_frame``, twist in ``base_frame``.
+
+    MuJoCo's free joint: qpos = (x, y, z, qw, qx, qy, qz); qvel[:3] is the linear velocity
+    in the world frame and qvel[3:6] the angular velocity in the body frame.
+    """
+    msg = Odometry()
+    msg.header.frame_id = odom_frame
+    msg.child_frame_id = base_frame
+    p = msg.pose.pose
+    p.position.x, p.position.y, p.position.z = (float(v) for v in qpos[:3])
+    w, x, y, z = (float(v) for v in qpos[3:7])
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = x, y, z, w
+    rot = quat_to_mat(qpos[3:7])
+    lin = rot.T @ qvel[:3]
+    t = msg.twist.twist
+    t.linear.x, t.linear.y, t.linear.z = (float(v) for v in lin)
+    t.angular.x, t.angular.y, t.angular.z = (float(v) for v in qvel[3:6])
+    msg.pose.covariance = TRUTH_COVARIANCE
+    msg.twist.covariance = TRUTH_COVARIANCE
+    return msg
+
+
+def quat_to_mat(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def yaw_of(q: np.ndarray) -> float:
+    """Heading (rotation about z) of a quaternion (w, x, y, z)."""
+    w, x, y, z = q
+    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def joint_state(names: list[str], pos: np.ndarray, vel: np.ndarray,
+                effort: np.ndarray) -> JointState:
+    """A JointState with the given joints (frame id empty, as usual for joint states)."""
+    msg = JointState()
+    msg.name = names
+    msg.position = f64(pos)
+    msg.velocity = f64(vel)
+    msg.effort = f64(effort)
+    return msg
+
+
+def world_state(qpos: np.ndarray, qvel: np.ndarray) -> Float64MultiArray:
+    """The mirror of the world for sensors: data = qpos then qvel, labelled in the layout."""
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label="qpos", size=len(qpos), stride=len(qpos)),
+                      MultiArrayDimension(label="qvel", size=len(qvel), stride=len(qvel))]
+    msg.data = f64(np.concatenate([qpos, qvel]))
+    return msg
+
+
+def twist_of(msg: Twist | None) -> tuple[float, float]:
+    """(linear.x, angular.z) of a Twist; a missing command is a stop."""
+    if msg is None:
+        return 0.0, 0.0
+    return float(msg.linear.x), float(msg.angular.z)

@@ -1,0 +1,153 @@
+"""The physics node: a MuJoCo world with a differential-drive robot and a pan-tilt head.
+
+Inputs: /cmd_vel (geometry_msgs/Twist, normally a delayed edge; absent means stop) and
+/joint_commands (std_msgs/Float64MultiArray of [pan, tilt] positions, optional).
+Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
+activation integrates one node period (a whole number of world timesteps) and publishes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+from nav_msgs.msg import Odometry
+from pydantic import BaseModel, ConfigDict, Field
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from nodes.contract import StepNode, Tick
+from nodes.physics import messages as m
+from nodes.physics.contacts import CollisionCounter
+from nodes.physics.drive import DiffDrive
+from nodes.physics.world import (
+    floor_geoms,
+    load_model,
+    named_id,
+    robot_geoms,
+    substeps,
+    timestep_ns,
+    wheel_geometry,
+)
+
+JOINT = mujoco.mjtObj.mjOBJ_JOINT
+ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
+
+
+class Pose2D(BaseModel):
+    """A planar pose: position in metres, heading in radians."""
+
+    model_config = ConfigDict(extra="forbid")
+    x: float
+    y: float
+    yaw: float = 0.0
+
+
+class PhysicsParams(BaseModel):
+    """Robot names in the MJCF, the start pose and the drive limits."""
+
+    model_config = ConfigDict(extra="forbid")
+    start: Pose2D | None = Field(None, description="where the robot starts; default: as in MJCF")
+    base_body: str = "base_link"
+    odom_frame: str = "odom"
+    base_frame: str = "base_link"
+    wheel_joints: tuple[str, str] = ("left_wheel_joint", "right_wheel_joint")
+    wheel_actuators: tuple[str, str] = ("left_wheel_motor", "right_wheel_motor")
+    head_joints: tuple[str, str] = ("pan_joint", "tilt_joint")
+    head_actuators: tuple[str, str] = ("pan_servo", "tilt_servo")
+    max_linear_speed: float = Field(1.0, gt=0, description="m/s")
+    max_angular_speed: float = Field(2.5, gt=0, description="rad/s")
+    max_linear_accel: float = Field(2.0, gt=0, description="m/s^2")
+    max_angular_accel: float = Field(6.0, gt=0, description="rad/s^2")
+
+
+class PhysicsNode(StepNode):
+    """MuJoCo stepping, diff-drive and pan-tilt control, odometry and collision counting."""
+
+    Params = PhysicsParams
+    needs_world = True
+
+    @classmethod
+    def outputs(cls, params: PhysicsParams) -> dict[str, type]:
+        """Odometry, joint states and the world state that sensor nodes mirror."""
+        return {"/odom": Odometry, "/joint_states": JointState,
+                "/cosim/world_state": Float64MultiArray}
+
+    @classmethod
+    def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
+        """Velocity commands and pan-tilt position commands."""
+        return {"/cmd_vel", "/joint_commands"}
+
+    def setup(self) -> None:
+        """Load the world, check the timestep against the period and place the robot."""
+        p = self.params
+        world = self.config.world
+        self.model = load_model(world)
+        self.data = mujoco.MjData(self.model)
+        self.substeps = substeps(self.model, world, self.config.period_ns)
+        self.dt = timestep_ns(self.model, world) / 1e9
+        base = named_id(self.model, mujoco.mjtObj.mjOBJ_BODY, p.base_body)
+        free = self.model.body_jntadr[base]
+        if free < 0 or self.model.jnt_type[free] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError(f"body {p.base_body!r} of world {world} has no free joint")
+        self.qadr = int(self.model.jnt_qposadr[free])
+        self.vadr = int(self.model.jnt_dofadr[free])
+        if p.start is not None:
+            q = self.data.qpos
+            q[self.qadr:self.qadr + 2] = p.start.x, p.start.y
+            q[self.qadr + 3:self.qadr + 7] = np.cos(p.start.yaw / 2), 0, 0, np.sin(p.start.yaw / 2)
+        radius, separation = wheel_geometry(self.model, *p.wheel_joints)
+        self.drive = DiffDrive(radius, separation, p.max_linear_speed, p.max_angular_speed,
+                               p.max_linear_accel, p.max_angular_accel)
+        self.wheel_act = [named_id(self.model, ACTUATOR, a) for a in p.wheel_actuators]
+        self.head_act = [named_id(self.model, ACTUATOR, a) for a in p.head_actuators]
+        self.joint_names = list(p.wheel_joints) + list(p.head_joints)
+        joints = [named_id(self.model, JOINT, j) for j in self.joint_names]
+        self.joint_q = self.model.jnt_qposadr[joints]
+        self.joint_v = self.model.jnt_dofadr[joints]
+        self.collisions = CollisionCounter(robot_geoms(self.model, p.base_body),
+                                           floor_geoms(self.model))
+        mujoco.mj_forward(self.model, self.data)
+        self.collisions.update(self.data)
+        self.collisions.events = 0  # touching at the start is not an event
+        self.started = False
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Integrate one period (except at the first activation) and publish the state."""
+        self._head(inputs.get("/joint_commands"))
+        if self.started:
+            v, w = m.twist_of(inputs.get("/cmd_vel"))
+            for _ in range(self.substeps):
+                left, right = self.drive.update(v, w, self.dt)
+                self.data.ctrl[self.wheel_act] = left, right
+                mujoco.mj_step(self.model, self.data)
+                self.collisions.update(self.data)
+        self.started = True
+        return self._publish()
+
+    def _head(self, msg: Float64MultiArray | None) -> None:
+        if msg is None:
+            return
+        if len(msg.data) != len(self.head_act):
+            raise ValueError(f"/joint_commands must carry {len(self.head_act)} positions "
+                             f"{list(self.params.head_joints)}, got {len(msg.data)}")
+        self.data.ctrl[self.head_act] = np.asarray(msg.data, dtype=np.float64)
+
+    def _publish(self) -> dict[str, Any]:
+        d, p = self.data, self.params
+        base_q = d.qpos[self.qadr:self.qadr + 7]
+        base_v = d.qvel[self.vadr:self.vadr + 6]
+        effort = d.qfrc_actuator[self.joint_v]
+        return {
+            "/odom": m.odometry(base_q, base_v, p.odom_frame, p.base_frame),
+            "/joint_states": m.joint_state(self.joint_names, d.qpos[self.joint_q],
+                                           d.qvel[self.joint_v], effort),
+            "/cosim/world_state": m.world_state(d.qpos, d.qvel),
+        }
+
+    def metrics(self) -> dict[str, float]:
+        """Collision events so far and the ground-truth planar pose."""
+        q = self.data.qpos[self.qadr:self.qadr + 7]
+        return {"collisions": float(self.collisions.events), "x": float(q[0]),
+                "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
