@@ -10,6 +10,7 @@ import copy
 import hashlib
 import math
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +22,8 @@ from nodes.registry import KINDS, kind_class, load_class
 from orchestrator.errors import ScenarioError
 from orchestrator.model import NodeSpec, ScenarioModel
 from orchestrator.schedule import Edge, Schedule, find_same_tick_cycle
-from orchestrator.timeutil import format_ns, format_rate
-from orchestrator.validation import describe_validation_error
+from orchestrator.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from orchestrator.validation import describe_validation_error, key_path
 
 
 @dataclass(frozen=True)
@@ -94,26 +95,56 @@ class Scenario:
 
 
 def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
-    """Read, check and resolve a scenario file; raise ScenarioError on anything wrong."""
+    """Read, check and resolve a scenario file; raise ScenarioError on anything wrong.
+
+    ``overrides`` maps dotted keys ('seed', 'nodes.<node name>.rate') to values that replace
+    the file's before anything is checked; an error in an overridden value says so.
+    """
     path = Path(path)
     raw, text = _read_yaml(path)
     overrides = dict(overrides or {})
-    for key, value in overrides.items():
-        _apply_override(raw, key, value, path)
+    overridden = {key: _apply_override(raw, key, value, path) for key, value in overrides.items()}
     try:
-        model = ScenarioModel.model_validate(raw)
-    except ValidationError as exc:
-        key, problem, accepted = describe_validation_error(exc, raw)
-        raise ScenarioError(path, key, problem, accepted) from None
-    return _resolve(path, model, hashlib.sha256(text).hexdigest(), overrides)
+        try:
+            model = ScenarioModel.model_validate(raw)
+        except ValidationError as exc:
+            key, problem, accepted = describe_validation_error(exc, raw)
+            raise ScenarioError(path, key, problem, accepted) from None
+        return _resolve(path, model, hashlib.sha256(text).hexdigest(), overrides)
+    except ScenarioError as exc:
+        raise _blame_override(exc, raw, overridden, overrides) from None
+
+
+def _blame_override(exc: ScenarioError, raw: dict, overridden: dict[str, tuple],
+                    overrides: dict[str, Any]) -> ScenarioError:
+    """Add which override set the value to an error about an overridden key."""
+    for key, loc in overridden.items():
+        shown = key_path(loc, raw)
+        if _within(exc.key, shown) or _within(shown, exc.key):
+            return ScenarioError(exc.file, exc.key, f"{exc.problem} (The value comes from the "
+                                 f"override {key}={overrides[key]!r}.)", exc.accepted)
+    return exc
+
+
+def _within(key: str, outer: str) -> bool:
+    """Whether key path ``key`` is ``outer`` or inside it."""
+    return bool(outer) and (key == outer or key.startswith((outer + ".", outer + "[")))
+
+
+_YAML_STR = "tag:yaml.org,2002:str"
+_YAML_MERGE = "tag:yaml.org,2002:merge"
 
 
 def _read_yaml(path: Path) -> tuple[dict, bytes]:
     if not path.is_file():
-        raise ScenarioError(path, "", "the scenario file does not exist.",
+        what = "is a directory, not a file" if path.is_dir() else "does not exist"
+        raise ScenarioError(path, "", f"the scenario file {what}.",
                             "the path of a YAML scenario file, e.g. scenarios/nav.yaml.")
     text = path.read_bytes()
     try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        if root is not None:
+            _check_yaml_keys(root, "", path, set())
         raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
@@ -130,23 +161,84 @@ def _read_yaml(path: Path) -> tuple[dict, bytes]:
     return raw, text
 
 
-def _apply_override(raw: dict, key: str, value: Any, path: Path) -> None:
-    """Set a dotted key ('seed', 'nodes.control.params.max_speed') in the raw scenario."""
-    parts = key.split(".")
+def _check_yaml_keys(node: yaml.Node, where: str, path: Path, seen_nodes: set[int]) -> None:
+    """Refuse what plain YAML loading would hide: repeated keys and keys that are not text."""
+    if id(node) in seen_nodes:
+        return
+    seen_nodes.add(id(node))
+    if isinstance(node, yaml.MappingNode):
+        lines: dict[str, int] = {}
+        for key_node, value_node in node.value:
+            if key_node.tag == _YAML_MERGE:
+                continue
+            line = key_node.start_mark.line + 1
+            shown = key_node.value if isinstance(key_node, yaml.ScalarNode) else "?"
+            key = f"{where}.{shown}" if where else str(shown)
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != _YAML_STR:
+                raise ScenarioError(path, key, f"the key {shown!r} at line {line} is not text "
+                                    f"(YAML reads it as {key_node.tag.rsplit(':', 1)[-1]}).",
+                                    f"a text key; quote it, e.g. '{shown}':")
+            if shown in lines:
+                raise ScenarioError(path, key, f"the key {shown!r} appears twice, at lines "
+                                    f"{lines[shown]} and {line}.", "each key once per mapping.")
+            lines[shown] = line
+            _check_yaml_keys(value_node, key, path, seen_nodes)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            label = f"{where}[{i}]"
+            if isinstance(item, yaml.MappingNode):
+                names = [v.value for k, v in item.value
+                         if isinstance(k, yaml.ScalarNode) and k.value == "name"
+                         and isinstance(v, yaml.ScalarNode) and v.tag == _YAML_STR]
+                label += f" ({names[0]})" if names else ""
+            _check_yaml_keys(item, label, path, seen_nodes)
+
+
+def _apply_override(raw: dict, key: str, value: Any, path: Path) -> tuple:
+    """Set a dotted key ('seed', 'nodes.control.params.max_speed') in the raw scenario.
+
+    A part that meets a list names a node (or is an index). Returns the key's location
+    as a pydantic-style tuple, e.g. ('nodes', 1, 'rate').
+    """
+    parts = key.split(".") if isinstance(key, str) else [""]
+    accepted = "a dotted key such as 'seed', 'duration' or 'nodes.<node name>.rate'."
+    if not all(parts):
+        raise ScenarioError(path, "", f"the override {key!r} is not a dotted key path.", accepted)
     target: Any = raw
-    for i, part in enumerate(parts[:-1]):
+    loc: list = []
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
         if isinstance(target, list):
-            matches = [n for n in target if isinstance(n, dict) and n.get("name") == part]
-            if not matches:
+            index = _node_index(target, part)
+            if index is None:
+                names = [n["name"] for n in target if isinstance(n, dict) and "name" in n]
                 raise ScenarioError(path, key, f"override names no node {part!r}.",
-                                    "a node name from the scenario's nodes list.")
-            target = matches[0]
+                                    f"a node name: {', '.join(map(str, names)) or 'none'}.")
+            loc.append(index)
+            if last:
+                target[index] = copy.deepcopy(value)
+            target = target[index]
+            continue
+        if not isinstance(target, dict):
+            through = ".".join(parts[:i])
+            raise ScenarioError(path, key, f"override goes through {through}, which is "
+                                f"{type(target).__name__}, not a mapping.", accepted)
+        loc.append(part)
+        if last:
+            target[part] = copy.deepcopy(value)
         else:
-            if not isinstance(target.get(part, {}), (dict, list)):
-                raise ScenarioError(path, key, f"{'.'.join(parts[:i + 1])} is not a mapping.",
-                                    "a dotted path through mappings and node names.")
             target = target.setdefault(part, {})
-    target[parts[-1]] = copy.deepcopy(value)
+    return tuple(loc)
+
+
+def _node_index(nodes: list, part: str) -> int | None:
+    """The index of the node named ``part`` (or given by its index) in a raw nodes list."""
+    for i, node in enumerate(nodes):
+        if isinstance(node, dict) and node.get("name") == part:
+            return i
+    if part.isdigit() and int(part) < len(nodes):
+        return int(part)
+    return None
 
 
 def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
@@ -195,8 +287,9 @@ class ScenarioContext:
         seen: dict[str, int] = {}
         for i, spec in enumerate(self.model.nodes):
             if spec.name in seen:
-                raise self.fail(f"nodes[{i}].name", f"duplicate node name {spec.name!r} "
-                                f"(also nodes[{seen[spec.name]}]).", "a name used by one node only.")
+                raise self.fail(self.node_key(i, "name"), f"duplicate node name {spec.name!r} "
+                                f"(also nodes[{seen[spec.name]}]).",
+                                "a name used by one node only.")
             seen[spec.name] = i
 
     def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type[StepNode]]:
@@ -209,12 +302,19 @@ class ScenarioContext:
             if spec.kind not in KINDS:
                 raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
                                 f"one of {', '.join(sorted(KINDS))}.")
-            return KINDS[spec.kind], kind_class(spec.kind)
+            try:
+                return KINDS[spec.kind], kind_class(spec.kind)
+            except Exception as exc:  # noqa: BLE001 - report, don't crash: nothing has started
+                raise self.fail(self.node_key(i, "kind"), f"node kind {spec.kind!r} cannot be "
+                                f"loaded from {KINDS[spec.kind]}: {exc}.",
+                                "a kind whose code is installed; check the installation."
+                                ) from None
         try:
             return spec.module, load_class(spec.module)
         except Exception as exc:  # noqa: BLE001 - any import failure is the user's to fix
             raise self.fail(self.node_key(i, "module"), f"cannot load {spec.module!r}: {exc}.",
-                            "'package.module:Class' importable here, a StepNode subclass.") from None
+                            "'package.module:Class' importable here, a StepNode subclass."
+                            ) from None
 
     def node_params(self, i: int, spec: NodeSpec, cls: type[StepNode]) -> BaseModel:
         """The node's parameters checked against its class's Params model."""
@@ -247,7 +347,8 @@ class ScenarioContext:
                 raise self.fail(self.node_key(i, "rate"),
                                 f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
                                 f"{format_ns(spec.period_ns)}, not a whole number of "
-                                f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick))
+                                f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick,
+                                                                 math.gcd(*periods)))
         return tick
 
     def last_tick(self, tick_ns: int) -> int:
@@ -270,6 +371,13 @@ class ScenarioContext:
                                 f"the node has no topic {source!r} to remap.",
                                 f"one of its topics: {', '.join(sorted(known)) or 'none'}.")
         names = {t: spec.remap.get(t, t) for t in own}
+        graph_names: dict[str, str] = {}
+        for t, graph in names.items():
+            if graph in graph_names:
+                raise self.fail(self.node_key(i, "remap"), f"outputs {graph_names[graph]} and "
+                                f"{t} would both be published as {graph}.",
+                                "a distinct graph name for each output.")
+            graph_names[graph] = t
         return {names[t]: msg for t, msg in own.items()}, names
 
     def producers(self, outputs: dict[int, tuple[dict[str, type], dict]]) -> dict[str, tuple]:
@@ -314,10 +422,30 @@ class ScenarioContext:
                             "mark at least one input on that cycle mode: delayed.")
 
 
-def _rates_that_fit(period_ns: int, tick_ns: int) -> str:
-    """Nearby rates whose period is a whole number of ticks."""
-    k = max(1, period_ns // tick_ns)
-    fits = sorted({m * tick_ns for m in (k, k + 1, max(1, k - 1), 2 * k) if m > 0})
-    rates = [f"{format_rate(p)} Hz" for p in fits if 1_000_000_000 % p == 0]
-    shown = ", ".join(rates) if rates else f"a period that is a multiple of {format_ns(tick_ns)}"
-    return f"rates whose period is a multiple of the {format_ns(tick_ns)} tick, e.g. {shown}."
+def _rates_that_fit(period_ns: int, tick_ns: int, gcd_ns: int) -> str:
+    """Rates near the given period whose period is a whole number of ticks, written exactly."""
+    fits = []
+    for m in range(1, 100_000):
+        rate = Fraction(NS_PER_S, m * tick_ns)
+        if _is_decimal(rate):
+            fits.append(m * tick_ns)
+        above_count = len([p for p in fits if p > period_ns])
+        if m * tick_ns > period_ns and (above_count >= 2 or m * tick_ns > 1000 * period_ns):
+            break
+    below = [p for p in fits if p < period_ns][-2:]
+    above = [p for p in fits if p > period_ns][:2]
+    if not below + above:
+        return (f"no rate in Hz has a period that is a whole number of {format_ns(tick_ns)} "
+                f"ticks; change the tick, e.g. leave tick out to use the gcd of the periods "
+                f"({format_ns(gcd_ns)}).")
+    shown = ", ".join(exact_rate_text(Fraction(NS_PER_S, p)) for p in sorted(below + above))
+    return f"rates whose period is a multiple of the {format_ns(tick_ns)} tick, e.g. {shown} Hz."
+
+
+def _is_decimal(value: Fraction) -> bool:
+    """Whether a fraction can be written exactly as a decimal (denominator 2**a * 5**b)."""
+    d = value.denominator
+    for f in (2, 5):
+        while d % f == 0:
+            d //= f
+    return d == 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import typing
 from typing import Any
 
@@ -59,29 +60,85 @@ def describe_validation_error(exc: ValidationError, raw: Any,
     err = exc.errors()[0]
     loc = tuple(err["loc"])
     key = key_path(loc, raw)
-    more = f" ({exc.error_count() - 1} more error(s) after this one.)" if exc.error_count() > 1 else ""
+    extra = exc.error_count() - 1
+    more = f" ({extra} more error(s) after this one.)" if extra else ""
     kind = err["type"]
     if kind == "extra_forbidden":
         owner = _model_at(model, loc)
-        fields = ", ".join(owner.model_fields) if owner else "see the README"
-        return key, f"unknown key {loc[-1]!r}.{more}", f"keys here are: {fields}."
+        fields = ", ".join(owner.model_fields) if owner else ""
+        accepted = f"keys here are: {fields}." if fields else "no keys here."
+        if owner is None:
+            accepted = "see the scenario reference in the README."
+        return key, f"unknown key {loc[-1]!r}.{more}", accepted
     if kind == "missing":
         return key, f"required key is missing.{more}", _describe_field(model, loc)
     value = err.get("input")
     message = err["msg"].removeprefix("Value error, ")
+    message = re.sub(r" or instance of \w+", "", message).replace("valid dictionary", "mapping")
     shown = repr(value) if not isinstance(value, (dict, list)) else type(value).__name__
     return key, f"{shown} is not valid: {message}.{more}", _describe_field(model, loc)
 
 
 def _describe_field(model: type[BaseModel], loc: tuple) -> str:
-    owner = _model_at(model, loc)
-    name = loc[-1] if loc else None
-    if owner is None or not isinstance(name, str) or name not in owner.model_fields:
+    """What the field at ``loc`` accepts: its description, or its type in words."""
+    name, info, annotation = _field_at(model, loc)
+    if name is None:
         return "see the scenario reference in the README."
-    info = owner.model_fields[name]
-    hint = info.description or _annotation_text(info.annotation)
-    return f"{name}: {hint}."
+    hint = info.description if info is not None and info.description else None
+    return f"{name}: {hint or describe_annotation(annotation)}."
 
 
-def _annotation_text(annotation: Any) -> str:
-    return (getattr(annotation, "__name__", None) or str(annotation)).replace("typing.", "")
+def _field_at(model: type[BaseModel], loc: tuple) -> tuple[str | None, Any, Any]:
+    """(name, FieldInfo or None, annotation) of the value at ``loc``, following lists and models."""
+    current: Any = model
+    name: str | None = None
+    info: Any = None
+    for part in loc:
+        if isinstance(part, int):
+            items = _list_item(current)
+            if items is None:
+                return None, None, None
+            current, info, name = items, None, f"{name}[{part}]" if name else f"[{part}]"
+            continue
+        owner = _inner_model(current)
+        if owner is None or part not in owner.model_fields:
+            return None, None, None
+        info = owner.model_fields[part]
+        current, name = info.annotation, part
+    return name, info, current
+
+
+def _list_item(annotation: Any) -> Any:
+    """The item type of list[X] (also inside X | None), or None."""
+    if typing.get_origin(annotation) is list:
+        return typing.get_args(annotation)[0]
+    for arg in typing.get_args(annotation):
+        if typing.get_origin(arg) is list:
+            return typing.get_args(arg)[0]
+    return None
+
+
+def describe_annotation(annotation: Any) -> str:
+    """A type annotation in words: 'a mapping with keys x, y', 'a list of ...', 'a number'."""
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return describe_annotation(args[0])
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return f"a mapping with keys {', '.join(annotation.model_fields)}"
+    if origin is list:
+        item = args[0] if args else None
+        if isinstance(item, type) and issubclass(item, BaseModel):
+            return f"a list of mappings, each with keys {', '.join(item.model_fields)}"
+        return f"a list of {describe_annotation(item) if item else 'values'}"
+    if origin is dict or annotation is dict:
+        return "a mapping"
+    if origin is typing.Literal:
+        return "one of " + ", ".join(str(a) for a in args)
+    if args and type(None) in args:
+        rest = [a for a in args if a is not type(None)]
+        return " or ".join(describe_annotation(a) for a in rest) + ", or leave it out"
+    if args:
+        return " or ".join(describe_annotation(a) for a in args)
+    words = {bool: "true or false", int: "a whole number", float: "a number", str: "text"}
+    return words.get(annotation, getattr(annotation, "__name__", str(annotation)))
