@@ -36,45 +36,63 @@ class CycleError(ValueError):
 
 
 def find_same_tick_cycle(nodes: list[str], edges: list[Edge]) -> list[str] | None:
-    """A cycle of same_tick edges as [a, b, ..., a], or None (depth-first, deterministic)."""
+    """A cycle of same_tick edges as [a, b, ..., a], or None (depth-first, deterministic).
+
+    Iterative, so a long chain of nodes cannot exhaust Python's recursion limit.
+    """
     succ: dict[str, list[str]] = {n: [] for n in nodes}
     for e in edges:
         if e.mode == SAME_TICK:
+            for end in (e.producer, e.consumer):
+                if end not in succ:
+                    raise ValueError(f"edge {e.producer} -> {e.consumer} ({e.topic}) names "
+                                     f"unknown node {end!r}")
             succ[e.producer].append(e.consumer)
     state: dict[str, int] = {}  # 1 = on the stack, 2 = done
-    stack: list[str] = []
-
-    def visit(n: str) -> list[str] | None:
-        state[n] = 1
-        stack.append(n)
-        for m in sorted(set(succ[n])):
-            if state.get(m) == 1:
+    for root in sorted(succ):
+        if root in state:
+            continue
+        stack: list[str] = [root]
+        todo = [iter(sorted(set(succ[root])))]
+        state[root] = 1
+        while todo:
+            m = next(todo[-1], None)
+            if m is None:
+                state[stack.pop()] = 2
+                todo.pop()
+            elif state.get(m) == 1:
                 return stack[stack.index(m):] + [m]
-            if m not in state and (found := visit(m)):
-                return found
-        stack.pop()
-        state[n] = 2
-        return None
-
-    for n in sorted(nodes):
-        if n not in state and (found := visit(n)):
-            return found
+            elif m not in state:
+                state[m] = 1
+                stack.append(m)
+                todo.append(iter(sorted(set(succ[m]))))
     return None
+
+
+def _is_int(value: object) -> bool:
+    """A true int: time is integer nanoseconds and ticks, never float (and never bool)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 class Schedule:
     """Who acts at each tick, in which order, and which producer tick each input consumes."""
 
     def __init__(self, tick_ns: int, last_tick: int, periods: dict[str, int], edges: list[Edge]):
-        if tick_ns <= 0 or last_tick < 0:
-            raise ValueError("tick_ns must be positive and last_tick non-negative")
+        if not _is_int(tick_ns) or not _is_int(last_tick) or tick_ns <= 0 or last_tick < 0:
+            raise ValueError("tick_ns must be a positive int and last_tick a non-negative int")
         for name, period in periods.items():
-            if not isinstance(period, int) or period <= 0:
+            if not _is_int(period) or period <= 0:
                 raise ValueError(f"period of {name} must be a positive whole number of ticks")
         self.tick_ns = tick_ns
         self.last_tick = last_tick
         self.periods = dict(periods)
         self.edges = list(edges)
+        for e in self.edges:
+            if e.producer not in self.periods or e.consumer not in self.periods:
+                raise ValueError(f"edge {e.producer} -> {e.consumer} ({e.topic}) names a node "
+                                 "that has no period")
+            if e.mode not in (SAME_TICK, DELAYED):
+                raise ValueError(f"edge mode {e.mode!r} is not {SAME_TICK} or {DELAYED}")
         if cycle := find_same_tick_cycle(list(periods), self.edges):
             raise CycleError(cycle)
         self.order = self._topological_order()

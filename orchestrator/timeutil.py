@@ -77,7 +77,7 @@ def exact_rate_text(value: Fraction) -> str:
 
 
 def format_ns(ns: int) -> str:
-    """A short human form of a duration in nanoseconds, exact where possible ('10ms', '1.5s')."""
+    """A duration in ns as text in the largest unit that divides it ('10ms', '1500ms')."""
     for unit in ("s", "ms", "us"):
         scale = _UNITS[unit]
         if ns % scale == 0:
