@@ -1,0 +1,105 @@
+"""cosim-node: run one node of a scenario (spawned by the orchestrator, or on its own)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import yaml
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Command-line options."""
+    p = argparse.ArgumentParser(
+        prog="cosim-node",
+        description="Run one node of a cosim scenario. With --lockstep (the default) it joins "
+                    "an orchestrator's run and acts only when /clock says so.")
+    p.add_argument("kind", help="the node's kind (physics, sensors, control, ...) or 'any'")
+    p.add_argument("--scenario", required=True, type=Path, help="scenario YAML file")
+    p.add_argument("--node", help="which node of the scenario (default: the only one of KIND)")
+    p.add_argument("--lockstep", action="store_true", default=True,
+                   help="join a running orchestrator (default)")
+    p.add_argument("--run-dir", type=Path, help="where to record what this node publishes")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, as the orchestrator does (repeatable)")
+    return p.parse_args(argv)
+
+
+def parse_overrides(pairs: list[str]) -> dict:
+    """['seed=3', 'nodes.a.rate=20'] -> {'seed': 3, 'nodes.a.rate': 20} (values are YAML)."""
+    out = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--set {pair!r}: expected KEY=VALUE")
+        out[key] = yaml.safe_load(value)
+    return out
+
+
+def pick_node(scenario, kind: str, name: str | None) -> str:
+    """The node to run: by name, or the only node of ``kind``."""
+    if name:
+        if name not in scenario.nodes:
+            raise ValueError(f"{scenario.file}: no node named {name!r} "
+                             f"(nodes: {', '.join(scenario.nodes)})")
+        return name
+    matches = [n for n, p in scenario.nodes.items() if p.spec.kind == kind]
+    if len(matches) != 1:
+        raise ValueError(f"{scenario.file}: {len(matches)} nodes of kind {kind!r}; "
+                         f"name one with --node ({', '.join(scenario.nodes)})")
+    return matches[0]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of cosim-node."""
+    from nodes.parent import die_with_parent
+
+    die_with_parent()
+    args = parse_args(argv)
+    from orchestrator.errors import ScenarioError
+    from orchestrator.scenario import load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario, parse_overrides(args.set))
+        name = pick_node(scenario, args.kind, args.node)
+    except (ScenarioError, ValueError) as exc:
+        print(f"cosim-node: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return run_lockstep(scenario, name, args.run_dir)
+
+
+def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
+    """Run node ``name`` under an orchestrator until told to stop."""
+    from nodes.recording import PartWriter
+    from nodes.runtime import LockstepRuntime, NodeFailure, install_stop_handlers
+    from nodes.transport import create_transport
+    from orchestrator.inprocess import make_node
+
+    node = make_node(scenario, name)
+    transport = create_transport(scenario.model.transport, f"cosim_{name}")
+    recorder = PartWriter(run_dir / "parts" / f"{name}.rec") if run_dir else None
+    runtime = LockstepRuntime(scenario, name, node, transport, recorder)
+    install_stop_handlers(runtime)
+    try:
+        runtime.run()
+        return EXIT_OK
+    except NodeFailure as exc:
+        if exc.__cause__ is None:
+            runtime.report_error(-1, exc)
+        print(f"cosim-node {name}: {exc}", file=sys.stderr)
+        if exc.__cause__ is not None:
+            import traceback
+
+            traceback.print_exception(exc.__cause__, file=sys.stderr)
+        return EXIT_FAILED
+    finally:
+        if recorder:
+            recorder.close()
+        transport.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

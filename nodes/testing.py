@@ -40,7 +40,9 @@ class CounterNode(StepNode):
         self.count += 1
         value = self.count * 1000 + tick.index
         for topic in sorted(inputs):
-            value = (value * 31 + inputs[topic].data) % (1 << 62)
+            data = inputs[topic].data
+            data = data if isinstance(data, int) else round(data * 1_000_000)
+            value = (value * 31 + data) % (1 << 62)
         if self.params.noise:
             value += int(self.rng.integers(0, self.params.noise))
         return {self.params.output: Int64(data=value)}

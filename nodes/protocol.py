@@ -1,0 +1,72 @@
+"""The lockstep protocol's own messages, in standard ROS 2 types so ROS tools can watch them.
+
+- ``/clock`` (rosgraph_msgs/Clock): the orchestrator publishes tick ``k``'s time, once per tick.
+- ``/cosim/status`` (diagnostic_msgs/DiagnosticStatus): every node reports on it: while
+  starting (``waiting`` with the unmatched topics, then ``ready``), after each activation
+  (``done`` with the tick, the digest of what it published, step time and metrics), and on
+  failure (``error`` with the exception and a traceback excerpt).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.serialization import deserialize_message, serialize_message
+from rosgraph_msgs.msg import Clock
+
+CLOCK_TOPIC = "/clock"
+STATUS_TOPIC = "/cosim/status"
+NS_PER_S = 1_000_000_000
+
+WAITING, READY, DONE, ERROR = "waiting", "ready", "done", "error"
+_LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,
+          DONE: DiagnosticStatus.OK, ERROR: DiagnosticStatus.ERROR}
+_CDR_HEADER = b"\x00\x01\x00\x00"  # little-endian plain CDR
+
+
+def encode_clock(time_ns: int) -> bytes:
+    """CDR bytes of a rosgraph_msgs/Clock at ``time_ns`` (same bytes as serialize_message)."""
+    return _CDR_HEADER + struct.pack("<iI", time_ns // NS_PER_S, time_ns % NS_PER_S)
+
+
+def decode_clock(data: bytes) -> int:
+    """The time in ns carried by serialised rosgraph_msgs/Clock bytes."""
+    if len(data) == 12 and data[:4] == _CDR_HEADER:
+        sec, nsec = struct.unpack_from("<iI", data, 4)
+    else:
+        msg = deserialize_message(data, Clock)
+        sec, nsec = msg.clock.sec, msg.clock.nanosec
+    return sec * NS_PER_S + nsec
+
+
+@dataclass
+class Status:
+    """One status report of a node."""
+
+    node: str
+    state: str
+    tick: int = -1
+    digest: str = ""
+    detail: str = ""
+    values: dict[str, str] = field(default_factory=dict)
+
+
+def encode_status(status: Status) -> bytes:
+    """Serialise a Status as diagnostic_msgs/DiagnosticStatus."""
+    values = [KeyValue(key="state", value=status.state),
+              KeyValue(key="tick", value=str(status.tick))]
+    values += [KeyValue(key=k, value=v) for k, v in status.values.items()]
+    msg = DiagnosticStatus(level=_LEVEL[status.state], name=status.node, message=status.detail,
+                           hardware_id=status.digest, values=values)
+    return serialize_message(msg)
+
+
+def decode_status(data: bytes) -> Status:
+    """Parse DiagnosticStatus bytes back into a Status."""
+    msg = deserialize_message(data, DiagnosticStatus)
+    values = {kv.key: kv.value for kv in msg.values}
+    state = values.pop("state", ERROR)
+    tick = int(values.pop("tick", "-1"))
+    return Status(msg.name, state, tick, msg.hardware_id, msg.message, values)

@@ -1,0 +1,50 @@
+"""Per-node recording of published messages, written by the node itself off the lockstep path.
+
+Each node appends what it publishes to ``<run dir>/parts/<node>.rec`` and flushes after
+every activation, so a crash keeps everything up to the last finished tick. The
+orchestrator merges the parts into a rosbag2 (MCAP) directory at the end of the run.
+Record: int64 tick, uint16 topic length, uint32 data length, topic, CDR bytes.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+_HEAD = struct.Struct("<qHI")
+
+
+class PartWriter:
+    """Appends (tick, topic, bytes) records to one file."""
+
+    def __init__(self, path: Path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(path, "ab", buffering=1 << 20)  # noqa: SIM115 - closed in close()
+
+    def write(self, tick: int, items: list[tuple[str, bytes]]) -> None:
+        """Append one activation's outputs and flush them to the OS."""
+        for topic, data in items:
+            name = topic.encode()
+            self._file.write(_HEAD.pack(tick, len(name), len(data)))
+            self._file.write(name)
+            self._file.write(data)
+        self._file.flush()
+
+    def close(self) -> None:
+        """Flush and close."""
+        self._file.close()
+
+
+def read_part(path: Path) -> Iterator[tuple[int, str, bytes]]:
+    """Every complete record of a part file; a truncated last record is ignored."""
+    blob = path.read_bytes()
+    pos = 0
+    while pos + _HEAD.size <= len(blob):
+        tick, nlen, dlen = _HEAD.unpack_from(blob, pos)
+        end = pos + _HEAD.size + nlen + dlen
+        if end > len(blob):
+            return
+        topic = blob[pos + _HEAD.size: pos + _HEAD.size + nlen].decode()
+        yield tick, topic, blob[end - dlen: end]
+        pos = end

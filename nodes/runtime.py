@@ -1,0 +1,210 @@
+"""The lockstep node runtime: wraps one step node for a transport.
+
+At each tick the orchestrator publishes on /clock, this runtime waits for exactly the
+input samples the schedule names, calls ``step``, publishes the outputs stamped with the
+tick's time, records them, and reports ``done`` with the digest of what it published.
+Only this module (and the transports) touch the network.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+import traceback
+from collections import deque
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rosgraph_msgs.msg import Clock
+
+from nodes.contract import StepNode, Tick
+from nodes.exchange import InputHistory, output_digest, prepare_outputs
+from nodes.protocol import (
+    CLOCK_TOPIC,
+    DONE,
+    ERROR,
+    READY,
+    STATUS_TOPIC,
+    WAITING,
+    Status,
+    decode_clock,
+    encode_status,
+)
+from nodes.recording import PartWriter
+from nodes.transport import Received, Transport
+
+POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
+STATUS_PERIOD_S = 0.05
+
+
+class NodeFailure(RuntimeError):
+    """The runtime cannot go on (sequence gap, step error); the message says why."""
+
+
+class InputChannel:
+    """One subscribed input: tick bookkeeping by sequence number, and its sample history."""
+
+    def __init__(self, topic: str, graph_topic: str, msg_type: type, producer_period: int):
+        self.topic = topic
+        self.graph_topic = graph_topic
+        self.history = InputHistory(graph_topic, msg_type)
+        self.period = producer_period
+        self.received = 0
+
+    def accept(self, rec: Received) -> None:
+        """Store a sample; the n-th message of the producer is its n-th activation's."""
+        if rec.sequence is not None and rec.sequence != self.received + 1:
+            raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
+                              f"{self.received + 1}, got {rec.sequence} (a message was lost)")
+        self.history.push_bytes(self.received * self.period, rec.data)
+        self.received += 1
+
+
+class LockstepRuntime:
+    """Runs one node of a scenario in lockstep with the orchestrator."""
+
+    def __init__(self, scenario, name: str, node: StepNode, transport: Transport,
+                 recorder: PartWriter | None = None):
+        self.scenario = scenario
+        self.name = name
+        self.plan = scenario.nodes[name]
+        self.sched = scenario.schedule
+        self.node = node
+        self.transport = transport
+        self.recorder = recorder
+        self.stop_requested = False
+        self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
+        self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
+        self.clocks: deque[int] = deque()
+        self._wire()
+
+    def _wire(self) -> None:
+        sched, plan = self.sched, self.plan
+        consumers = {t: 0 for t in plan.outputs}
+        depth = {t: 2 for t in plan.outputs}
+        for edge in sched.edges:
+            if edge.producer == self.name:
+                consumers[edge.topic] += 1
+                depth[edge.topic] = max(depth[edge.topic], sched.history_depth(edge))
+        self.expected_subscribers = consumers
+        self.publishers = {t: self.transport.publisher(t, msg, depth[t])
+                           for t, msg in plan.outputs.items()}
+        self.inputs: dict[str, InputChannel] = {}
+        self.input_subs = {}
+        for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
+            period = sched.periods[inp.producer]
+            self.inputs[inp.graph_topic] = InputChannel(inp.topic, inp.graph_topic,
+                                                        inp.msg_type, period)
+            self.input_subs[inp.graph_topic] = self.transport.subscription(
+                inp.graph_topic, inp.msg_type, sched.history_depth(edge))
+        self.clock_sub = self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
+        self.status_pub = self.transport.publisher(STATUS_TOPIC, DiagnosticStatus, 1000)
+
+    # -- start ---------------------------------------------------------------------------
+
+    def unmatched(self) -> list[str]:
+        """Topics whose discovery is not complete, e.g. '/scan (0/1 subscriptions)'."""
+        out = []
+        for topic, pub in self.publishers.items():
+            if (n := pub.matched()) < self.expected_subscribers[topic]:
+                out.append(f"{topic} ({n}/{self.expected_subscribers[topic]} subscriptions)")
+        for topic, sub in [*self.input_subs.items(), (CLOCK_TOPIC, self.clock_sub)]:
+            if sub.matched() < 1:
+                out.append(f"{topic} (0/1 publishers)")
+        if self.status_pub.matched() < 1:
+            out.append(f"{STATUS_TOPIC} (0/1 subscriptions)")
+        return out
+
+    def wait_for_start(self) -> None:
+        """Report waiting/ready until the first /clock arrives."""
+        last = 0.0
+        while not self.clocks and not self.stop_requested:
+            now = time.monotonic()
+            if now - last >= STATUS_PERIOD_S:
+                missing = self.unmatched()
+                state = WAITING if missing else READY
+                self.report(Status(self.name, state, detail="; ".join(missing)))
+                last = now
+            self.receive(int(STATUS_PERIOD_S * 1e9))
+
+    # -- run -------------------------------------------------------------------------------
+
+    def receive(self, timeout_ns: int) -> None:
+        """Take everything the transport has within the timeout and file it."""
+        for rec in self.transport.wait(timeout_ns):
+            if rec.topic == CLOCK_TOPIC:
+                self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
+            else:
+                self.inputs[rec.topic].accept(rec)
+
+    def run(self) -> None:
+        """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""
+        self.wait_for_start()
+        while not self.stop_requested:
+            while self.clocks and self.try_tick(self.clocks[0]):
+                self.clocks.popleft()
+            if self.stop_requested:
+                break
+            self.receive(POLL_NS)
+            if self.parent_pid and os.getppid() != self.parent_pid:
+                raise NodeFailure("the orchestrator went away; stopping")
+
+    def try_tick(self, k: int) -> bool:
+        """Act at tick ``k`` if due and its inputs are all here; True when the tick is served."""
+        if not self.sched.is_due(self.name, k):
+            return True
+        wanted = {}
+        for edge, inp in zip(self.sched.inputs_of[self.name], self.plan.inputs, strict=True):
+            r = self.sched.input_tick(edge, k)
+            if r is not None:
+                if not self.inputs[inp.graph_topic].history.has(r):
+                    return False
+                wanted[inp.topic] = (inp.graph_topic, r)
+        inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
+        self.activate(Tick(k, self.sched.time_ns(k)), inputs)
+        return True
+
+    def activate(self, tick: Tick, inputs: dict) -> None:
+        """Step, publish, record and report one activation."""
+        if self.step_delay_s:
+            time.sleep(self.step_delay_s)  # test-only slowdown; must not change any output
+        start = time.perf_counter_ns()
+        try:
+            outputs = self.node.step(tick, inputs)
+            items = prepare_outputs(self.name, self.plan.declared_outputs,
+                                    self.plan.output_names, tick, outputs)
+        except Exception as exc:
+            self.report_error(tick.index, exc)
+            raise NodeFailure(f"step failed at tick {tick.index}") from exc
+        step_ns = time.perf_counter_ns() - start
+        for topic, data in items:
+            self.publishers[topic].publish(data)
+        if self.recorder:
+            self.recorder.write(tick.index, items)
+        values = {"step_ns": str(step_ns)}
+        values.update({f"metric.{k}": repr(float(v)) for k, v in self.node.metrics().items()})
+        self.report(Status(self.name, DONE, tick.index, output_digest(tick.index, items).hex(),
+                           values=values))
+
+    def report(self, status: Status) -> None:
+        """Publish a status message."""
+        self.status_pub.publish(encode_status(status))
+
+    def report_error(self, tick: int, exc: BaseException) -> None:
+        """Report an exception with a traceback excerpt, and make sure it is delivered."""
+        excerpt = "".join(traceback.format_exception(exc)[-6:])
+        detail = f"{type(exc).__name__}: {exc}\n{excerpt}"
+        self.report(Status(self.name, ERROR, tick, detail=detail))
+        flush = getattr(self.status_pub, "flush", None)
+        if flush:
+            flush(2.0)
+
+    def request_stop(self, *_args) -> None:
+        """Signal handler: finish the current wait and leave the loop."""
+        self.stop_requested = True
+
+
+def install_stop_handlers(runtime: LockstepRuntime) -> None:
+    """SIGINT and SIGTERM end the run loop cleanly (exit code 0, no traceback)."""
+    signal.signal(signal.SIGINT, runtime.request_stop)
+    signal.signal(signal.SIGTERM, runtime.request_stop)

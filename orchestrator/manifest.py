@@ -1,0 +1,67 @@
+"""manifest.json: what ran, with which software, what came out, and what it cost."""
+
+from __future__ import annotations
+
+import json
+import platform
+from importlib import metadata
+from typing import Any
+
+
+def software_versions() -> dict[str, str]:
+    """Versions of python and the packages a result depends on."""
+    out = {"python": platform.python_version()}
+    for name, dist in (("mujoco", "mujoco"), ("rclpy", "ros-jazzy-rclpy"),
+                       ("zenoh", "eclipse-zenoh"), ("cosim", "cosim")):
+        try:
+            out[name] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def node_entry(stats, proc) -> dict[str, Any]:
+    """Per-node cost: CPU, peak memory, ticks served, mean and worst step time."""
+    entry: dict[str, Any] = {"ticks": stats.ticks}
+    if stats.ticks:
+        entry["step_ms_mean"] = round(stats.step_ns_total / stats.ticks / 1e6, 4)
+        entry["step_ms_worst"] = round(stats.step_ns_worst / 1e6, 4)
+    if stats.ready_s is not None:
+        entry["ready_s"] = round(stats.ready_s, 3)
+    if proc is not None:
+        entry.update(pid=proc.popen.pid, exit=proc.exit_text(), cpu_s=round(proc.cpu_s, 3),
+                     peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
+    return entry
+
+
+def build_manifest(scenario, outcome, options) -> dict[str, Any]:
+    """The manifest as a dict."""
+    result = outcome.result
+    ticks = result.ticks if result else 0
+    sim_s = max(ticks - 1, 0) * scenario.tick_ns / 1e9
+    metrics = {k: v for m in (result.metrics.values() if result else []) for k, v in m.items()}
+    return {
+        "scenario": {"name": scenario.name, "file": str(scenario.file),
+                     "sha256": scenario.sha256, "overrides": scenario.overrides},
+        "seed": scenario.model.seed,
+        "transport": "in-process" if options.in_process else scenario.model.transport,
+        "versions": software_versions(),
+        "digest": result.digest if result else None,
+        "outcome": {"status": outcome.status, "success": outcome.success,
+                    "collisions": outcome.collisions, "error": outcome.error,
+                    "metrics": metrics, "stopped_early": bool(result and result.stopped_early)},
+        "ticks": ticks,
+        "tick_ns": scenario.tick_ns,
+        "sim_time_s": sim_s,
+        "wall_time_s": round(outcome.wall_s, 3),
+        "start_s": round(outcome.start_s, 3) if outcome.start_s is not None else None,
+        "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,
+        "nodes": {name: node_entry(stats, proc)
+                  for name, (stats, proc) in outcome.node_stats.items()},
+    }
+
+
+def write_manifest(scenario, outcome, options) -> None:
+    """Write manifest.json into the run directory."""
+    manifest = build_manifest(scenario, outcome, options)
+    (outcome.run_dir / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")

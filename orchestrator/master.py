@@ -1,0 +1,218 @@
+"""The lockstep master: one /clock per tick, advance when every due node reports done.
+
+It only talks to the transport and asks the supervisor whether processes are alive;
+spawning and shutdown live in ``orchestrator.supervisor`` (after mosaik's split between
+the scheduler and the simulator manager).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rosgraph_msgs.msg import Clock
+
+from nodes.exchange import RunDigest
+from nodes.protocol import (
+    CLOCK_TOPIC,
+    DONE,
+    ERROR,
+    READY,
+    STATUS_TOPIC,
+    Status,
+    decode_status,
+    encode_clock,
+)
+from nodes.transport import Transport
+from orchestrator.errors import SimulationError
+from orchestrator.inprocess import RunResult, goal_reached
+from orchestrator.scenario import Scenario
+from orchestrator.supervisor import Supervisor
+
+LIVENESS_PERIOD_S = 0.1
+WAIT_SLICE_NS = 50_000_000
+
+
+@dataclass
+class NodeStats:
+    """What the master learns about a node from its reports."""
+
+    ticks: int = 0
+    step_ns_total: int = 0
+    step_ns_worst: int = 0
+    ready_s: float | None = None
+    metrics: dict[str, float] = field(default_factory=dict)
+
+    def add(self, status: Status) -> None:
+        """Account one 'done' report."""
+        self.ticks += 1
+        step = int(status.values.get("step_ns", "0"))
+        self.step_ns_total += step
+        self.step_ns_worst = max(self.step_ns_worst, step)
+        for key, value in status.values.items():
+            if key.startswith("metric."):
+                self.metrics[key[7:]] = float(value)
+
+
+class LockstepMaster:
+    """Drives a scenario's ticks over a transport, watching the supervisor's processes."""
+
+    def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
+                 on_tick: Callable[[int], None] | None = None):
+        self.scenario = scenario
+        self.sched = scenario.schedule
+        self.transport = transport
+        self.supervisor = supervisor
+        self.on_tick = on_tick
+        self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 1000)
+        self.status_sub = transport.subscription(STATUS_TOPIC, DiagnosticStatus, 10_000)
+        self.stats = {name: NodeStats() for name in scenario.nodes}
+        self.last_status: dict[str, Status] = {}
+        self.tick = -1
+        self.waiting_for: set[str] = set()
+        self._next_liveness = 0.0
+
+    # -- start ---------------------------------------------------------------------------
+
+    def wait_ready(self, started_at: float) -> None:
+        """Wait until every node is ready and matched; name who is not at the deadline."""
+        deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
+        names = set(self.scenario.nodes)
+        ready: set[str] = set()
+        while True:
+            for status in self._statuses():
+                if status.state == READY and status.node in names:
+                    if status.node not in ready:
+                        self.stats[status.node].ready_s = time.monotonic() - started_at
+                    ready.add(status.node)
+                elif status.state == ERROR:
+                    self._raise_node_error(status, "start")
+            self._check_processes("start")
+            if ready == names and self.clock_pub.matched() >= len(names):
+                return
+            if time.monotonic() > deadline:
+                raise SimulationError(self._start_timeout_text(names - ready))
+
+    def _start_timeout_text(self, missing: set[str]) -> str:
+        parts = []
+        for name in sorted(missing):
+            status = self.last_status.get(name)
+            proc = self.supervisor.procs.get(name)
+            alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
+            what = (f"still waiting for discovery of {status.detail}" if status and status.detail
+                    else "never reported on " + STATUS_TOPIC)
+            parts.append(f"node {name} ({alive}) {what}")
+        if not parts:
+            parts.append(f"/clock has {self.clock_pub.matched()} of "
+                         f"{len(self.scenario.nodes)} subscriptions")
+        limit = self.scenario.model.deadlines.start / 1e9
+        return f"start deadline of {limit:g} s expired: " + "; ".join(parts) + "."
+
+    # -- ticks -------------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        """Run every tick; stop early when the goal is reached (if the scenario says so)."""
+        digest = RunDigest()
+        stop_on_goal = self.scenario.model.success.stop_on_goal and self.scenario.model.goal
+        tick_limit_s = self.scenario.model.deadlines.tick / 1e9
+        for k in range(self.sched.n_ticks):
+            self.tick = k
+            due = self.sched.due(k)
+            self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
+            digests = self._collect(k, set(due), time.monotonic() + tick_limit_s)
+            for name in due:
+                digest.add(k, name, bytes.fromhex(digests[name]))
+            if self.on_tick:
+                self.on_tick(k)
+            if stop_on_goal and goal_reached(self.metrics()):
+                return RunResult(digest.hexdigest(), k + 1, self.metrics(), stopped_early=True)
+        return RunResult(digest.hexdigest(), self.sched.n_ticks, self.metrics())
+
+    def metrics(self) -> dict[str, dict[str, float]]:
+        """The latest metrics each node reported."""
+        return {name: dict(s.metrics) for name, s in self.stats.items()}
+
+    def _collect(self, k: int, pending: set[str], deadline: float) -> dict[str, str]:
+        digests: dict[str, str] = {}
+        self.waiting_for = pending
+        while pending:
+            for status in self._statuses():
+                if status.state == DONE and status.tick == k and status.node in pending:
+                    pending.discard(status.node)
+                    digests[status.node] = status.digest
+                    self.stats[status.node].add(status)
+                elif status.state == ERROR:
+                    self._raise_node_error(status, f"tick {k}")
+            if pending:
+                self._check_processes(f"tick {k}")
+                if time.monotonic() > deadline:
+                    raise SimulationError(self._late_text(k, pending), node=min(pending), tick=k)
+        return digests
+
+    def _late_text(self, k: int, pending: set[str]) -> str:
+        limit = self.scenario.model.deadlines.tick / 1e9
+        parts = []
+        for name in sorted(pending):
+            proc = self.supervisor.procs.get(name)
+            if proc is None:
+                state = "external process"
+            elif proc.popen.poll() is None:
+                state = f"process alive (pid {proc.popen.pid}, {_proc_state(proc)})"
+            else:
+                state = f"process gone ({proc.exit_text()})"
+            plan = self.scenario.nodes[name]
+            needs = [f"{i.graph_topic} of tick {self.sched.input_tick(e, k)}"
+                     for e, i in zip(self.sched.inputs_of[name], plan.inputs, strict=True)
+                     if self.sched.input_tick(e, k) is not None]
+            waiting = f"; it needs {', '.join(needs)}" if needs else "; it needs no input"
+            parts.append(f"node {name} did not finish tick {k} within the {limit:g} s tick "
+                         f"deadline: {state}{waiting}")
+        return "; ".join(parts) + ". Raise deadlines.tick in the scenario if it is just slow."
+
+    # -- shared ------------------------------------------------------------------------------
+
+    def _statuses(self) -> list[Status]:
+        out = []
+        for rec in self.transport.wait(WAIT_SLICE_NS):
+            if rec.topic == STATUS_TOPIC:
+                status = decode_status(rec.data)
+                self.last_status[status.node] = status
+                out.append(status)
+        return out
+
+    def _check_processes(self, when: str) -> None:
+        now = time.monotonic()
+        if now < self._next_liveness:
+            return
+        self._next_liveness = now + LIVENESS_PERIOD_S
+        self.supervisor.sample()
+        for proc in self.supervisor.dead():
+            if proc.name in self.scenario.nodes:
+                self._drain_errors(proc.name)
+                raise SimulationError(
+                    f"node {proc.name} died at {when} ({proc.exit_text()}). "
+                    f"Last lines of its log ({proc.log_path}):\n{proc.log_tail()}",
+                    node=proc.name, tick=max(self.tick, 0))
+
+    def _drain_errors(self, name: str) -> None:
+        """A node that reported an error before dying: report that error instead."""
+        for status in self._statuses():
+            if status.state == ERROR:
+                self._raise_node_error(status, f"tick {status.tick}")
+        last = self.last_status.get(name)
+        if last and last.state == ERROR:
+            self._raise_node_error(last, f"tick {last.tick}")
+
+    def _raise_node_error(self, status: Status, when: str) -> None:
+        where = f"tick {status.tick}" if status.tick >= 0 else when
+        raise SimulationError(f"node {status.node} failed at {where}: {status.detail.rstrip()}",
+                              node=status.node, tick=status.tick)
+
+
+def _proc_state(proc) -> str:
+    try:
+        return f"state {proc.ps.status()}"
+    except Exception:  # noqa: BLE001 - best effort description
+        return "state unknown"

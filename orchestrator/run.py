@@ -1,0 +1,139 @@
+"""One run of a scenario, multi-process or in-process, from spawn to manifest.
+
+Process management (``supervisor``) and the tick loop (``master``) are separate; this
+module wires them together, keeps what was recorded whatever happens, and writes the
+manifest.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from nodes.recording import PartWriter
+from nodes.transport import create_transport
+from orchestrator.errors import SimulationError
+from orchestrator.inprocess import RunResult, run_in_process
+from orchestrator.manifest import write_manifest
+from orchestrator.master import LockstepMaster
+from orchestrator.rundir import make_run_dir
+from orchestrator.scenario import Scenario
+from orchestrator.supervisor import Supervisor, node_argv
+
+log = logging.getLogger("cosim")
+
+
+@dataclass
+class RunOptions:
+    """How to run: in-process or not, where outputs go, test-only start-order shuffling."""
+
+    out: Path = Path("runs")
+    in_process: bool = False
+    shuffle_start: int | None = None
+    on_tick: object = None
+
+
+@dataclass
+class RunOutcome:
+    """What the caller gets back: status, digest, metrics, where the outputs are."""
+
+    status: str  # success | goal_not_met | failed | interrupted
+    run_dir: Path
+    result: RunResult | None = None
+    error: str | None = None
+    wall_s: float = 0.0
+    start_s: float | None = None
+    success: bool = False
+    collisions: int = 0
+    node_stats: dict = field(default_factory=dict)
+
+    @property
+    def digest(self) -> str | None:
+        """The run digest, when the run finished."""
+        return self.result.digest if self.result else None
+
+
+def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
+    """Run a checked scenario, write its run directory and manifest, return the outcome."""
+    run_dir = make_run_dir(options.out, scenario.name)
+    handler = _log_to(run_dir / "logs" / "orchestrator.log")
+    started = time.monotonic()
+    outcome = RunOutcome("failed", run_dir)
+    try:
+        if options.in_process:
+            outcome.result = _in_process(scenario, run_dir)
+        else:
+            outcome.result = _multi_process(scenario, run_dir, options, outcome, started)
+        _judge(scenario, outcome)
+    except SimulationError as exc:
+        outcome.status, outcome.error = "failed", str(exc)
+        log.error("%s", exc)
+    except KeyboardInterrupt:
+        outcome.status, outcome.error = "interrupted", "interrupted by signal"
+        log.warning("interrupted")
+    finally:
+        outcome.wall_s = time.monotonic() - started
+        write_manifest(scenario, outcome, options)
+        logging.getLogger().removeHandler(handler)
+        handler.close()
+    return outcome
+
+
+def _in_process(scenario: Scenario, run_dir: Path) -> RunResult:
+    writers = {name: PartWriter(run_dir / "parts" / f"{name}.rec") for name in scenario.nodes}
+    try:
+        return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items))
+    finally:
+        for writer in writers.values():
+            writer.close()
+
+
+def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
+                   outcome: RunOutcome, started: float) -> RunResult:
+    supervisor = Supervisor(run_dir / "logs")
+    transport = create_transport(scenario.model.transport, "cosim_orchestrator")
+    master = LockstepMaster(scenario, transport, supervisor, options.on_tick)
+    try:
+        order = list(scenario.nodes)
+        if options.shuffle_start is not None:
+            random.Random(options.shuffle_start).shuffle(order)
+        for name in order:
+            plan = scenario.nodes[name]
+            argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
+                             scenario.overrides)
+            supervisor.spawn(name, argv)
+        log.info("spawned %s", ", ".join(order))
+        master.wait_ready(started)
+        outcome.start_s = time.monotonic() - started
+        log.info("all nodes ready after %.3f s", outcome.start_s)
+        return master.run()
+    finally:
+        outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
+                              for name in scenario.nodes}
+        supervisor.shutdown()
+        transport.close()
+
+
+def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
+    metrics = outcome.result.metrics
+    collisions = int(sum(m.get("collisions", 0) for m in metrics.values()))
+    reached = any(m.get("goal_reached", 0) >= 1 for m in metrics.values())
+    spec = scenario.model.success
+    ok = collisions <= spec.max_collisions
+    if spec.reach_goal and scenario.model.goal is not None:
+        ok = ok and reached
+    outcome.collisions, outcome.success = collisions, ok
+    outcome.status = "success" if ok else "goal_not_met"
+
+
+def _log_to(path: Path) -> logging.Handler:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.INFO)
+    return handler

@@ -1,0 +1,160 @@
+"""Process supervision: spawn node processes, notice deaths, and shut whole trees down.
+
+Shutdown escalates like ros2 launch: SIGINT, then SIGTERM, then SIGKILL, each after a
+timeout, applied to every process of each node's tree (found with psutil).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import psutil
+
+from nodes.parent import PR_SET_PDEATHSIG
+
+SIGINT_TIMEOUT_S = 3.0
+SIGTERM_TIMEOUT_S = 2.0
+
+
+def _arm_parent_death() -> None:  # runs in the child between fork and exec
+    import ctypes
+
+    ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
+@dataclass
+class NodeProcess:
+    """A spawned node: its process, log file and the psutil handle for CPU and memory."""
+
+    name: str
+    popen: subprocess.Popen
+    log_path: Path
+    ps: psutil.Process | None = None
+    peak_rss: int = 0
+    cpu_s: float = 0.0
+    tree: set[int] = field(default_factory=set)
+
+    def exit_text(self) -> str:
+        """'exit code 3' or 'killed by signal SIGKILL'."""
+        code = self.popen.returncode
+        if code is None:
+            return "still running"
+        if code < 0:
+            return f"killed by signal {signal.Signals(-code).name}"
+        return f"exit code {code}"
+
+    def log_tail(self, lines: int = 15) -> str:
+        """The last lines of the node's log."""
+        try:
+            text = self.log_path.read_text(errors="replace").splitlines()
+        except OSError:
+            return "(no log)"
+        return "\n".join(text[-lines:]) or "(log is empty)"
+
+    def sample(self) -> None:
+        """Update CPU time and peak memory (best effort; the process may be gone)."""
+        try:
+            procs = [self.ps, *self.ps.children(recursive=True)] if self.ps else []
+            self.tree.update(p.pid for p in procs)
+            rss = sum(p.memory_info().rss for p in procs)
+            cpu = sum(sum(p.cpu_times()[:2]) for p in procs)
+            self.peak_rss = max(self.peak_rss, rss)
+            self.cpu_s = max(self.cpu_s, cpu)
+        except (psutil.Error, OSError):
+            pass
+
+
+class Supervisor:
+    """Starts node processes and stops them all, whatever happens."""
+
+    def __init__(self, log_dir: Path):
+        self.log_dir = log_dir
+        self.procs: dict[str, NodeProcess] = {}
+
+    def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> NodeProcess:
+        """Start one node, its output going to ``<log dir>/<name>.log``."""
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        log_path = self.log_dir / f"{name}.log"
+        full_env = dict(os.environ if env is None else env)
+        full_env["COSIM_PARENT_PID"] = str(os.getpid())
+        full_env.setdefault("PYTHONUNBUFFERED", "1")
+        with open(log_path, "ab") as log:
+            popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, env=full_env,
+                                     start_new_session=True, preexec_fn=_arm_parent_death)
+        proc = NodeProcess(name, popen, log_path)
+        try:
+            proc.ps = psutil.Process(popen.pid)
+        except psutil.Error:
+            proc.ps = None
+        self.procs[name] = proc
+        return proc
+
+    def dead(self) -> list[NodeProcess]:
+        """Nodes whose process has exited."""
+        return [p for p in self.procs.values() if p.popen.poll() is not None]
+
+    def sample(self) -> None:
+        """Sample CPU and memory of every live node."""
+        for proc in self.procs.values():
+            if proc.popen.poll() is None:
+                proc.sample()
+
+    def shutdown(self) -> None:
+        """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL."""
+        self.sample()
+        trees = {name: self._tree(p) for name, p in self.procs.items()}
+        pending = [ps for tree in trees.values() for ps in tree]
+        for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),
+                             (signal.SIGTERM, SIGTERM_TIMEOUT_S), (signal.SIGKILL, 5.0)):
+            pending = [ps for ps in pending if _alive(ps)]
+            if not pending:
+                break
+            for ps in pending:
+                try:
+                    ps.send_signal(sig)
+                except psutil.Error:
+                    pass
+            _, pending = psutil.wait_procs(pending, timeout=timeout)
+        for proc in self.procs.values():
+            try:
+                proc.popen.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                pass
+
+    def _tree(self, proc: NodeProcess) -> list[psutil.Process]:
+        procs = []
+        for pid in sorted(proc.tree | {proc.popen.pid}):
+            try:
+                ps = psutil.Process(pid)
+                procs.append(ps)
+                procs.extend(ps.children(recursive=True))
+            except psutil.Error:
+                continue
+        return list({p.pid: p for p in procs}.values())
+
+
+def _alive(ps: psutil.Process) -> bool:
+    try:
+        return ps.is_running() and ps.status() != psutil.STATUS_ZOMBIE
+    except psutil.Error:
+        return False
+
+
+def node_argv(scenario_file: Path, kind: str, name: str, run_dir: Path | None,
+              overrides: dict) -> list[str]:
+    """The command line that runs node ``name`` under this orchestrator."""
+    import json
+
+    argv = [sys.executable, "-m", "nodes.cli", kind, "--scenario", str(scenario_file),
+            "--node", name]
+    if run_dir is not None:
+        argv += ["--run-dir", str(run_dir)]
+    for key, value in overrides.items():
+        argv += ["--set", f"{key}={json.dumps(value)}"]
+    return argv
