@@ -1,0 +1,106 @@
+"""An RGB-D camera rendered headless with mujoco.Renderer (EGL; see nodes/sensors/__init__.py).
+
+Colour is rgb8, depth is 32FC1 in metres. MuJoCo's Renderer already returns linear z-depth
+(distance along the optical axis, not along the ray), which is what REP-118 depth images
+hold; pixels with nothing within ``max_depth`` read +inf. Both images share one optical
+frame (REP-103: z forward, x right, y down), default ``camera_color_optical_frame``.
+Intrinsics follow from the MuJoCo camera's vertical field of view with square pixels:
+fx = fy = (h/2) / tan(fovy/2), and the principal point is the image centre in OpenCV pixel
+coordinates (pixel centres at integers): cx = (w-1)/2, cy = (h-1)/2.
+Shadows, reflections and the skybox are switched off to keep software rendering cheap.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from sensor_msgs.msg import CameraInfo, Image
+
+from nodes.physics.world import named_id
+from nodes.sensors.mirror import WorldMirror, group_mask
+
+COLOR_TOPIC = "/camera/color/image_raw"
+DEPTH_TOPIC = "/camera/depth/image_rect"
+INFO_TOPIC = "/camera/camera_info"
+
+
+class CameraParams(BaseModel):
+    """Which MJCF camera to render, the image size, depth range and visible geom groups."""
+
+    model_config = ConfigDict(extra="forbid")
+    camera: str = "rgbd"
+    frame_id: str = "camera_color_optical_frame"
+    width: int = Field(160, ge=8, le=640)
+    height: int = Field(120, ge=8, le=480)
+    depth: bool = True
+    max_depth: float = Field(10.0, gt=0)
+    geom_groups: list[int] = [0, 1, 2]
+
+
+def intrinsics(width: int, height: int, fovy_deg: float) -> tuple[float, float, float]:
+    """(f, cx, cy) of a pinhole with square pixels and vertical field of view ``fovy_deg``."""
+    f = (height / 2) / math.tan(math.radians(fovy_deg) / 2)
+    return f, (width - 1) / 2, (height - 1) / 2
+
+
+class RgbdCamera:
+    """Renders colour and depth images of the mirrored world and their CameraInfo."""
+
+    def __init__(self, mirror: WorldMirror, params: CameraParams):
+        self.mirror = mirror
+        self.params = params
+        model = mirror.model
+        self.cam = named_id(model, mujoco.mjtObj.mjOBJ_CAMERA, params.camera)
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, params.width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, params.height)
+        self.renderer = mujoco.Renderer(model, params.height, params.width)
+        for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
+                     mujoco.mjtRndFlag.mjRND_SKYBOX):
+            self.renderer.scene.flags[flag] = 0
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[:] = group_mask(params.geom_groups)
+        self.info = self._camera_info(float(model.cam_fovy[self.cam]))
+
+    def _camera_info(self, fovy: float) -> CameraInfo:
+        p = self.params
+        f, cx, cy = intrinsics(p.width, p.height, fovy)
+        info = CameraInfo()
+        info.header.frame_id = p.frame_id
+        info.width, info.height = p.width, p.height
+        info.distortion_model = "plumb_bob"
+        info.d = [0.0] * 5
+        info.k = [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0]
+        info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        info.p = [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+        return info
+
+    def render(self) -> tuple[Image, Image | None, CameraInfo]:
+        """(colour, depth or None, camera info) of the mirrored world now."""
+        r = self.renderer
+        r.update_scene(self.mirror.data, camera=self.cam, scene_option=self.option)
+        rgb = r.render()
+        depth_msg = None
+        if self.params.depth:
+            r.enable_depth_rendering()
+            depth = r.render()
+            r.disable_depth_rendering()
+            depth = np.where(depth < self.params.max_depth, depth, np.inf).astype(np.float32)
+            depth_msg = self._image(depth, "32FC1", 4)
+        return self._image(rgb, "rgb8", 3), depth_msg, self.info
+
+    def _image(self, pixels: np.ndarray, encoding: str, bytes_per_pixel: int) -> Image:
+        msg = Image()
+        msg.header.frame_id = self.params.frame_id
+        msg.height, msg.width = pixels.shape[:2]
+        msg.encoding = encoding
+        msg.is_bigendian = 0
+        msg.step = msg.width * bytes_per_pixel
+        msg.data = np.ascontiguousarray(pixels).tobytes()
+        return msg
+
+    def close(self) -> None:
+        """Release the GL context."""
+        self.renderer.close()

@@ -1,0 +1,40 @@
+"""A kinematic mirror of the physics world: same MJCF, positions copied from /cosim/world_state."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from std_msgs.msg import Float64MultiArray
+
+from nodes.physics.world import load_model
+
+
+class WorldMirror:
+    """Loads the world and poses it from the physics node's qpos (no dynamics run here)."""
+
+    def __init__(self, world: Path | str):
+        self.world = world
+        self.model = load_model(world)
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, self.data)
+
+    def update(self, msg: Float64MultiArray) -> None:
+        """Copy qpos out of a world-state message, then recompute frames (kinematics only)."""
+        nq = self.model.nq
+        dims = msg.layout.dim
+        if not dims or dims[0].label != "qpos" or dims[0].size != nq or len(msg.data) < nq:
+            got = (dims[0].label, dims[0].size) if dims else (None, len(msg.data))
+            raise ValueError(f"/cosim/world_state does not match world {self.world}: expected "
+                             f"qpos of size {nq} first, got {got}")
+        self.data.qpos[:] = np.frombuffer(msg.data, dtype=np.float64, count=nq)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_camlight(self.model, self.data)
+
+
+def group_mask(groups: list[int]) -> np.ndarray:
+    """The 6-entry geom group mask mj_ray/mjvOption take, with ``groups`` enabled."""
+    mask = np.zeros(6, dtype=np.uint8)
+    mask[list(groups)] = 1
+    return mask
