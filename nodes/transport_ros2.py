@@ -8,11 +8,24 @@ bytes straight from the subscription handles (measured: about 8x faster than
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from nodes.transport import Publisher, Received, Subscription, Transport
+
+
+PROFILE = Path(__file__).with_name("fastdds_profile.xml")
+
+
+def use_cosim_dds_profile() -> None:
+    """Use cosim's fast-discovery Fast DDS profile unless the user chose one."""
+    if not (os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE")
+            or os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE")):
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(PROFILE)
 
 
 def reliable_qos(depth: int) -> QoSProfile:
@@ -60,6 +73,7 @@ class Ros2Transport(Transport):
     """One rclpy context and node per participant; the domain comes from ROS_DOMAIN_ID."""
 
     def __init__(self, participant: str):
+        use_cosim_dds_profile()
         self._context = rclpy.Context()
         rclpy.init(context=self._context, signal_handler_options=_no_signal_handlers())
         self.node = rclpy.create_node(participant, context=self._context,
