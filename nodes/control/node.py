@@ -1,0 +1,264 @@
+"""The control node: a small Nav2-style navigator over ground-truth odometry and a 2D scan.
+
+- Global planner: A* over an occupancy grid of the world's static geometry (the MJCF file
+  the physics node loads), with a lethal radius around obstacles and a cost that decays
+  with distance, so paths keep to the middle of free space. Recoveries add what the scan
+  saw to the map before replanning.
+- Local planner: regulated pure pursuit (rotate in place towards the path when facing
+  away; slow down on sharp curvature, near the goal, and before scan points on the arc).
+- Goal checker: position tolerance, then turn in place to the goal heading; once reached
+  the goal stays reached and the node publishes zero velocity for the rest of the run.
+- Progress checker and recovery: if the robot moves less than ``progress_distance`` within
+  ``progress_window`` seconds it backs up (when the scan behind is clear) and replans.
+
+Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped,
+replaces the goal while it is not yet reached). Outputs: /cmd_vel, /plan (frame odom).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Path
+from pydantic import BaseModel, ConfigDict, Field
+
+from nodes.contract import StepNode, Tick
+from nodes.control import follow as f
+from nodes.control.plan import Planner, path_message
+from nodes.physics.world import body_id, load_model, named_id
+
+NS = 1_000_000_000
+
+
+class ControlParams(BaseModel):
+    """Navigator settings; one block for every world (nothing here is tuned per world)."""
+
+    model_config = ConfigDict(extra="forbid")
+    base_body: str = "base_link"
+    laser_site: str = "laser"
+    frame_id: str = "odom"
+    robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
+    safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
+    resolution: float = Field(0.05, gt=0, description="m per map cell")
+    lethal_distance: float = Field(0.30, gt=0, description="m, plan never closer to obstacles")
+    cost_distance: float = Field(0.8, gt=0, description="m, extra cost closer than this")
+    cost_weight: float = Field(6.0, ge=0)
+    max_speed: float = Field(0.5, gt=0, description="m/s")
+    min_speed: float = Field(0.06, gt=0, description="m/s while approaching the goal")
+    max_turn: float = Field(1.5, gt=0, description="rad/s")
+    lookahead: float = Field(0.6, gt=0, description="m")
+    min_turn_radius: float = Field(0.7, gt=0, description="m, slower on sharper curves")
+    rotate_threshold: float = Field(0.9, gt=0, description="rad, turn in place beyond this")
+    turn_gain: float = Field(2.0, gt=0)
+    approach_gain: float = Field(0.8, gt=0, description="v <= gain * distance to goal")
+    stop_time: float = Field(0.8, gt=0, description="s, v <= free arc length / stop_time")
+    horizon: float = Field(1.0, gt=0, description="m of arc checked against the scan")
+    progress_window: float = Field(8.0, gt=0, description="s")
+    progress_distance: float = Field(0.2, gt=0, description="m")
+    backup_distance: float = Field(0.3, ge=0, description="m")
+    backup_speed: float = Field(0.15, gt=0, description="m/s")
+
+
+class ControlNode(StepNode):
+    """Global A* plan, regulated pure pursuit, goal checking and recovery."""
+
+    Params = ControlParams
+    needs_world = True
+
+    @classmethod
+    def outputs(cls, params: ControlParams) -> dict[str, type]:
+        """Velocity command and the current global plan."""
+        return {"/cmd_vel": Twist, "/plan": Path}
+
+    @classmethod
+    def accepted_inputs(cls, params: ControlParams) -> set[str]:
+        """Odometry, the scan and an optional goal."""
+        return {"/odom", "/scan", "/goal_pose"}
+
+    def setup(self) -> None:
+        """Build the map, read the laser mount from the world and take the scenario goal."""
+        p = self.params
+        model = load_model(self.config.world)
+        self.laser = _laser_mount(model, p.base_body, p.laser_site)
+        self.planner = Planner(model, p)
+        g = self.config.goal
+        if g is None:
+            raise ValueError("the control node needs the scenario's goal (x, y, yaw, ...)")
+        self.goal = (float(g["x"]), float(g["y"]), float(g.get("yaw", 0.0)))
+        self.pos_tol = float(g.get("position_tolerance", 0.25))
+        self.yaw_tol = float(g.get("yaw_tolerance", 3.2))
+        self.path: np.ndarray | None = None
+        self.plan_msg = Path()
+        self.plan_msg.header.frame_id = p.frame_id
+        self.index = 0
+        self.turning = False
+        self.xy_reached = False
+        self.reached_ns: int | None = None
+        self.recovery: dict[str, Any] | None = None
+        self.checkpoint: tuple[float, float, int] | None = None
+        self.last_xy: tuple[float, float] | None = None
+        self.path_length = 0.0
+        self.min_clearance = math.inf
+        self.points = np.zeros((0, 2))
+        self.recoveries = 0
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """One control cycle: read odom and scan, then decide the velocity command."""
+        odom = inputs.get("/odom")
+        if odom is None:
+            raise ValueError("the control node needs /odom at every activation (same_tick)")
+        pose = _pose(odom)
+        self._account(pose, inputs.get("/scan"))
+        self._maybe_new_goal(inputs.get("/goal_pose"), pose)
+        v, w = self._decide(tick, pose)
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = float(v), float(w)
+        return {"/cmd_vel": cmd, "/plan": self.plan_msg}
+
+    # -- bookkeeping ------------------------------------------------------------------------
+
+    def _account(self, pose: tuple[float, float, float], scan: Any) -> None:
+        if self.last_xy is not None:
+            self.path_length += math.hypot(pose[0] - self.last_xy[0], pose[1] - self.last_xy[1])
+        self.last_xy = pose[:2]
+        if scan is None:
+            return
+        ranges = np.frombuffer(scan.ranges, dtype=np.float32).astype(np.float64)
+        valid = ranges[np.isfinite(ranges) & (ranges >= scan.range_min)
+                       & (ranges <= scan.range_max)]
+        if valid.size:
+            self.min_clearance = min(self.min_clearance, float(valid.min()))
+        self.points = f.scan_points(ranges, scan.angle_min, scan.angle_increment,
+                                    scan.range_min, self.laser, pose)
+
+    def _maybe_new_goal(self, msg: Any, pose: tuple[float, float, float]) -> None:
+        if msg is None or self.reached_ns is not None:
+            return
+        new = _pose_of(msg.pose)
+        if max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) > 1e-9:
+            self.goal = new
+            self.xy_reached = False
+            self._replan(pose)
+
+    def _replan(self, pose: tuple[float, float, float]) -> None:
+        self.path = self.planner.plan(pose[:2], self.goal[:2])
+        self.index = 0
+        self.plan_msg = path_message(self.path, self.params.frame_id, self.goal[2])
+
+    # -- behaviour --------------------------------------------------------------------------
+
+    def _decide(self, tick: Tick, pose: tuple[float, float, float]) -> tuple[float, float]:
+        p = self.params
+        if self.reached_ns is not None:
+            return 0.0, 0.0
+        dist = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
+        if not self.xy_reached and dist < 0.5 * self.pos_tol:
+            self.xy_reached = True
+        if self.xy_reached:
+            err = f.wrap(self.goal[2] - pose[2])
+            # Aim for half the heading tolerance so the stop lands well inside it.
+            if abs(err) <= 0.5 * self.yaw_tol and dist <= self.pos_tol:
+                self.reached_ns = tick.time_ns
+                return 0.0, 0.0
+            return 0.0, _turn(p.turn_gain * err, p.max_turn)
+        if self.path is None:
+            self._replan(pose)
+        if self.recovery is not None:
+            return self._recover(tick, pose)
+        if self._stuck(tick, pose):
+            self.recovery = {"start": pose[:2], "since": tick.time_ns}
+            self.recoveries += 1
+            return self._recover(tick, pose)
+        if self.path is None or len(self.path) == 0:
+            return 0.0, 0.0
+        return self._pursue(pose, dist)
+
+    def _pursue(self, pose: tuple[float, float, float], dist: float) -> tuple[float, float]:
+        p = self.params
+        self.index, target = f.lookahead_point(self.path, self.index, pose, p.lookahead)
+        dx, dy = target[0] - pose[0], target[1] - pose[1]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        alpha = math.atan2(ly, lx)
+        if abs(alpha) > p.rotate_threshold or (self.turning and abs(alpha) > 0.25):
+            self.turning = True
+            return 0.0, _turn(p.turn_gain * alpha, p.max_turn)
+        self.turning = False
+        curv = 2.0 * ly / max(lx * lx + ly * ly, 1e-6)
+        v = p.max_speed
+        if abs(curv) > 1.0 / p.min_turn_radius:
+            v *= 1.0 / (abs(curv) * p.min_turn_radius)
+        v = min(v, max(p.min_speed, p.approach_gain * dist))
+        free = f.arc_clearance(self.points, pose, v, v * curv, p.horizon,
+                               p.robot_radius + p.safety_margin)
+        v = min(v, free / p.stop_time)
+        if v < 0.02:
+            return 0.0, 0.0
+        return v, float(np.clip(v * curv, -p.max_turn, p.max_turn))
+
+    def _stuck(self, tick: Tick, pose: tuple[float, float, float]) -> bool:
+        p = self.params
+        cp = self.checkpoint
+        if cp is None or math.hypot(pose[0] - cp[0], pose[1] - cp[1]) > p.progress_distance:
+            self.checkpoint = (pose[0], pose[1], tick.time_ns)
+            return False
+        if tick.time_ns - self.checkpoint[2] > round(p.progress_window * NS):
+            self.checkpoint = (pose[0], pose[1], tick.time_ns)
+            return True
+        return False
+
+    def _recover(self, tick: Tick, pose: tuple[float, float, float]) -> tuple[float, float]:
+        """Back up (while the scan behind is clear, at most ~3 s), then replan with the scan."""
+        p = self.params
+        r = self.recovery
+        moved = math.hypot(pose[0] - r["start"][0], pose[1] - r["start"][1])
+        elapsed = tick.time_ns - r["since"]
+        free = f.arc_clearance(self.points, pose, -p.backup_speed, 0.0, 0.3,
+                               p.robot_radius + p.safety_margin)
+        if moved < p.backup_distance and elapsed < 3 * NS and free >= 0.1:
+            return -p.backup_speed, 0.0
+        self.recovery = None
+        self.planner.mark(self.points)
+        self._replan(pose)
+        return 0.0, 0.0
+
+    def metrics(self) -> dict[str, float]:
+        """goal_reached (latched), time_to_goal (s, -1 before), path_length, min_clearance."""
+        done = self.reached_ns is not None
+        return {"goal_reached": 1.0 if done else 0.0,
+                "time_to_goal": self.reached_ns / NS if done else -1.0,
+                "path_length": self.path_length,
+                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
+                "recoveries": float(self.recoveries)}
+
+
+def _turn(w: float, limit: float, floor: float = 0.25) -> float:
+    """An in-place turn rate: clipped to ``limit`` and at least ``floor`` in magnitude."""
+    w = max(-limit, min(limit, w))
+    return math.copysign(max(abs(w), floor), w)
+
+
+def _pose_of(pose: Any) -> tuple[float, float, float]:
+    q = pose.orientation
+    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    return float(pose.position.x), float(pose.position.y), yaw
+
+
+def _pose(odom: Any) -> tuple[float, float, float]:
+    return _pose_of(odom.pose.pose)
+
+
+def _laser_mount(model: mujoco.MjModel, base: str, site: str) -> tuple[float, float, float]:
+    """(x, y, yaw) of the laser site in the base body's frame, from the MJCF."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    b = body_id(model, base)
+    s = named_id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+    rb = data.xmat[b].reshape(3, 3)
+    rel = rb.T @ (data.site_xpos[s] - data.xpos[b])
+    rs = rb.T @ data.site_xmat[s].reshape(3, 3)
+    return float(rel[0]), float(rel[1]), math.atan2(rs[1, 0], rs[0, 0])
