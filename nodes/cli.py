@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -84,7 +85,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
     runtime = LockstepRuntime(scenario, name, node, transport, recorder)
     install_stop_handlers(runtime)
     try:
-        runtime.run()
+        _run_maybe_profiled(runtime, run_dir, name)
         return EXIT_OK
     except NodeFailure as exc:
         if exc.__cause__ is None:
@@ -99,6 +100,20 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
         if recorder:
             recorder.close()
         transport.close()
+
+
+def _run_maybe_profiled(runtime, run_dir: Path | None, name: str) -> None:
+    """Run; with COSIM_PROFILE=1 and a run directory, write a cProfile of the node there."""
+    if not (os.environ.get("COSIM_PROFILE") and run_dir):
+        runtime.run()
+        return
+    import cProfile
+
+    profiler = cProfile.Profile()
+    try:
+        profiler.runcall(runtime.run)
+    finally:
+        profiler.dump_stats(run_dir / "logs" / f"{name}.prof")
 
 
 if __name__ == "__main__":

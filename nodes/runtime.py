@@ -44,20 +44,24 @@ class NodeFailure(RuntimeError):
 class InputChannel:
     """One subscribed input: tick bookkeeping by sequence number, and its sample history."""
 
-    def __init__(self, topic: str, graph_topic: str, msg_type: type, producer_period: int):
+    def __init__(self, topic: str, graph_topic: str, msg_type: type, producer_period: int,
+                 drives: int | None = None):
         self.topic = topic
+        self.drives = drives  # consumer period, when this input announces the consumer's ticks
         self.graph_topic = graph_topic
         self.history = InputHistory(graph_topic, msg_type)
         self.period = producer_period
         self.received = 0
 
-    def accept(self, rec: Received) -> None:
-        """Store a sample; the n-th message of the producer is its n-th activation's."""
+    def accept(self, rec: Received) -> int:
+        """Store a sample; return its producer tick (n-th message = n-th activation)."""
         if rec.sequence is not None and rec.sequence != self.received + 1:
             raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
                               f"{self.received + 1}, got {rec.sequence} (a message was lost)")
-        self.history.push_bytes(self.received * self.period, rec.data)
+        tick = self.received * self.period
+        self.history.push_bytes(tick, rec.data)
         self.received += 1
+        return tick
 
 
 class LockstepRuntime:
@@ -75,7 +79,7 @@ class LockstepRuntime:
         self.stop_requested = False
         self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
         self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
-        self.clocks: deque[int] = deque()
+        self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
         self._wire()
 
     def _wire(self) -> None:
@@ -91,13 +95,17 @@ class LockstepRuntime:
                            for t, msg in plan.outputs.items()}
         self.inputs: dict[str, InputChannel] = {}
         self.input_subs = {}
+        driver = sched.driving_edge(self.name)
         for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
             period = sched.periods[inp.producer]
+            drives = sched.periods[self.name] if edge == driver else None
             self.inputs[inp.graph_topic] = InputChannel(inp.topic, inp.graph_topic,
-                                                        inp.msg_type, period)
+                                                        inp.msg_type, period, drives)
             self.input_subs[inp.graph_topic] = self.transport.subscription(
                 inp.graph_topic, inp.msg_type, sched.history_depth(edge))
-        self.clock_sub = self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
+        # A node told of its ticks by a same_tick input does not wake for /clock.
+        self.clock_sub = (self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
+                          if driver is None else None)
         self.status_pub = self.transport.publisher(STATUS_TOPIC, DiagnosticStatus, 1000)
 
     # -- start ---------------------------------------------------------------------------
@@ -108,7 +116,10 @@ class LockstepRuntime:
         for topic, pub in self.publishers.items():
             if (n := pub.matched()) < self.expected_subscribers[topic]:
                 out.append(f"{topic} ({n}/{self.expected_subscribers[topic]} subscriptions)")
-        for topic, sub in [*self.input_subs.items(), (CLOCK_TOPIC, self.clock_sub)]:
+        subs = list(self.input_subs.items())
+        if self.clock_sub is not None:
+            subs.append((CLOCK_TOPIC, self.clock_sub))
+        for topic, sub in subs:
             if sub.matched() < 1:
                 out.append(f"{topic} (0/1 publishers)")
         if self.status_pub.matched() < 1:
@@ -134,8 +145,11 @@ class LockstepRuntime:
         for rec in self.transport.wait(timeout_ns):
             if rec.topic == CLOCK_TOPIC:
                 self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
-            else:
-                self.inputs[rec.topic].accept(rec)
+                continue
+            channel = self.inputs[rec.topic]
+            tick = channel.accept(rec)
+            if channel.drives and tick % channel.drives == 0:
+                self.clocks.append(tick)
 
     def run(self) -> None:
         """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""

@@ -17,7 +17,6 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from nodes.transport import Publisher, Received, Subscription, Transport
 
-
 PROFILE = Path(__file__).with_name("fastdds_profile.xml")
 
 

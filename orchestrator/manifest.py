@@ -55,6 +55,8 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "sim_time_s": sim_s,
         "wall_time_s": round(outcome.wall_s, 3),
         "start_s": round(outcome.start_s, 3) if outcome.start_s is not None else None,
+        "loop_s": round(outcome.loop_s, 4) if outcome.loop_s is not None else None,
+        "ticks_per_s": round(ticks / outcome.loop_s, 1) if outcome.loop_s else None,
         "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,
         "nodes": {name: node_entry(stats, proc)
                   for name, (stats, proc) in outcome.node_stats.items()},

@@ -32,6 +32,7 @@ from orchestrator.scenario import Scenario
 from orchestrator.supervisor import Supervisor
 
 LIVENESS_PERIOD_S = 0.1
+SAMPLE_PERIOD_S = 1.0
 WAIT_SLICE_NS = 50_000_000
 
 
@@ -73,6 +74,7 @@ class LockstepMaster:
         self.tick = -1
         self.waiting_for: set[str] = set()
         self._next_liveness = 0.0
+        self._next_sample = 0.0
 
     # -- start ---------------------------------------------------------------------------
 
@@ -90,7 +92,7 @@ class LockstepMaster:
                 elif status.state == ERROR:
                     self._raise_node_error(status, "start")
             self._check_processes("start")
-            if ready == names and self.clock_pub.matched() >= len(names):
+            if ready == names and self.clock_pub.matched() >= len(self.sched.clock_driven()):
                 return
             if time.monotonic() > deadline:
                 raise SimulationError(self._start_timeout_text(names - ready))
@@ -106,7 +108,7 @@ class LockstepMaster:
             parts.append(f"node {name} ({alive}) {what}")
         if not parts:
             parts.append(f"/clock has {self.clock_pub.matched()} of "
-                         f"{len(self.scenario.nodes)} subscriptions")
+                         f"{len(self.sched.clock_driven())} subscriptions")
         limit = self.scenario.model.deadlines.start / 1e9
         return f"start deadline of {limit:g} s expired: " + "; ".join(parts) + "."
 
@@ -115,6 +117,7 @@ class LockstepMaster:
     def run(self) -> RunResult:
         """Run every tick; stop early when the goal is reached (if the scenario says so)."""
         digest = RunDigest()
+        self.loop_started = time.monotonic()
         stop_on_goal = self.scenario.model.success.stop_on_goal and self.scenario.model.goal
         tick_limit_s = self.scenario.model.deadlines.tick / 1e9
         for k in range(self.sched.n_ticks):
@@ -187,7 +190,9 @@ class LockstepMaster:
         if now < self._next_liveness:
             return
         self._next_liveness = now + LIVENESS_PERIOD_S
-        self.supervisor.sample()
+        if now >= self._next_sample:
+            self._next_sample = now + SAMPLE_PERIOD_S
+            self.supervisor.sample()
         for proc in self.supervisor.dead():
             if proc.name in self.scenario.nodes:
                 self._drain_errors(proc.name)

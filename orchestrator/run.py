@@ -46,6 +46,7 @@ class RunOutcome:
     error: str | None = None
     wall_s: float = 0.0
     start_s: float | None = None
+    loop_s: float | None = None
     success: bool = False
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
@@ -64,7 +65,9 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
     outcome = RunOutcome("failed", run_dir)
     try:
         if options.in_process:
+            outcome.start_s = time.monotonic() - started
             outcome.result = _in_process(scenario, run_dir)
+            outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
             outcome.result = _multi_process(scenario, run_dir, options, outcome, started)
         _judge(scenario, outcome)
@@ -109,7 +112,9 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
         log.info("all nodes ready after %.3f s", outcome.start_s)
-        return master.run()
+        result = master.run()
+        outcome.loop_s = time.monotonic() - master.loop_started
+        return result
     finally:
         outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                               for name in scenario.nodes}

@@ -167,3 +167,20 @@ class Schedule:
     def history_depth(self, edge: Edge) -> int:
         """Samples a consumer may have to hold between its activations, with margin."""
         return -(-self.periods[edge.consumer] // self.periods[edge.producer]) + 2
+
+    def driving_edge(self, node: str) -> Edge | None:
+        """A same_tick input whose samples tell the node every tick it is due, or None.
+
+        When the producer acts at every tick the consumer does (its period divides the
+        consumer's), the arrival of the producer's sample of tick ``k`` is the news that
+        tick ``k`` has begun. Such a node need not wake for /clock at all, which saves
+        one wake-up per node per tick.
+        """
+        for edge in sorted(self.inputs_of[node], key=lambda e: e.topic):
+            if edge.mode == SAME_TICK and self.periods[node] % self.periods[edge.producer] == 0:
+                return edge
+        return None
+
+    def clock_driven(self) -> list[str]:
+        """Nodes that need /clock to know when they are due."""
+        return [n for n in self.order if self.driving_edge(n) is None]

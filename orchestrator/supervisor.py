@@ -56,10 +56,12 @@ class NodeProcess:
             return "(no log)"
         return "\n".join(text[-lines:]) or "(log is empty)"
 
-    def sample(self) -> None:
+    def sample(self, with_children: bool = False) -> None:
         """Update CPU time and peak memory (best effort; the process may be gone)."""
         try:
-            procs = [self.ps, *self.ps.children(recursive=True)] if self.ps else []
+            procs = [self.ps] if self.ps else []
+            if with_children and self.ps:
+                procs += self.ps.children(recursive=True)
             self.tree.update(p.pid for p in procs)
             rss = sum(p.memory_info().rss for p in procs)
             cpu = sum(sum(p.cpu_times()[:2]) for p in procs)
@@ -99,15 +101,15 @@ class Supervisor:
         """Nodes whose process has exited."""
         return [p for p in self.procs.values() if p.popen.poll() is not None]
 
-    def sample(self) -> None:
-        """Sample CPU and memory of every live node."""
+    def sample(self, with_children: bool = False) -> None:
+        """Sample CPU and memory of every live node (children too: costly, so on request)."""
         for proc in self.procs.values():
             if proc.popen.poll() is None:
-                proc.sample()
+                proc.sample(with_children)
 
     def shutdown(self) -> None:
         """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL."""
-        self.sample()
+        self.sample(with_children=True)
         trees = {name: self._tree(p) for name, p in self.procs.items()}
         pending = [ps for tree in trees.values() for ps in tree]
         for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),

@@ -1,0 +1,70 @@
+"""Lockstep cost: ticks/s of trivial node processes, beside a bare rclpy ping-pong floor.
+
+    python -m bench.lockstep [--seconds 3]
+
+Prints ticks/s for a same-tick chain of 3 nodes and for 1, 3 and 6 independent nodes,
+each over the full protocol (clock, status reports, sequence checks, digest), and the
+round trips/s of two bare rclpy processes exchanging one message each way (the floor).
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from bench.common import bench_env, counter, run_manifest, write_scenario
+
+RATE = 1000
+
+
+def chain(n: int, seconds: int) -> dict:
+    """A same-tick chain n0 -> n1 -> ... of n counters."""
+    nodes = [counter("n0", RATE)]
+    nodes += [counter(f"n{i}", RATE, [f"/n{i - 1}"]) for i in range(1, n)]
+    return {"name": f"chain{n}", "duration": f"{seconds}s", "nodes": nodes,
+            "deadlines": {"start": "60s"}}
+
+
+def parallel(n: int, seconds: int) -> dict:
+    """n independent counters, all due every tick."""
+    return {"name": f"parallel{n}", "duration": f"{seconds}s",
+            "nodes": [counter(f"p{i}", RATE) for i in range(n)], "deadlines": {"start": "60s"}}
+
+
+def ping_pong(round_trips: int = 3000) -> float:
+    """Round trips/s between two bare rclpy processes (wait set + take, no executor)."""
+    child = subprocess.Popen([sys.executable, "-m", "bench.pingpong", "pong", str(round_trips)],
+                             env=bench_env())
+    try:
+        out = subprocess.run([sys.executable, "-m", "bench.pingpong", "ping", str(round_trips)],
+                             env=bench_env(), capture_output=True, text=True, check=True)
+        return float(out.stdout.split()[-1])
+    finally:
+        child.wait(timeout=30)
+
+
+def main(argv: list[str] | None = None) -> list[tuple[str, float]]:
+    """Run every case and print a table; returns (case, ticks/s) rows."""
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--seconds", type=int, default=3, help="sim seconds per case at 1 kHz")
+    p.add_argument("--transport", default="ros2")
+    args = p.parse_args(argv)
+    rows = [("bare rclpy ping-pong (round trips/s)", ping_pong())]
+    with tempfile.TemporaryDirectory() as tmp:
+        cases = [chain(3, args.seconds)] + [parallel(n, args.seconds) for n in (1, 3, 6)]
+        for doc in cases:
+            m = run_manifest(write_scenario(doc, Path(tmp)), "--transport", args.transport)
+            rows.append((f"{doc['name']} over {args.transport} (ticks/s)", m["ticks_per_s"]))
+            inproc = run_manifest(write_scenario(doc, Path(tmp)), "--in-process")
+            rows.append((f"{doc['name']} in-process (ticks/s)", inproc["ticks_per_s"]))
+    floor = rows[0][1]
+    for name, value in rows:
+        print(f"{name:48s} {value:10.0f}   {value / floor:6.2f} x ping-pong")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
