@@ -1,0 +1,160 @@
+"""Sensors node: lidar ranges, seeded noise, 3D lidar, depth image and camera intrinsics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Float64MultiArray
+
+from nodes.contract import NodeConfig, Tick
+from nodes.physics.node import PhysicsNode
+from nodes.sensors.node import SensorsNode
+from tests.worlds import write_world
+
+TICK = 20_000_000
+LASER_X = 0.08  # the laser site's x on base_link (scenarios/worlds/robot.xml)
+CAMERA_X = -0.05 + 0.03  # pan_link x + camera x on tilt_link
+
+
+def world_state(world, **start):
+    """The physics node's /cosim/world_state at tick 0, through CDR like a transport."""
+    physics = PhysicsNode()
+    physics.reset(0, NodeConfig("physics", PhysicsNode.Params(start=start or None), TICK, TICK,
+                                world))
+    msg = physics.step(Tick(0, 0), {})["/cosim/world_state"]
+    return deserialize_message(serialize_message(msg), Float64MultiArray)
+
+
+def sensors(world, seed=0, **params) -> SensorsNode:
+    """A reset sensors node running the given sensors."""
+    node = SensorsNode()
+    node.reset(seed, NodeConfig("lidar", SensorsNode.Params(**params), TICK, 5 * TICK, world))
+    return node
+
+
+def measure(node, state) -> dict:
+    """One activation."""
+    return node.step(Tick(0, 0), {"/cosim/world_state": state})
+
+
+def ranges(scan) -> np.ndarray:
+    """LaserScan ranges as a numpy array."""
+    return np.frombuffer(scan.ranges, dtype=np.float32)
+
+
+BOX = '<geom name="box" type="box" pos="{x} 0 0.5" size="0.1 0.5 0.5"/>'
+
+
+def test_box_at_known_distance_gives_expected_range(tmp_path):
+    world = write_world(tmp_path, BOX.format(x=2.1))  # near face at x = 2.0
+    node = sensors(world, lidar={"beams": 360, "noise_stddev": 0.0})
+    scan = measure(node, world_state(world, x=0.0, y=0.0, yaw=0.0))["/scan"]
+    r = ranges(scan)
+    ahead = int(round((0.0 - scan.angle_min) / scan.angle_increment))
+    assert math.isclose(r[ahead], 2.0 - LASER_X, abs_tol=1e-3)
+    assert scan.header.frame_id == "laser"
+    assert len(r) == 360 and math.isclose(scan.angle_min, -math.pi)
+    behind = 0  # -pi: nothing there, and the robot does not see itself
+    assert math.isinf(r[behind]) and r[behind] > 0
+    assert np.all(r[np.isfinite(r)] > 0.5)  # no self-hits on the robot's own geoms
+
+
+def test_rotated_robot_sees_the_box_at_the_rotated_bearing(tmp_path):
+    world = write_world(tmp_path, BOX.format(x=2.1))
+    node = sensors(world, lidar={"beams": 360, "noise_stddev": 0.0})
+    scan = measure(node, world_state(world, x=0.0, y=0.0, yaw=math.pi / 2))["/scan"]
+    r = ranges(scan)
+    right = int(round((-math.pi / 2 - scan.angle_min) / scan.angle_increment))
+    assert math.isclose(r[right], 2.0, abs_tol=0.01)  # laser is 8 cm off-axis sideways now
+
+
+def test_range_limits_follow_rep_117(tmp_path):
+    world = write_world(tmp_path, BOX.format(x=2.1))
+    node = sensors(world, lidar={"beams": 8, "fov": 0.2, "range_max": 1.5, "noise_stddev": 0})
+    r = ranges(measure(node, world_state(world))["/scan"])
+    assert np.all(np.isposinf(r))
+
+
+def test_noise_is_seeded(tmp_path):
+    world = write_world(tmp_path, BOX.format(x=2.1))
+    state = world_state(world)
+    params = {"lidar": {"beams": 90, "fov": 0.4, "noise_stddev": 0.05}}
+    a = ranges(measure(sensors(world, seed=1, **params), state)["/scan"])
+    b = ranges(measure(sensors(world, seed=1, **params), state)["/scan"])
+    c = ranges(measure(sensors(world, seed=2, **params), state)["/scan"])
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert 0.01 < np.std(a - (2.0 - LASER_X) / np.cos(np.linspace(-0.2, 0.2, 90))) < 0.1
+
+
+def test_point_cloud_hits_the_box(tmp_path):
+    world = write_world(tmp_path, BOX.format(x=2.1))
+    node = sensors(world, point_cloud={"beams": 180, "channels": 8, "noise_stddev": 0.0})
+    cloud = measure(node, world_state(world))["/point_cloud"]
+    pts = np.frombuffer(cloud.data, dtype=np.float32).reshape(-1, 4)
+    assert cloud.width == len(pts) > 0 and cloud.point_step == 16
+    assert [f.name for f in cloud.fields] == ["x", "y", "z", "intensity"]
+    front = pts[(np.abs(pts[:, 1]) < 0.01) & (pts[:, 2] > -0.19)]  # lowest rings hit the floor
+    assert len(front) >= 6
+    assert np.allclose(front[:, 0], 2.0 - LASER_X, atol=1e-3)
+    assert np.all((pts[:, 3] >= 0) & (pts[:, 3] <= 1.0001))
+
+
+def test_wall_two_metres_away_reads_two_metres_in_the_depth_image(tmp_path):
+    wall = f'<geom name="wall" type="box" pos="{2.0 + CAMERA_X + 0.05} 0 1" size="0.05 6 3"/>'
+    world = write_world(tmp_path, wall)
+    node = sensors(world, camera={"width": 160, "height": 120})
+    out = measure(node, world_state(world))
+    depth = out["/camera/depth/image_rect"]
+    assert depth.encoding == "32FC1" and depth.step == 160 * 4
+    img = np.frombuffer(depth.data, dtype=np.float32).reshape(120, 160)
+    upper = img[:50]  # above the floor: only the wall; z-depth is the same at the corners
+    assert np.allclose(upper, 2.0, atol=0.01)
+    color = out["/camera/color/image_raw"]
+    assert color.encoding == "rgb8" and color.step == 160 * 3
+    assert len(color.data) == 160 * 120 * 3
+    assert color.header.frame_id == depth.header.frame_id == "camera_color_optical_frame"
+
+
+def test_camera_info_matches_the_image(tmp_path):
+    world = write_world(tmp_path)
+    node = sensors(world, camera={"width": 160, "height": 120})
+    out = measure(node, world_state(world))
+    info = out["/camera/camera_info"]
+    assert (info.width, info.height) == (160, 120)
+    f = 120 / 2 / math.tan(math.radians(60) / 2)  # robot.xml: fovy = 60 degrees
+    k = list(info.k)
+    assert math.isclose(k[0], f) and math.isclose(k[4], f)
+    assert (k[2], k[5]) == (79.5, 59.5)
+    assert list(info.p)[:3] == k[:3] and info.distortion_model == "plumb_bob"
+
+
+def test_camera_projection_matches_intrinsics(tmp_path):
+    # A thin post 2 m ahead and 0.5 m to the left shows up at u = cx - f * 0.5 / 2.
+    post = f'<geom name="post" type="box" pos="{2.0 + CAMERA_X} 0.5 1" size="0.01 0.01 3"/>'
+    world = write_world(tmp_path, post)
+    out = measure(sensors(world, camera={"width": 160, "height": 120}), world_state(world))
+    img = np.frombuffer(out["/camera/depth/image_rect"].data, np.float32).reshape(120, 160)
+    cols = np.flatnonzero(np.isfinite(img[30]) & (img[30] < 3))
+    k = list(out["/camera/camera_info"].k)
+    assert abs(cols.mean() - (k[2] - k[0] * 0.5 / 2.0)) < 1.0
+
+
+def test_world_state_of_another_world_is_refused(tmp_path):
+    world = write_world(tmp_path)
+    node = sensors(world, lidar={})
+    bad = Float64MultiArray(data=[0.0] * 3)
+    with pytest.raises(ValueError, match="does not match world"):
+        measure(node, bad)
+
+
+def test_outputs_follow_the_configured_sensors():
+    lidar_only = SensorsNode.Params(lidar={})
+    assert set(SensorsNode.outputs(lidar_only)) == {"/scan"}
+    cam = SensorsNode.Params(camera={"depth": False})
+    assert set(SensorsNode.outputs(cam)) == {"/camera/color/image_raw", "/camera/camera_info"}
+    with pytest.raises(ValueError):
+        SensorsNode.Params()
