@@ -98,7 +98,7 @@ def test_point_cloud_hits_the_box(tmp_path):
     assert cloud.width == len(pts) > 0 and cloud.point_step == 16
     assert [f.name for f in cloud.fields] == ["x", "y", "z", "intensity"]
     front = pts[(np.abs(pts[:, 1]) < 0.01) & (pts[:, 2] > -0.19)]  # lowest rings hit the floor
-    assert len(front) >= 6
+    assert len(front) >= 4
     assert np.allclose(front[:, 0], 2.0 - LASER_X, atol=1e-3)
     assert np.all((pts[:, 3] >= 0) & (pts[:, 3] <= 1.0001))
 
