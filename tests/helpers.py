@@ -1,0 +1,37 @@
+"""Running the real command-line tools from tests."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = Path(__file__).resolve().parent / "scenarios"
+
+
+@dataclass
+class CliRun:
+    """A finished cosim-orchestrate process: exit code, output and its run directory."""
+
+    code: int
+    stdout: str
+    stderr: str
+    run_dir: Path | None
+
+    @property
+    def manifest(self) -> dict:
+        """The run's manifest.json."""
+        return json.loads((self.run_dir / "manifest.json").read_text())
+
+
+def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240) -> CliRun:
+    """Run cosim-orchestrate as a real process and wait for it."""
+    before = set(out.glob("*")) if out.exists() else set()
+    proc = subprocess.run([sys.executable, "-m", "orchestrator.cli", str(scenario),
+                           "--out", str(out), *args], capture_output=True, text=True,
+                          timeout=timeout, cwd=ROOT)
+    new = sorted(set(out.glob("*")) - before) if out.exists() else []
+    return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
