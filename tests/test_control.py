@@ -1,0 +1,121 @@
+"""Control node: map building, A*, scan handling, goal checking and its latched metrics."""
+
+from __future__ import annotations
+
+import array
+import math
+
+import mujoco
+import numpy as np
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import LaserScan
+
+from nodes.contract import NodeConfig, Tick
+from nodes.control.follow import arc_clearance
+from nodes.control.grid import astar, world_grid
+from nodes.control.node import ControlNode
+from tests.worlds import write_world
+
+WALL = '<geom name="wall" type="box" pos="0 0 0.5" size="0.1 1.5 0.5"/>'
+
+
+def test_map_marks_static_obstacles_only(tmp_path):
+    model = mujoco.MjModel.from_xml_path(str(write_world(tmp_path, WALL)))
+    grid = world_grid(model, 0.05, (0.02, 0.6))
+    assert grid.occ[grid.cell(0.0, 0.0)] and grid.occ[grid.cell(0.0, 1.4)]
+    assert not grid.occ[grid.cell(0.0, 1.7)] and not grid.occ[grid.cell(0.3, 0.0)]
+
+
+def test_astar_finds_a_path_around_an_obstacle():
+    cost = np.ones((40, 40))
+    cost[20, 0:35] = np.inf  # a wall with a gap at the top
+    path = astar(cost, (5, 5), (35, 5))
+    assert path is not None and path[0] == (5, 5) and path[-1] == (35, 5)
+    assert all(math.isfinite(cost[c]) for c in path)
+    assert any(j >= 35 for i, j in path if i == 20)
+    for (a, b), (c, d) in zip(path, path[1:], strict=False):
+        assert max(abs(a - c), abs(b - d)) == 1
+
+
+def test_astar_reports_no_path():
+    cost = np.ones((10, 10))
+    cost[5, :] = np.inf
+    assert astar(cost, (1, 1), (8, 8)) is None
+
+
+def test_arc_clearance_stops_before_a_point_ahead():
+    pts = np.array([[1.0, 0.0]])
+    free = arc_clearance(pts, (0.0, 0.0, 0.0), 0.5, 0.0, 2.0, 0.3)
+    assert 0.6 <= free <= 0.7
+    assert arc_clearance(pts, (0.0, 0.0, 0.0), -0.5, 0.0, 2.0, 0.3) == 2.0
+    assert arc_clearance(pts, (0.0, 0.0, math.pi / 2), 0.5, 0.0, 2.0, 0.3) == 2.0
+
+
+def odom(x: float, y: float, yaw: float) -> Odometry:
+    """Odometry at a planar pose."""
+    msg = Odometry()
+    msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+    msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return msg
+
+
+def empty_scan(ranges=None) -> LaserScan:
+    """A 360-beam scan, all +inf unless given."""
+    scan = LaserScan()
+    scan.angle_min, scan.angle_increment = -math.pi, 2 * math.pi / 360
+    scan.range_min, scan.range_max = 0.12, 12.0
+    scan.ranges = array.array("f", ranges if ranges is not None else [math.inf] * 360)
+    return scan
+
+
+def control(tmp_path, goal) -> ControlNode:
+    """A reset control node in a world with one wall at x = 0."""
+    node = ControlNode()
+    node.reset(0, NodeConfig("control", ControlNode.Params(), 1_000_000, 100_000_000,
+                             write_world(tmp_path, WALL), goal=goal))
+    return node
+
+
+def test_plan_goes_around_the_wall_and_heads_off(tmp_path):
+    node = control(tmp_path, {"x": 2.0, "y": 0.0, "yaw": 0.0, "position_tolerance": 0.2,
+                              "yaw_tolerance": 0.3})
+    facing_away = odom(-2.0, 0.0, math.pi)
+    out = node.step(Tick(0, 0), {"/odom": facing_away, "/scan": empty_scan()})
+    plan = out["/plan"]
+    assert plan.header.frame_id == "odom" and len(plan.poses) > 10
+    ys = [p.pose.position.y for p in plan.poses]
+    assert max(abs(y) for y in ys) > 1.5 + 0.3  # around an end of the wall, with clearance
+    assert out["/cmd_vel"].angular.z != 0.0 and out["/cmd_vel"].linear.x == 0.0  # turn first
+
+
+def test_goal_reached_latches_and_stops(tmp_path):
+    node = control(tmp_path, {"x": 2.0, "y": 1.0, "yaw": 0.0, "position_tolerance": 0.2,
+                              "yaw_tolerance": 0.3})
+    inputs = {"/odom": odom(2.05, 1.0, 0.05), "/scan": empty_scan()}
+    out = node.step(Tick(3, 300_000_000), inputs)
+    assert out["/cmd_vel"].linear.x == 0.0 and out["/cmd_vel"].angular.z == 0.0
+    assert node.metrics()["goal_reached"] == 1.0
+    assert node.metrics()["time_to_goal"] == 0.3
+    away = {"/odom": odom(0.0, -2.0, 2.0), "/scan": empty_scan()}
+    out = node.step(Tick(4, 400_000_000), away)
+    assert node.metrics()["goal_reached"] == 1.0 and out["/cmd_vel"].linear.x == 0.0
+    assert node.metrics()["path_length"] > 3.0
+
+
+def test_turns_to_the_goal_heading_before_reaching(tmp_path):
+    node = control(tmp_path, {"x": 2.0, "y": 1.0, "yaw": 1.5, "position_tolerance": 0.2,
+                              "yaw_tolerance": 0.3})
+    out = node.step(Tick(0, 0), {"/odom": odom(2.0, 1.0, 0.0), "/scan": empty_scan()})
+    assert out["/cmd_vel"].angular.z > 0 and out["/cmd_vel"].linear.x == 0.0
+    assert node.metrics()["goal_reached"] == 0.0 and node.metrics()["time_to_goal"] == -1.0
+
+
+def test_stops_short_of_an_unmapped_obstacle(tmp_path):
+    node = control(tmp_path, {"x": -2.0, "y": 3.0, "yaw": 0.0, "position_tolerance": 0.2,
+                              "yaw_tolerance": 3.0})
+    ranges = [math.inf] * 360
+    ranges[180] = 0.3  # straight ahead of the laser, not on the map
+    out = node.step(Tick(0, 0), {"/odom": odom(-2.0, -1.0, math.pi / 2),
+                                 "/scan": empty_scan(ranges)})
+    assert out["/cmd_vel"].linear.x == 0.0
+    assert math.isclose(node.metrics()["min_clearance"], 0.3, rel_tol=1e-6)
