@@ -76,16 +76,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     signal.signal(signal.SIGTERM, _interrupt)
+    from orchestrator.progress import Progress
     from orchestrator.report import print_outcome
     from orchestrator.run import RunOptions, execute
 
+    progress = Progress(scenario.schedule.n_ticks, scenario.tick_ns,
+                        enabled=not args.quiet and sys.stderr.isatty())
     try:
         options = RunOptions(out=args.out, in_process=args.in_process,
-                             shuffle_start=args.shuffle_start)
+                             shuffle_start=args.shuffle_start, on_tick=progress.update)
         outcome = execute(scenario, options)
     except KeyboardInterrupt:
         print("cosim-orchestrate: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    finally:
+        progress.close()
     print_outcome(outcome, quiet=args.quiet)
     return {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
             "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)

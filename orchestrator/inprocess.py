@@ -45,7 +45,8 @@ def goal_reached(metrics: dict[str, dict[str, float]]) -> bool:
     return any(m.get("goal_reached", 0) >= 1 for m in metrics.values())
 
 
-def run_in_process(scenario: Scenario, observer: Observer | None = None) -> RunResult:
+def run_in_process(scenario: Scenario, observer: Observer | None = None,
+                   on_tick: Callable[[int], None] | None = None) -> RunResult:
     """Run every node in this process in schedule order; return the digest and metrics."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
@@ -79,6 +80,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None) -> RunR
                     history.push_bytes(k, data)
             if observer:
                 observer(k, name, items)
+        if on_tick:
+            on_tick(k)
         if stop and goal_reached({n: nodes[n].metrics() for n in nodes}):
             return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), stopped_early=True)
     return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes))

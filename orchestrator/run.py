@@ -15,10 +15,12 @@ from pathlib import Path
 
 from nodes.recording import PartWriter
 from nodes.transport import create_transport
+from orchestrator.bag import write_bag
 from orchestrator.errors import SimulationError
 from orchestrator.inprocess import RunResult, run_in_process
 from orchestrator.manifest import write_manifest
 from orchestrator.master import LockstepMaster
+from orchestrator.picture import write_report_png
 from orchestrator.rundir import make_run_dir
 from orchestrator.scenario import Scenario
 from orchestrator.supervisor import Supervisor, node_argv
@@ -47,6 +49,8 @@ class RunOutcome:
     wall_s: float = 0.0
     start_s: float | None = None
     loop_s: float | None = None
+    bag: Path | None = None
+    report: Path | None = None
     success: bool = False
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
@@ -66,7 +70,7 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
     try:
         if options.in_process:
             outcome.start_s = time.monotonic() - started
-            outcome.result = _in_process(scenario, run_dir)
+            outcome.result = _in_process(scenario, run_dir, options.on_tick)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
             outcome.result = _multi_process(scenario, run_dir, options, outcome, started)
@@ -79,16 +83,37 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
         log.warning("interrupted")
     finally:
         outcome.wall_s = time.monotonic() - started
+        outcome.bag = _write_bag_safely(scenario, outcome)
+        outcome.report = _write_picture_safely(scenario, outcome)
         write_manifest(scenario, outcome, options)
         logging.getLogger().removeHandler(handler)
         handler.close()
     return outcome
 
 
-def _in_process(scenario: Scenario, run_dir: Path) -> RunResult:
+def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
+    """Write the bag from what was recorded; a failure here must not hide the run's own."""
+    ticks = outcome.result.ticks if outcome.result else 0
+    try:
+        return write_bag(scenario, outcome.run_dir, ticks)
+    except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
+        log.error("could not write the bag: %s", exc)
+        return None
+
+
+def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
+    try:
+        return write_report_png(scenario, outcome.run_dir, outcome.bag)
+    except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
+        log.error("could not draw report.png: %s", exc)
+        return None
+
+
+def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
     writers = {name: PartWriter(run_dir / "parts" / f"{name}.rec") for name in scenario.nodes}
     try:
-        return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items))
+        return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
+                              on_tick)
     finally:
         for writer in writers.values():
             writer.close()
