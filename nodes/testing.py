@@ -94,13 +94,19 @@ class FaultyParams(CounterParams):
     """A counter that fails on purpose at a given tick, in a given way."""
 
     fail_at: int = -1
-    mode: str = "raise"  # raise | exit | hang | kill
+    mode: str = "raise"  # raise | exit | hang | kill | setup
 
 
 class FaultyNode(CounterNode):
     """Counter that raises, exits, hangs or kills itself at ``fail_at`` (fault-injection tests)."""
 
     Params = FaultyParams
+
+    def setup(self) -> None:
+        """Fail at start when mode is 'setup' (a node that cannot load its world, say)."""
+        if self.params.mode == "setup":
+            raise RuntimeError("injected failure in setup")
+        super().setup()
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Fail as configured at ``fail_at``, otherwise count."""

@@ -23,7 +23,7 @@ from orchestrator.master import LockstepMaster
 from orchestrator.picture import write_report_png
 from orchestrator.rundir import make_run_dir
 from orchestrator.scenario import Scenario
-from orchestrator.supervisor import Supervisor, node_argv
+from orchestrator.supervisor import Supervisor, node_argv, signals_ignored
 
 log = logging.getLogger("cosim")
 
@@ -50,6 +50,7 @@ class RunOutcome:
     start_s: float | None = None
     loop_s: float | None = None
     bag: Path | None = None
+    ticks_done: int = 0
     report: Path | None = None
     success: bool = False
     collisions: int = 0
@@ -82,18 +83,19 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
         outcome.status, outcome.error = "interrupted", "interrupted by signal"
         log.warning("interrupted")
     finally:
-        outcome.wall_s = time.monotonic() - started
-        outcome.bag = _write_bag_safely(scenario, outcome)
-        outcome.report = _write_picture_safely(scenario, outcome)
-        write_manifest(scenario, outcome, options)
-        logging.getLogger().removeHandler(handler)
-        handler.close()
+        with signals_ignored():
+            outcome.wall_s = time.monotonic() - started
+            outcome.bag = _write_bag_safely(scenario, outcome)
+            outcome.report = _write_picture_safely(scenario, outcome)
+            write_manifest(scenario, outcome, options)
+            logging.getLogger().removeHandler(handler)
+            handler.close()
     return outcome
 
 
 def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     """Write the bag from what was recorded; a failure here must not hide the run's own."""
-    ticks = outcome.result.ticks if outcome.result else 0
+    ticks = outcome.result.ticks if outcome.result else outcome.ticks_done
     try:
         return write_bag(scenario, outcome.run_dir, ticks)
     except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
@@ -141,6 +143,7 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
+        outcome.ticks_done = max(master.tick, 0)
         outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                               for name in scenario.nodes}
         supervisor.shutdown()

@@ -6,10 +6,12 @@ timeout, applied to every process of each node's tree (found with psutil).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -108,26 +110,24 @@ class Supervisor:
                 proc.sample(with_children)
 
     def shutdown(self) -> None:
-        """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL."""
-        self.sample(with_children=True)
-        trees = {name: self._tree(p) for name, p in self.procs.items()}
-        pending = [ps for tree in trees.values() for ps in tree]
-        for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),
-                             (signal.SIGTERM, SIGTERM_TIMEOUT_S), (signal.SIGKILL, 5.0)):
-            pending = [ps for ps in pending if _alive(ps)]
-            if not pending:
-                break
-            for ps in pending:
+        """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL; never interrupted."""
+        with signals_ignored():
+            self.sample(with_children=True)
+            pending = [ps for p in self.procs.values() for ps in self._tree(p)]
+            for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),
+                                 (signal.SIGTERM, SIGTERM_TIMEOUT_S), (signal.SIGKILL, 5.0)):
+                pending = [ps for ps in pending if _alive(ps)]
+                if not pending:
+                    break
+                for ps in pending:
+                    _signal(ps, sig)
+                    _signal(ps, signal.SIGCONT)  # a stopped process must run to see it
+                _, pending = psutil.wait_procs(pending, timeout=timeout)
+            for proc in self.procs.values():
                 try:
-                    ps.send_signal(sig)
-                except psutil.Error:
+                    proc.popen.wait(timeout=1.0)
+                except subprocess.TimeoutExpired:
                     pass
-            _, pending = psutil.wait_procs(pending, timeout=timeout)
-        for proc in self.procs.values():
-            try:
-                proc.popen.wait(timeout=1.0)
-            except subprocess.TimeoutExpired:
-                pass
 
     def _tree(self, proc: NodeProcess) -> list[psutil.Process]:
         procs = []
@@ -139,6 +139,27 @@ class Supervisor:
             except psutil.Error:
                 continue
         return list({p.pid: p for p in procs}.values())
+
+
+def _signal(ps: psutil.Process, sig: int) -> None:
+    try:
+        ps.send_signal(sig)
+    except psutil.Error:
+        pass
+
+
+@contextlib.contextmanager
+def signals_ignored():
+    """Ignore SIGINT and SIGTERM inside the block: shutdown and saving must not be cut short."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _alive(ps: psutil.Process) -> bool:
