@@ -241,12 +241,12 @@ def nav_figure(scenario, data: BagData, outcome) -> Figure:
     laser_frame = scans[0][1].header.frame_id if scans else "laser"
     world = load_world(getattr(scenario, "world", None), laser_frame or "laser")
     snaps = snapshot_scans(scans)
-    fig = Figure(figsize=(15, 8.2))
-    grid = fig.add_gridspec(3, 2, width_ratios=(1.15, 1), hspace=0.12, wspace=0.16,
-                            left=0.05, right=0.97, top=0.88, bottom=0.07)
-    ax_map = fig.add_subplot(grid[:, 0])
+    fig = Figure(figsize=(15, 9.5))
+    left = fig.add_gridspec(1, 1, left=0.05, right=0.5, top=0.89, bottom=0.2)
+    right = fig.add_gridspec(3, 1, left=0.6, right=0.98, top=0.89, bottom=0.07, hspace=0.12)
+    ax_map = fig.add_subplot(left[0])
     draw_map(ax_map, fig, scenario, world, track, data, snaps)
-    axes = [fig.add_subplot(grid[i, 1]) for i in range(3)]
+    axes = [fig.add_subplot(right[i]) for i in range(3)]
     for ax in axes[1:]:
         ax.sharex(axes[0])
     draw_speed(axes[0], track, data.messages.get("/cmd_vel", []))
@@ -293,7 +293,11 @@ def draw_map(ax, fig, scenario, world: World, track: Track, data: BagData, snaps
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="upper left", fontsize=8, framealpha=0.85, markerscale=2)
+    legend = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=3, fontsize=8,
+                       frameon=False)
+    for handle in legend.legend_handles:
+        if hasattr(handle, "set_sizes"):
+            handle.set_sizes([25])
 
 
 def draw_obstacles(ax, world: World) -> None:
@@ -315,12 +319,15 @@ def draw_plans(ax, plans: list[tuple[int, object]]) -> None:
     xy_first, xy_last = plan_xy(first[1]), plan_xy(last[1])
     changes = sum(1 for (_, a), (_, b) in zip(plans, plans[1:], strict=False)
                   if not np.array_equal(plan_xy(a), plan_xy(b)))
+    same = np.array_equal(xy_first, xy_last)
+    label = (f"plan ({len(plans)} /plan messages, never changed)" if same
+             else f"first plan ({first[0] / 1e9:.1f} s)")
     if len(xy_first):
         ax.plot(xy_first[:, 0], xy_first[:, 1], "--", color="#1f77b4", lw=1.6, zorder=2,
-                label=f"first plan ({first[0] / 1e9:.1f} s)")
-    if len(xy_last) and not np.array_equal(xy_first, xy_last):
-        ax.plot(xy_last[:, 0], xy_last[:, 1], ":", color="#2ca02c", lw=2, zorder=2,
-                label=f"last plan ({last[0] / 1e9:.1f} s; plan changed {changes}x)")
+                label=label)
+    if len(xy_last) and not same:
+        ax.plot(xy_last[:, 0], xy_last[:, 1], ":", color="#7f7f00", lw=2, zorder=2,
+                label=f"last plan ({last[0] / 1e9:.1f} s; changed {changes}x in all)")
 
 
 def plan_xy(path) -> np.ndarray:
@@ -336,11 +343,11 @@ def draw_trajectory(ax, fig, track: Track) -> None:
     segments = np.stack([pts[:-1], pts[1:]], axis=1)
     speed = np.abs(track.v[1:])
     lc = LineCollection(segments, cmap="viridis", linewidths=3, zorder=3,
-                        label="driven (odometry)")
+                        label="driven (odometry; colour = speed)")
     lc.set_array(speed)
     lc.set_clim(0, max(float(speed.max()), 1e-3))
     ax.add_collection(lc)
-    bar = fig.colorbar(lc, ax=ax, fraction=0.035, pad=0.01)
+    bar = fig.colorbar(lc, ax=ax, fraction=0.04, pad=0.02)
     bar.set_label("speed [m/s]")
 
 
@@ -405,11 +412,11 @@ def draw_speed(ax, track: Track, cmds) -> None:
     ax.plot(track.t, track.v, color="#1f77b4", lw=1.4, label="odometry (body x)")
     if cmds:
         t, v = cmd_series(cmds, "linear.x")
-        ax.step(t, v, where="post", color="#ff7f0e", lw=1, alpha=0.9, label="/cmd_vel linear.x")
+        ax.step(t, v, where="post", color="#2ca02c", lw=1, alpha=0.9, label="/cmd_vel linear.x")
     ax.set_ylabel("speed [m/s]")
     ax.axhline(0, color="grey", lw=0.6)
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
 
 
 def draw_turn(ax, track: Track, cmds) -> None:
@@ -417,12 +424,12 @@ def draw_turn(ax, track: Track, cmds) -> None:
     ax.plot(track.t, track.w, color="#1f77b4", lw=1.4, label="odometry (yaw rate)")
     if cmds:
         t, w = cmd_series(cmds, "angular.z")
-        ax.step(t, w, where="post", color="#ff7f0e", lw=1, alpha=0.9,
+        ax.step(t, w, where="post", color="#2ca02c", lw=1, alpha=0.9,
                 label="/cmd_vel angular.z")
     ax.set_ylabel("turn rate [rad/s]")
     ax.axhline(0, color="grey", lw=0.6)
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
 
 
 def draw_distances(ax, scenario, track: Track, scans) -> None:
@@ -440,7 +447,7 @@ def draw_distances(ax, scenario, track: Track, scans) -> None:
     ax.set_ylabel("distance [m]")
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
 
 
 def nearest_return(scan) -> float:
@@ -521,27 +528,28 @@ def subtitle(scenario, track: Track, data: BagData, outcome) -> str:
 
 
 def counts_figure(scenario, data: BagData, outcome) -> Figure:
-    """Messages recorded per topic: cumulative count over sim time, and totals."""
+    """Messages recorded per topic: when each was published over sim time, and totals."""
     fig = Figure(figsize=(13, 6))
     grid = fig.add_gridspec(1, 2, width_ratios=(1.6, 1), wspace=0.35, left=0.06, right=0.97,
                             top=0.86, bottom=0.1)
     ax_t, ax_n = fig.add_subplot(grid[0]), fig.add_subplot(grid[1])
     topics = sorted(data.stamps)
-    for topic in topics:
-        s = np.sort(data.stamps[topic]) / 1e9
-        ax_t.step(s, np.arange(1, len(s) + 1), where="post", lw=1.4, label=topic)
-    ax_t.set_xlabel("sim time [s]")
-    ax_t.set_ylabel("messages so far")
-    ax_t.grid(True, alpha=0.25)
-    ax_t.legend(fontsize=8, loc="upper left")
+    colours = [f"C{i % 10}" for i in range(len(topics))]
+    ax_t.eventplot([data.stamps[t] / 1e9 for t in topics], colors=colours, linelengths=0.7,
+                   linewidths=0.8)
+    ax_t.set_yticks(range(len(topics)), topics)
+    ax_t.invert_yaxis()
+    ax_t.set_xlabel("sim time [s] (log time of each message)")
+    ax_t.set_title("when each topic was published", fontsize=10)
+    ax_t.grid(True, axis="x", alpha=0.25)
     counts = [len(data.stamps[t]) for t in topics]
-    bars = ax_n.barh(topics, counts, color="#1f77b4")
+    bars = ax_n.barh(topics, counts, color=colours)
     ax_n.bar_label(bars, padding=3, fontsize=8)
     ax_n.invert_yaxis()
     ax_n.set_xlabel("messages recorded")
     ax_n.set_xlim(0, max(counts + [1]) * 1.15)
     fig.suptitle(title(scenario, outcome), fontsize=13)
     last = max((int(s.max()) for s in data.stamps.values() if len(s)), default=0)
-    fig.text(0.5, 0.91, f"no /odom in this run: messages per topic over {last / 1e9:.2f} s "
+    fig.text(0.5, 0.915, f"no /odom in this run: messages per topic over {last / 1e9:.2f} s "
              f"of sim time, {sum(counts)} in all", ha="center", fontsize=10, color="#444444")
     return fig
