@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import platform
+import resource
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 
@@ -34,22 +37,69 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
+def in_process_entries(scenario, ticks: int) -> dict[str, Any]:
+    """Per-node entries of an in-process run: activations served (the cost is the process's)."""
+    return {name: {"ticks": (ticks - 1) // scenario.schedule.periods[name] + 1 if ticks else 0}
+            for name in scenario.schedule.order}
+
+
+def own_cost() -> dict[str, float]:
+    """This process's CPU time and peak memory (all of an in-process run's nodes)."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return {"cpu_s": round(usage.ru_utime + usage.ru_stime, 3),
+            "peak_rss_mb": round(usage.ru_maxrss / 1024, 1)}
+
+
+def relative(path: Path | None, run_dir: Path) -> str | None:
+    """A path inside the run directory as a relative text, None when there is none."""
+    if path is None:
+        return None
+    try:
+        return str(Path(path).relative_to(run_dir))
+    except ValueError:
+        return str(path)
+
+
+def file_entry(path: Path | None) -> dict[str, Any] | None:
+    """A file's name and sha256 (the world a run loaded)."""
+    if path is None or not Path(path).is_file():
+        return None
+    return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
+
+
+def scenario_entry(scenario) -> dict[str, Any]:
+    """Which scenario ran: name, file, hash, overrides, world, planned length."""
+    return {"name": scenario.name, "file": str(scenario.file), "sha256": scenario.sha256,
+            "overrides": scenario.overrides, "world": file_entry(scenario.world),
+            "planned_ticks": scenario.schedule.n_ticks}
+
+
+def outputs_entry(outcome) -> dict[str, Any]:
+    """Where the outputs are, relative to the run directory (None: not written)."""
+    run_dir = outcome.run_dir
+    return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
+            "logs": "logs", "parts": "parts"}
+
+
 def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
     ticks = result.ticks if result else 0
     sim_s = max(ticks - 1, 0) * scenario.tick_ns / 1e9
     metrics = {k: v for m in (result.metrics.values() if result else []) for k, v in m.items()}
+    nodes = {name: node_entry(stats, proc) for name, (stats, proc) in outcome.node_stats.items()}
+    if options.in_process and not nodes:
+        nodes = in_process_entries(scenario, ticks)
     return {
-        "scenario": {"name": scenario.name, "file": str(scenario.file),
-                     "sha256": scenario.sha256, "overrides": scenario.overrides},
+        "scenario": scenario_entry(scenario),
         "seed": scenario.model.seed,
         "transport": "in-process" if options.in_process else scenario.model.transport,
         "versions": software_versions(),
         "digest": result.digest if result else None,
         "outcome": {"status": outcome.status, "success": outcome.success,
                     "collisions": outcome.collisions, "error": outcome.error,
-                    "metrics": metrics, "stopped_early": bool(result and result.stopped_early)},
+                    "metrics": metrics, "stopped_early": bool(result and result.stopped_early),
+                    "metrics_by_node": result.metrics if result else {}},
         "ticks": ticks,
         "tick_ns": scenario.tick_ns,
         "sim_time_s": sim_s,
@@ -58,8 +108,10 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "loop_s": round(outcome.loop_s, 4) if outcome.loop_s is not None else None,
         "ticks_per_s": round(ticks / outcome.loop_s, 1) if outcome.loop_s else None,
         "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,
-        "nodes": {name: node_entry(stats, proc)
-                  for name, (stats, proc) in outcome.node_stats.items()},
+        "loop_real_time_factor": round(sim_s / outcome.loop_s, 2) if outcome.loop_s else None,
+        "orchestrator": own_cost(),
+        "nodes": nodes,
+        "outputs": outputs_entry(outcome),
     }
 
 
