@@ -87,6 +87,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
     try:
         _run_maybe_profiled(runtime, run_dir, name)
         return EXIT_OK
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
     except NodeFailure as exc:
         if exc.__cause__ is None:
             runtime.report_error(-1, exc)

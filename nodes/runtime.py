@@ -77,6 +77,7 @@ class LockstepRuntime:
         self.transport = transport
         self.recorder = recorder
         self.stop_requested = False
+        self.in_step = False
         self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
         self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
         self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
@@ -183,6 +184,7 @@ class LockstepRuntime:
         if self.step_delay_s:
             time.sleep(self.step_delay_s)  # test-only slowdown; must not change any output
         start = time.perf_counter_ns()
+        self.in_step = True
         try:
             outputs = self.node.step(tick, inputs)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
@@ -190,6 +192,8 @@ class LockstepRuntime:
         except Exception as exc:
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
+        finally:
+            self.in_step = False
         step_ns = time.perf_counter_ns() - start
         for topic, data in items:
             self.publishers[topic].publish(data)
@@ -214,8 +218,11 @@ class LockstepRuntime:
             flush(2.0)
 
     def request_stop(self, *_args) -> None:
-        """Signal handler: finish the current wait and leave the loop."""
+        """Signal handler: leave the loop after the current wait; interrupt a step in progress
+        (a step that never returns must not hold shutdown up until SIGKILL)."""
         self.stop_requested = True
+        if self.in_step:
+            raise KeyboardInterrupt
 
 
 def install_stop_handlers(runtime: LockstepRuntime) -> None:
