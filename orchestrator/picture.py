@@ -97,7 +97,7 @@ def read_bag(bag: Path, decode: tuple[str, ...]) -> BagData:
             stamps.setdefault(conn.topic, [])
             data.counts[conn.topic] = data.counts.get(conn.topic, 0) + conn.msgcount
         conns = reader.connections
-        if "/odom" in stamps:  # the nav picture: skip images and the rest, only count them
+        if data.counts.get("/odom"):  # the nav picture: skip images and the rest, count them
             conns = [c for c in conns if c.topic in decode]
         last: dict[str, tuple[bytes, object]] = {}
         for conn, stamp, raw in reader.messages(connections=conns):
