@@ -21,8 +21,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("kind", help="the node's kind (physics, sensors, control, ...) or 'any'")
     p.add_argument("--scenario", required=True, type=Path, help="scenario YAML file")
     p.add_argument("--node", help="which node of the scenario (default: the only one of KIND)")
-    p.add_argument("--lockstep", action="store_true", default=True,
-                   help="join a running orchestrator (default)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--lockstep", action="store_true",
+                      help="join a running orchestrator's lockstep run (the default); a node "
+                           "marked 'external: true' in the scenario is started this way by you")
+    mode.add_argument("--realtime", action="store_true",
+                      help="free-run on wall time: physics publishes /clock and takes /cmd_vel "
+                           "from anyone; sensors and control follow /clock")
+    p.add_argument("--rtf", type=float, default=1.0,
+                   help="real-time factor for --realtime (default 1.0; 2.0 runs twice as fast)")
     p.add_argument("--run-dir", type=Path, help="where to record what this node publishes")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, as the orchestrator does (repeatable)")
@@ -69,7 +76,36 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.realtime:
+        return run_realtime(scenario, name, args.rtf)
     return run_lockstep(scenario, name, args.run_dir)
+
+
+def run_realtime(scenario, name: str, rtf: float) -> int:
+    """Run node ``name`` free-running on wall time until Ctrl-C."""
+    import signal
+
+    from nodes.realtime import RealtimeRuntime
+    from nodes.transport import create_transport
+    from orchestrator.inprocess import make_node
+
+    transport = create_transport(scenario.model.transport, f"cosim_{name}")
+    try:
+        runtime = RealtimeRuntime(scenario, name, make_node(scenario, name), transport, rtf)
+        signal.signal(signal.SIGINT, runtime.request_stop)
+        signal.signal(signal.SIGTERM, runtime.request_stop)
+        clock = "publishing /clock" if runtime.publish_clock else "following /clock"
+        print(f"cosim-node {name}: running on wall time at rtf {rtf:g}, {clock}; Ctrl-C stops",
+              file=sys.stderr, flush=True)
+        runtime.run()
+        return EXIT_OK
+    except KeyboardInterrupt:
+        return EXIT_OK
+    except ValueError as exc:
+        print(f"cosim-node {name}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    finally:
+        transport.close()
 
 
 def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:

@@ -78,6 +78,7 @@ class LockstepRuntime:
         self.recorder = recorder
         self.stop_requested = False
         self.in_step = False
+        self._next_upstream_check = 0.0
         self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
         self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
         self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
@@ -163,6 +164,19 @@ class LockstepRuntime:
             self.receive(POLL_NS)
             if self.parent_pid and os.getppid() != self.parent_pid:
                 raise NodeFailure("the orchestrator went away; stopping")
+            if not self.clocks and self.upstream_gone():
+                return  # the run is over (or the orchestrator died): nothing will come
+
+    def upstream_gone(self) -> bool:
+        """Whether every publisher this node listens to has disappeared (checked twice a second)."""
+        now = time.monotonic()
+        if now < self._next_upstream_check:
+            return False
+        self._next_upstream_check = now + 0.5
+        subs = list(self.input_subs.values())
+        if self.clock_sub is not None:
+            subs.append(self.clock_sub)
+        return bool(subs) and all(sub.matched() == 0 for sub in subs)
 
     def try_tick(self, k: int) -> bool:
         """Act at tick ``k`` if due and its inputs are all here; True when the tick is served."""

@@ -102,7 +102,10 @@ class LockstepMaster:
         for name in sorted(missing):
             status = self.last_status.get(name)
             proc = self.supervisor.procs.get(name)
-            alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
+            if self.scenario.nodes[name].spec.external:
+                alive = "external process, started by you"
+            else:
+                alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
             what = (f"still waiting for discovery of {status.detail}" if status and status.detail
                     else "never reported on " + STATUS_TOPIC)
             parts.append(f"node {name} ({alive}) {what}")
@@ -160,7 +163,7 @@ class LockstepMaster:
         for name in sorted(pending):
             proc = self.supervisor.procs.get(name)
             if proc is None:
-                state = "external process"
+                state = "external process, not supervised"
             elif proc.popen.poll() is None:
                 state = f"process alive (pid {proc.popen.pid}, {_proc_state(proc)})"
             else:

@@ -52,6 +52,8 @@ class NodeSpec(Strict):
     inputs: list[InputSpec] = Field(default_factory=list)
     remap: dict[Topic, Topic] = Field(default_factory=dict)
     debug: DebugSpec = Field(default_factory=DebugSpec)
+    external: bool = Field(False, description="true: not spawned; you start it with "
+                           "'cosim-node KIND --scenario FILE --node NAME --lockstep'")
 
     @property
     def period_ns(self) -> int:

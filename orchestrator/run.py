@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import random
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -134,7 +135,10 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
             plan = scenario.nodes[name]
             argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
                              scenario.overrides)
-            supervisor.spawn(name, argv)
+            if plan.spec.external:
+                _announce_external(name, argv)
+            else:
+                supervisor.spawn(name, argv)
         log.info("spawned %s", ", ".join(order))
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
@@ -148,6 +152,14 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
                               for name in scenario.nodes}
         supervisor.shutdown()
         transport.close()
+
+
+def _announce_external(name: str, argv: list[str]) -> None:
+    """Tell the user how to start an external node (it joins the run when ready)."""
+    command = " ".join(["cosim-node", *argv[3:]])
+    log.info("waiting for external node %s: %s", name, command)
+    print(f"cosim-orchestrate: waiting for external node {name}; start it with:\n  {command}",
+          file=sys.stderr, flush=True)
 
 
 def _judge(scenario: Scenario, outcome: RunOutcome) -> None:

@@ -1,0 +1,107 @@
+"""The free-running runtime: one node on wall time, for live use beside ordinary ROS 2 tools.
+
+Unlike lockstep, nothing waits for anyone: each input holds the latest message received
+(from any publisher: a teleop terminal, a bag, another cosim node), and the node steps at
+its rate. A node without same-tick inputs (physics) paces itself on the wall clock, scaled
+by ``rtf``, and publishes ``/clock`` like Gazebo; the others follow ``/clock``. The step
+classes are the same as in lockstep; only the results are no longer reproducible.
+"""
+
+from __future__ import annotations
+
+import time
+
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
+
+from nodes.contract import StepNode, Tick
+from nodes.exchange import prepare_outputs
+from nodes.protocol import CLOCK_TOPIC, decode_clock, encode_clock
+from nodes.transport import Transport
+
+POLL_NS = 50_000_000
+
+
+class RealtimeRuntime:
+    """Runs node ``name`` of a scenario on wall time until stopped."""
+
+    def __init__(self, scenario, name: str, node: StepNode, transport: Transport,
+                 rtf: float = 1.0, publish_clock: bool | None = None):
+        if rtf <= 0:
+            raise ValueError(f"--rtf must be greater than zero, got {rtf}")
+        self.plan = scenario.nodes[name]
+        self.sched = scenario.schedule
+        self.tick_ns = scenario.tick_ns
+        self.period = self.plan.period_ticks
+        self.node = node
+        self.transport = transport
+        self.rtf = rtf
+        if publish_clock is None:
+            publish_clock = not any(i.mode == "same_tick" for i in self.plan.inputs)
+        self.publish_clock = publish_clock
+        self.latest: dict[str, object] = {}
+        self.own_topic = {i.graph_topic: (i.topic, i.msg_type) for i in self.plan.inputs}
+        self.publishers = {t: transport.publisher(t, msg, 10)
+                           for t, msg in self.plan.outputs.items()}
+        for graph, (_, msg_type) in self.own_topic.items():
+            transport.subscription(graph, msg_type, 10)
+        self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 10) if publish_clock else None
+        if not publish_clock:
+            transport.subscription(CLOCK_TOPIC, Clock, 10)
+        self.stop_requested = False
+        self.served = -1
+        self.steps = 0
+
+    def request_stop(self, *_args) -> None:
+        """Signal handler: leave the loop."""
+        self.stop_requested = True
+
+    def run(self) -> None:
+        """Step at the node's rate until stopped."""
+        if self.publish_clock:
+            self._run_paced()
+        else:
+            self._run_following()
+
+    def _run_paced(self) -> None:
+        start = time.monotonic_ns()
+        k = 0
+        while not self.stop_requested:
+            due_at = start + int(k * self.tick_ns / self.rtf)
+            while (left := due_at - time.monotonic_ns()) > 0 and not self.stop_requested:
+                self._receive(min(left, POLL_NS))
+            self.clock_pub.publish(encode_clock(k * self.tick_ns))
+            if k % self.period == 0:
+                self._step(k)
+            k += 1
+
+    def _run_following(self) -> None:
+        while not self.stop_requested:
+            now = self._receive(POLL_NS)
+            if now is None:
+                continue
+            due = now // self.tick_ns
+            due -= due % self.period
+            if due > self.served:
+                self._step(due)
+
+    def _receive(self, timeout_ns: int) -> int | None:
+        """File every message; return the newest /clock time seen, if any."""
+        newest = None
+        for rec in self.transport.wait(timeout_ns):
+            if rec.topic == CLOCK_TOPIC:
+                newest = decode_clock(rec.data)
+            elif rec.topic in self.own_topic:
+                own, msg_type = self.own_topic[rec.topic]
+                self.latest[own] = deserialize_message(rec.data, msg_type)
+        return newest
+
+    def _step(self, k: int) -> None:
+        tick = Tick(k, k * self.tick_ns)
+        outputs = self.node.step(tick, dict(self.latest))
+        items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
+                                self.plan.output_names, tick, outputs)
+        for topic, data in items:
+            self.publishers[topic].publish(data)
+        self.served = k
+        self.steps += 1
