@@ -75,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    for warning in scenario.warnings:
+        print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
     from orchestrator.progress import Progress
     from orchestrator.report import print_outcome

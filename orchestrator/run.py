@@ -18,7 +18,7 @@ from nodes.recording import PartWriter
 from nodes.transport import create_transport
 from orchestrator.bag import write_bag
 from orchestrator.errors import SimulationError
-from orchestrator.inprocess import RunResult, run_in_process
+from orchestrator.inprocess import RunResult, goal_reached, run_in_process
 from orchestrator.manifest import write_manifest
 from orchestrator.master import LockstepMaster
 from orchestrator.picture import write_report_png
@@ -106,7 +106,7 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
 def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     try:
-        return write_report_png(scenario, outcome.run_dir, outcome.bag)
+        return write_report_png(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)
         return None
@@ -165,7 +165,7 @@ def _announce_external(name: str, argv: list[str]) -> None:
 def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
     metrics = outcome.result.metrics
     collisions = int(sum(m.get("collisions", 0) for m in metrics.values()))
-    reached = any(m.get("goal_reached", 0) >= 1 for m in metrics.values())
+    reached = goal_reached(metrics)
     spec = scenario.model.success
     ok = collisions <= spec.max_collisions
     if spec.reach_goal and scenario.model.goal is not None:

@@ -72,6 +72,7 @@ class Scenario:
     world: Path | None
     sha256: str
     overrides: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -263,7 +264,17 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
             output_names=outputs[i][1], inputs=inputs)
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
-    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides)
+    warnings = unconsumed_remaps(path, nodes, edges)
+    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
+
+
+def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
+    """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it)."""
+    consumed = {e.topic for e in edges}
+    return [f"{path}: nodes ({plan.name}).remap.{own}: {graph} is published but no node of "
+            "the scenario consumes it (only ROS tools will see it)."
+            for plan in nodes.values() for own, graph in plan.output_names.items()
+            if own != graph and graph not in consumed]
 
 
 class ScenarioContext:

@@ -126,7 +126,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, world, goal, success, deadlines, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
-     "name, kind, module, rate, params, inputs, remap, debug"),
+     "name, kind, module, rate, params, inputs, remap, debug, external"),
     (VALID.replace("mode: same_tick}", "mode: same_tick, qos: 3}"),
      "nodes[1] (b).inputs[0].qos", "topic, mode"),
     (VALID + "goal: {x: 1, y: 2, z: 3}\n", "goal.z",

@@ -112,6 +112,7 @@ class PhysicsNode(StepNode):
         self.collisions.update(self.data)
         self.collisions.events = 0  # touching at the start is not an event
         self.started = False
+        self.goal_time_ns: int | None = None
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Integrate one period (except at the first activation) and publish the state."""
@@ -124,7 +125,19 @@ class PhysicsNode(StepNode):
                 mujoco.mj_step(self.model, self.data)
                 self.collisions.update(self.data)
         self.started = True
+        self._check_goal(tick)
         return self._publish()
+
+    def _check_goal(self, tick: Tick) -> None:
+        """Ground truth: the robot is within the scenario goal's tolerances (sticky)."""
+        goal = self.config.goal
+        if goal is None or self.goal_time_ns is not None:
+            return
+        q = self.data.qpos[self.qadr:self.qadr + 7]
+        yaw_error = (m.yaw_of(q[3:7]) - goal["yaw"] + np.pi) % (2 * np.pi) - np.pi
+        if (np.hypot(q[0] - goal["x"], q[1] - goal["y"]) <= goal["position_tolerance"]
+                and abs(yaw_error) <= goal["yaw_tolerance"]):
+            self.goal_time_ns = tick.time_ns
 
     def _head(self, msg: Float64MultiArray | None) -> None:
         if msg is None:
@@ -147,7 +160,10 @@ class PhysicsNode(StepNode):
         }
 
     def metrics(self) -> dict[str, float]:
-        """Collision events so far and the ground-truth planar pose."""
+        """Collision events, the ground-truth planar pose, and whether it reached the goal."""
         q = self.data.qpos[self.qadr:self.qadr + 7]
-        return {"collisions": float(self.collisions.events), "x": float(q[0]),
-                "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
+        out = {"collisions": float(self.collisions.events), "x": float(q[0]),
+               "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
+        if self.config.goal is not None:
+            out["arrived"] = float(self.goal_time_ns is not None)  # ground truth, sticky
+        return out
