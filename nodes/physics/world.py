@@ -1,4 +1,4 @@
-"""Loading an MJCF world and reading the robot out of it (shared by physics, sensors, control)."""
+"""Loading a world (MJCF or USD) and reading the robot out of it (physics, sensors, control)."""
 
 from __future__ import annotations
 
@@ -7,12 +7,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from nodes.worldfile import load_world_model
+
 NS_PER_S = 1_000_000_000
 
 
 def load_model(world: Path | str) -> mujoco.MjModel:
-    """Compile the MJCF world file (includes resolve relative to it)."""
-    return mujoco.MjModel.from_xml_path(str(world))
+    """Compile the world file, MJCF or USD, through the one shared loader (nodes.worldfile)."""
+    return load_world_model(world)
 
 
 def timestep_ns(model: mujoco.MjModel, world: Path | str) -> int:
