@@ -341,13 +341,26 @@ class ScenarioContext:
         if self.model.world is None:
             if needed:
                 raise self.fail("world", "a node of this scenario needs a world file, none given.",
-                                "world: path to an MJCF (.xml) file, relative to this file.")
+                                "world: path to an MJCF (.xml) or USD (.usda, .usdc, .usd) file, "
+                                "relative to this file.")
             return None
         world = (self.path.parent / self.model.world).resolve()
         if not world.is_file():
             raise self.fail("world", f"world file {self.model.world!r} does not exist "
                             f"(looked for {world}).", "a path relative to the scenario file.")
+        self.check_world(world)
         return world
+
+    def check_world(self, world: Path) -> None:
+        """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
+        from nodes.worldfile import WorldError, check_world
+
+        try:
+            check_world(world)
+        except WorldError as exc:
+            raise self.fail("world", f"{exc}", "an MJCF (.xml) or USD (.usda, .usdc, .usd) "
+                            "world that MuJoCo loads; USD colliders must be Cube, Sphere, "
+                            "Cylinder, Capsule, Z-axis Plane or Mesh prims.") from None
 
     def tick_ns(self) -> int:
         """The tick: given, or the gcd of all node periods; every period a whole number of ticks."""
