@@ -24,7 +24,9 @@ same bodies, geoms and qpos in the same order.
 from __future__ import annotations
 
 import re
+import sys
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,7 +72,7 @@ def load_world_model(path: Path | str) -> mujoco.MjModel:
             return mujoco.MjModel.from_xml_path(str(path))
         except ValueError as exc:
             raise WorldError(path, f"the MJCF does not load: {_one_line(exc)}") from exc
-    return _compile(load_world_spec(path), path)
+    return compile_world(load_world_spec(path), path)
 
 
 def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None) -> mujoco.MjSpec:
@@ -222,8 +224,7 @@ def _attach_robot(spec: mujoco.MjSpec, stage, mount: RobotMount, path: Path) -> 
     quat = pose.GetRotation().GetQuat()
     frame = spec.worldbody.add_frame(pos=list(pose.GetTranslation()),
                                      quat=[quat.GetReal(), *quat.GetImaginary()])
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Attaching a spec with an empty prefix")
+    with _quiet_empty_prefix():
         spec.attach(robot, frame=frame, prefix=mount.prefix)
 
 
@@ -252,13 +253,36 @@ def _mjcf_spec(path: Path) -> mujoco.MjSpec:
         raise WorldError(path, f"the MJCF does not load: {_one_line(exc)}") from exc
 
 
-def _compile(spec: mujoco.MjSpec, path: Path | str) -> mujoco.MjModel:
+def compile_world(spec: mujoco.MjSpec, path: Path | str) -> mujoco.MjModel:
+    """Compile a world spec; a :class:`WorldError` naming the prim when MuJoCo names one."""
     try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Attaching a spec with an empty prefix")
+        with _quiet_empty_prefix():
             return spec.compile()
     except (ValueError, mujoco.FatalError) as exc:
         raise _mujoco_error(Path(path), exc) from exc
+
+
+@contextmanager
+def _quiet_empty_prefix():
+    """Drop MuJoCo's 'empty prefix' warning (printed and appended to MUJOCO_LOG.TXT in the
+    working directory): robots are attached without a prefix on purpose, to keep their names."""
+    previous = mujoco.get_mju_user_warning()
+
+    def handler(text: str) -> None:
+        if "empty prefix" in text:
+            return
+        if previous is not None:
+            previous(text)
+        else:
+            print(f"MuJoCo warning: {text}", file=sys.stderr)
+
+    mujoco.set_mju_user_warning(handler)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Attaching a spec with an empty prefix")
+            yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def _mujoco_error(path: Path, exc: Exception) -> WorldError:

@@ -37,6 +37,7 @@ class RunOptions:
     in_process: bool = False
     shuffle_start: int | None = None
     on_tick: object = None
+    export_usd: bool = False
 
 
 @dataclass
@@ -53,6 +54,7 @@ class RunOutcome:
     bag: Path | None = None
     ticks_done: int = 0
     report: Path | None = None
+    usd: Path | None = None
     success: bool = False
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
@@ -88,6 +90,8 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
             outcome.wall_s = time.monotonic() - started
             outcome.bag = _write_bag_safely(scenario, outcome)
             outcome.report = _write_picture_safely(scenario, outcome)
+            if options.export_usd:
+                outcome.usd = _export_usd_safely(scenario, outcome)
             write_manifest(scenario, outcome, options)
             logging.getLogger().removeHandler(handler)
             handler.close()
@@ -110,6 +114,24 @@ def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | Non
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)
         return None
+
+
+def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
+    """--export-usd: the run as run.usda, built from the bag after the run (digest untouched)."""
+    if outcome.bag is None or scenario.world is None:
+        log.error("no USD export: the run has no bag or no world")
+        return None
+    from orchestrator.usd_export import USD_NAME, export_run_usd
+
+    started = time.monotonic()
+    try:
+        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns,
+                             outcome.run_dir / USD_NAME)
+    except Exception as exc:  # noqa: BLE001 - the run's data stays; only the stage is lost
+        log.error("could not write %s: %s", USD_NAME, exc)
+        return None
+    log.info("wrote %s in %.2f s", out, time.monotonic() - started)
+    return out
 
 
 def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
