@@ -105,6 +105,7 @@ def open_stage(path: Path | str):
 
     path = Path(path).resolve()
     try:
+        Sdf.Layer.FindOrOpen(str(path))  # its parse errors carry file:line:col
         source = Usd.Stage.Open(str(path), Usd.Stage.LoadAll)
     except Tf.ErrorException as exc:
         raise WorldError(path, f"not a readable USD stage: {_tf_reason(exc)}") from exc
@@ -299,9 +300,7 @@ def _one_line(exc: Exception) -> str:
 
 
 def _tf_reason(exc: Exception) -> str:
-    """The useful part of a USD error (file:line:col and what was expected)."""
-    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
-    for ln in lines:
-        if " -- " in ln:
-            return ln.split(" -- ", 1)[1]
-    return lines[-1] if lines else type(exc).__name__
+    """The useful part of a USD error: the quoted message (file:line:col: what was expected)."""
+    quoted = re.search(r" : '(.*)'", str(exc), re.S)
+    text = quoted.group(1) if quoted else str(exc)
+    return " ".join(text.split()) or type(exc).__name__
