@@ -78,6 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
+    if args.in_process and foreign:
+        print(f"cosim-orchestrate: error: {scenario.file}: --in-process runs step classes only; "
+              f"node(s) {', '.join(foreign)} are foreign programs (command:). Run without "
+              "--in-process.", file=sys.stderr)
+        return EXIT_BAD_INPUT
     for warning in scenario.warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)

@@ -61,7 +61,7 @@ class LockstepMaster:
     """Drives a scenario's ticks over a transport, watching the supervisor's processes."""
 
     def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
-                 on_tick: Callable[[int], None] | None = None):
+                 on_tick: Callable[[int], None] | None = None, proxies: dict | None = None):
         self.scenario = scenario
         self.sched = scenario.schedule
         self.transport = transport
@@ -72,6 +72,8 @@ class LockstepMaster:
         self.stats = {name: NodeStats() for name in scenario.nodes}
         self.last_status: dict[str, Status] = {}
         self.tick = -1
+        self.proxies = proxies or {}
+        self.proxy_of = {t: p for p in self.proxies.values() for t in p.topics}
         self.waiting_for: set[str] = set()
         self._next_liveness = 0.0
         self._next_sample = 0.0
@@ -84,6 +86,10 @@ class LockstepMaster:
         names = set(self.scenario.nodes)
         ready: set[str] = set()
         while True:
+            for proxy in self.proxies.values():
+                if proxy.name not in ready and proxy.ready():
+                    self.stats[proxy.name].ready_s = time.monotonic() - started_at
+                    ready.add(proxy.name)
             for status in self._statuses():
                 if status.state == READY and status.node in names:
                     if status.node not in ready:
@@ -108,6 +114,9 @@ class LockstepMaster:
                 alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
             what = (f"still waiting for discovery of {status.detail}" if status and status.detail
                     else "never reported on " + STATUS_TOPIC)
+            if name in self.proxies:
+                what = (f"is a foreign program whose outputs are not advertised yet: "
+                        f"{self.proxies[name].unmatched()} (see its log)")
             parts.append(f"node {name} ({alive}) {what}")
         if not parts:
             parts.append(f"/clock has {self.clock_pub.matched()} of "
@@ -173,6 +182,8 @@ class LockstepMaster:
                      for e, i in zip(self.sched.inputs_of[name], plan.inputs, strict=True)
                      if self.sched.input_tick(e, k) is not None]
             waiting = f"; it needs {', '.join(needs)}" if needs else "; it needs no input"
+            if name in self.proxies:
+                waiting = f"; {self.proxies[name].missing(k)} (foreign program)"
             parts.append(f"node {name} did not finish tick {k} within the {limit:g} s tick "
                          f"deadline: {state}{waiting}")
         return "; ".join(parts) + ". Raise deadlines.tick in the scenario if it is just slow."
@@ -186,6 +197,8 @@ class LockstepMaster:
                 status = decode_status(rec.data)
                 self.last_status[status.node] = status
                 out.append(status)
+            elif rec.topic in self.proxy_of:
+                out += self.proxy_of[rec.topic].accept(rec, self.tick)
         return out
 
     def _check_processes(self, when: str) -> None:

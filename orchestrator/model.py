@@ -52,6 +52,9 @@ class NodeSpec(Strict):
     inputs: list[InputSpec] = Field(default_factory=list)
     remap: dict[Topic, Topic] = Field(default_factory=dict)
     debug: DebugSpec = Field(default_factory=DebugSpec)
+    command: list[str] | None = Field(None, min_length=1, description="a foreign ROS 2 "
+                                      "program: [program, args...], run from the scenario's "
+                                      "directory with use_sim_time")
     external: bool = Field(False, description="true: not spawned; you start it with "
                            "'cosim-node KIND --scenario FILE --node NAME --lockstep'")
 

@@ -18,6 +18,7 @@ from nodes.recording import PartWriter
 from nodes.transport import create_transport
 from orchestrator.bag import write_bag
 from orchestrator.errors import SimulationError
+from orchestrator.foreign import ForeignProxy, foreign_argv
 from orchestrator.inprocess import RunResult, goal_reached, run_in_process
 from orchestrator.manifest import write_manifest
 from orchestrator.master import LockstepMaster
@@ -148,7 +149,10 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
                    outcome: RunOutcome, started: float) -> RunResult:
     supervisor = Supervisor(run_dir / "logs")
     transport = create_transport(scenario.model.transport, "cosim_orchestrator")
-    master = LockstepMaster(scenario, transport, supervisor, options.on_tick)
+    proxies = {name: ForeignProxy(plan, plan.period_ticks, transport,
+                                  PartWriter(run_dir / "parts" / f"{name}.rec"))
+               for name, plan in scenario.nodes.items() if plan.foreign}
+    master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies)
     try:
         order = list(scenario.nodes)
         if options.shuffle_start is not None:
@@ -159,6 +163,9 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
                              scenario.overrides)
             if plan.spec.external:
                 _announce_external(name, argv)
+            elif plan.foreign:
+                supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
+                                 cwd=scenario.file.parent.resolve())
             else:
                 supervisor.spawn(name, argv)
         log.info("spawned %s", ", ".join(order))
@@ -173,6 +180,8 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                               for name in scenario.nodes}
         supervisor.shutdown()
+        for proxy in proxies.values():
+            proxy.recorder.close()
         transport.close()
 
 

@@ -25,6 +25,8 @@ from orchestrator.schedule import Edge, Schedule, find_same_tick_cycle
 from orchestrator.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from orchestrator.validation import describe_validation_error, key_path
 
+FOREIGN = "nodes.foreign:ForeignNode"
+
 
 @dataclass(frozen=True)
 class InputPlan:
@@ -54,6 +56,11 @@ class NodePlan:
     def declared_outputs(self) -> dict[str, type]:
         """The node's own output topic names -> message classes (before remap)."""
         return {own: self.outputs[graph] for own, graph in self.output_names.items()}
+
+    @property
+    def foreign(self) -> bool:
+        """Whether this node is a foreign ROS 2 program started from a command."""
+        return self.spec.command is not None
 
     def step_class(self) -> type[StepNode]:
         """Import and return the node's step class."""
@@ -264,6 +271,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
             output_names=outputs[i][1], inputs=inputs)
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
+    where.check_foreign_counts(nodes, edges)
     warnings = unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
 
@@ -304,11 +312,16 @@ class ScenarioContext:
             seen[spec.name] = i
 
     def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type[StepNode]]:
-        """The step class named by kind or module."""
-        if (spec.kind is None) == (spec.module is None):
-            raise self.fail(self.node_key(i), "give exactly one of 'kind' or 'module'.",
+        """The step class named by kind or module (or the stand-in of a foreign command)."""
+        given = [key for key in ("kind", "module", "command") if getattr(spec, key) is not None]
+        if len(given) != 1:
+            raise self.fail(self.node_key(i), "give exactly one of 'kind', 'module' or "
+                            f"'command' (found {', '.join(given) or 'none'}).",
                             f"kind: one of {', '.join(sorted(KINDS))}; "
-                            "or module: 'package.module:Class'.")
+                            "or module: 'package.module:Class'; or command: [program, args...] "
+                            "for a foreign ROS 2 program.")
+        if spec.command is not None:
+            return FOREIGN, load_class(FOREIGN)
         if spec.kind is not None:
             if spec.kind not in KINDS:
                 raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
@@ -436,6 +449,20 @@ class ScenarioContext:
             producer, msg = producers[graph]
             plans.append(InputPlan(inp.topic, graph, producer, inp.mode, msg))
         return plans
+
+    def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
+        """A foreign output that cosim nodes consume must carry one message per activation."""
+        consumed = {e.topic for e in edges}
+        for i, spec in enumerate(self.model.nodes):
+            plan = nodes[spec.name]
+            if not plan.foreign:
+                continue
+            for own, graph in plan.output_names.items():
+                if graph in consumed and plan.params.count(own) != 1:
+                    raise self.fail(self.node_key(i, f"params.per_activation.{own}"),
+                                    f"{graph} is consumed by other nodes, which take one "
+                                    f"message per activation, not {plan.params.count(own)}.",
+                                    "1 for a consumed topic (or leave it out).")
 
     def check_cycles(self, edges: list[Edge]) -> None:
         """Refuse a cycle of same_tick edges, naming it."""

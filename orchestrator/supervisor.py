@@ -80,7 +80,8 @@ class Supervisor:
         self.log_dir = log_dir
         self.procs: dict[str, NodeProcess] = {}
 
-    def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> NodeProcess:
+    def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None,
+              cwd: Path | None = None) -> NodeProcess:
         """Start one node, its output going to ``<log dir>/<name>.log``."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f"{name}.log"
@@ -89,7 +90,7 @@ class Supervisor:
         full_env.setdefault("PYTHONUNBUFFERED", "1")
         with open(log_path, "ab") as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, env=full_env,
+                                     stdin=subprocess.DEVNULL, env=full_env, cwd=cwd,
                                      start_new_session=True, preexec_fn=_arm_parent_death)
         proc = NodeProcess(name, popen, log_path)
         try:

@@ -126,7 +126,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, world, goal, success, deadlines, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
-     "name, kind, module, rate, params, inputs, remap, debug, external"),
+     "name, kind, module, rate, params, inputs, remap, debug, command, external"),
     (VALID.replace("mode: same_tick}", "mode: same_tick, qos: 3}"),
      "nodes[1] (b).inputs[0].qos", "topic, mode"),
     (VALID + "goal: {x: 1, y: 2, z: 3}\n", "goal.z",
@@ -298,7 +298,8 @@ def test_unknown_node_kind(tmp_path):
 
 def test_kind_and_module_both_or_neither(tmp_path):
     err = refused(tmp_path, VALID.replace("    kind: counter\n", ""))
-    check(err, "nodes[0] (a)", "exactly one of 'kind' or 'module'", accepted=("counter",))
+    check(err, "nodes[0] (a)", "exactly one of 'kind', 'module' or 'command'",
+          accepted=("counter",))
     text = VALID.replace("kind: counter", "kind: counter\n    module: nodes.testing:CounterNode")
     check(refused(tmp_path, text), "nodes[0] (a)", "exactly one")
 

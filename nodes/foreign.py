@@ -1,0 +1,67 @@
+"""Foreign nodes: ordinary ROS 2 programs that know nothing of cosim, run in lockstep.
+
+A scenario names the program's ``command``, its inputs, and in ``params`` the type of each
+output and how many messages it publishes on it per activation. The orchestrator starts
+it (with ``use_sim_time``), delivers its inputs through the normal topics, counts its
+outputs to know it has finished a tick, and hashes what it published. The run stays
+deterministic as long as the program is a deterministic function of its inputs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from nodes.contract import StepNode, Tick
+
+
+def message_class(name: str) -> type:
+    """'geometry_msgs/msg/Twist' (or 'geometry_msgs/Twist') -> the rclpy message class."""
+    parts = name.split("/")
+    if len(parts) == 2:
+        parts = [parts[0], "msg", parts[1]]
+    if len(parts) != 3 or not all(parts):
+        raise ValueError(f"{name!r} is not a message type like 'geometry_msgs/msg/Twist'")
+    try:
+        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
+        return getattr(module, parts[2])
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"message type {name!r} is not installed ({exc})") from None
+
+
+class ForeignParams(BaseModel):
+    """What cosim needs to know of a foreign program: its outputs and their message counts."""
+
+    model_config = ConfigDict(extra="forbid")
+    outputs: dict[str, str] = Field(min_length=1, description="topic -> message type, e.g. "
+                                    "{/cmd_vel: geometry_msgs/msg/Twist}")
+    per_activation: dict[str, int] = Field(default_factory=dict, description="topic -> "
+                                           "messages per activation (default 1)")
+
+    @field_validator("outputs")
+    @classmethod
+    def _types_exist(cls, value: dict[str, str]) -> dict[str, str]:
+        for type_name in value.values():
+            message_class(type_name)
+        return value
+
+    def count(self, topic: str) -> int:
+        """Messages the program publishes on ``topic`` per activation."""
+        return self.per_activation.get(topic, 1)
+
+
+class ForeignNode(StepNode):
+    """Stands for a foreign program in the scenario graph; it has no step of its own."""
+
+    Params = ForeignParams
+
+    @classmethod
+    def outputs(cls, params: ForeignParams) -> dict[str, type]:
+        """The declared outputs and their message classes."""
+        return {topic: message_class(name) for topic, name in params.outputs.items()}
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """A foreign program only runs as its own process."""
+        raise RuntimeError(f"{self.config.name} is a foreign program; it cannot run in-process")

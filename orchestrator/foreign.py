@@ -1,0 +1,99 @@
+"""The orchestrator's stand-in for a foreign program: it counts what the program publishes.
+
+A foreign ROS 2 program cannot report on /cosim/status, so its proxy subscribes to the
+program's outputs and reports for it: an activation is done once every output carries its
+declared number of messages; the digest covers exactly those bytes. A program that
+publishes more than it declared is an error the moment it happens; one that publishes too
+few is caught by the tick deadline, naming what is missing.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from nodes.cdr import canonical_cdr
+from nodes.exchange import output_digest
+from nodes.protocol import DONE, Status
+from nodes.recording import PartWriter
+from nodes.transport import Received, Transport
+from orchestrator.errors import SimulationError
+
+
+def foreign_argv(plan, scenario_dir: Path) -> list[str]:
+    """The program's command line: 'python' means this interpreter; use_sim_time and the
+    scenario's remaps are appended as a ROS arguments block of their own."""
+    argv = list(plan.spec.command)
+    if argv[0] in ("python", "python3"):
+        argv[0] = sys.executable
+    argv += ["--ros-args", "-p", "use_sim_time:=true"]
+    for own, graph in plan.spec.remap.items():
+        argv += ["-r", f"{own}:={graph}"]
+    return argv
+
+
+class ForeignProxy:
+    """Counts one foreign program's outputs and turns them into status reports."""
+
+    def __init__(self, plan, period: int, transport: Transport, recorder: PartWriter | None):
+        self.name = plan.name
+        self.period = period
+        self.per = {graph: plan.params.count(own) for own, graph in plan.output_names.items()}
+        self.classes = dict(plan.outputs)
+        self.subs = {t: transport.subscription(t, cls, 1000) for t, cls in self.classes.items()}
+        self.received: dict[str, list[bytes]] = {t: [] for t in self.classes}
+        self.recorder = recorder
+        self.activations = 0
+
+    @property
+    def topics(self) -> set[str]:
+        """The program's output topics."""
+        return set(self.subs)
+
+    def ready(self) -> bool:
+        """Whether the program's publishers are matched (it has started and joined)."""
+        return all(sub.matched() >= 1 for sub in self.subs.values())
+
+    def unmatched(self) -> str:
+        """Outputs the program has not yet advertised, for the start-deadline message."""
+        missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
+        return ", ".join(f"{t} (0/1 publishers)" for t in missing)
+
+    def accept(self, rec: Received, current_tick: int) -> list[Status]:
+        """File one output message; return DONE reports for activations now complete."""
+        messages = self.received[rec.topic]
+        messages.append(canonical_cdr(rec.data, self.classes[rec.topic]))
+        activation = (len(messages) - 1) // self.per[rec.topic]
+        if activation * self.period > current_tick:
+            raise SimulationError(
+                f"foreign node {self.name} published more than {self.per[rec.topic]} "
+                f"message(s) on {rec.topic} at tick {current_tick}: message {len(messages)} "
+                f"would belong to tick {activation * self.period}. Declare the count in "
+                f"params.per_activation, or make the program publish once per input.",
+                node=self.name, tick=current_tick)
+        done = []
+        while self._complete(self.activations):
+            done.append(self._finish(self.activations))
+            self.activations += 1
+        return done
+
+    def _complete(self, activation: int) -> bool:
+        return all(len(self.received[t]) >= (activation + 1) * n for t, n in self.per.items())
+
+    def _finish(self, activation: int) -> Status:
+        tick = activation * self.period
+        items = []
+        for topic in sorted(self.per):
+            n = self.per[topic]
+            items += [(topic, data) for data in
+                      self.received[topic][activation * n:(activation + 1) * n]]
+        if self.recorder:
+            self.recorder.write(tick, items)
+        return Status(self.name, DONE, tick, output_digest(tick, items).hex())
+
+    def missing(self, tick: int) -> str:
+        """What the program still owes for ``tick``, e.g. '0 of 1 messages on /cmd_vel'."""
+        activation = tick // self.period
+        parts = [f"{max(0, len(self.received[t]) - activation * n)} of {n} message(s) on {t}"
+                 for t, n in sorted(self.per.items())]
+        return "it published " + ", ".join(parts)

@@ -1,0 +1,139 @@
+"""Fitting into a ROS 2 workflow: standalone nodes, external lockstep nodes, foreign
+programs, remapping. Everything here runs real processes over real rclpy."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import rclpy
+import yaml
+from geometry_msgs.msg import Twist, Vector3
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+
+from orchestrator.inprocess import run_in_process
+from orchestrator.scenario import load_scenario
+from tests.helpers import ROOT, SCENARIOS, orchestrate
+from tests.test_supervision import bag_counts
+
+ECHO = SCENARIOS / "foreign_echo.yaml"
+
+
+@pytest.fixture
+def ros_node():
+    """A plain rclpy node in this test's process, as a user's terminal would have."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("test_teleop", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield node, executor
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def test_realtime_physics_is_driven_by_a_plain_rclpy_publisher(ros_node):
+    node, executor = ros_node
+    odoms: list[Odometry] = []
+    node.create_subscription(Odometry, "/odom", odoms.append, 10)
+    cmd = node.create_publisher(Twist, "/cmd_vel", 10)
+    physics = subprocess.Popen([sys.executable, "-m", "nodes.cli", "physics", "--scenario",
+                                str(ROOT / "scenarios" / "nav.yaml"), "--realtime", "--rtf", "2"],
+                               cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not odoms and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert odoms, "no /odom from the standalone physics node"
+        start = odoms[-1].pose.pose.position
+        end_at = time.monotonic() + 2.0
+        while time.monotonic() < end_at:
+            cmd.publish(Twist(linear=Vector3(x=0.5)))
+            executor.spin_once(timeout_sec=0.02)
+        end = odoms[-1].pose.pose.position
+        assert ((end.x - start.x) ** 2 + (end.y - start.y) ** 2) ** 0.5 > 0.3
+    finally:
+        physics.send_signal(signal.SIGINT)
+        _, err = physics.communicate(timeout=10)
+    assert physics.returncode == 0
+    assert "Traceback" not in err
+    assert "publishing /clock" in err
+
+
+def test_foreign_program_runs_in_lockstep_twice_alike(tmp_path):
+    first = orchestrate(ECHO, tmp_path)
+    second = orchestrate(ECHO, tmp_path)
+    assert first.code == 0, first.stderr
+    assert first.manifest["digest"] == second.manifest["digest"]
+    counts = bag_counts(first.run_dir)
+    assert counts["/echoed"] == counts["/source"] == counts["/sink"] == 101
+
+
+@pytest.mark.parametrize("copies,expected", [
+    (2, "foreign node echo published more than 1 message(s) on /echoed"),
+    (0, "it published 0 of 1 message(s) on /echoed (foreign program)")])
+def test_foreign_program_publishing_too_much_or_too_little_is_named(tmp_path, copies,
+                                                                     expected):
+    doc = yaml.safe_load(ECHO.read_text())
+    doc["nodes"][1]["command"][-1] = f"copies:={copies}"
+    doc["deadlines"]["tick"] = "1s"
+    path = SCENARIOS / f"_echo_{copies}_{os.getpid()}.yaml"  # beside the program it runs
+    path.write_text(yaml.safe_dump(doc))
+    try:
+        started = time.monotonic()
+        run = orchestrate(path, tmp_path)
+    finally:
+        path.unlink()
+    assert run.code == 3
+    assert expected in run.stderr
+    assert time.monotonic() - started < 30
+
+
+def test_nav_with_a_foreign_controller_reaches_the_goal_with_equal_digests(tmp_path):
+    first = orchestrate(ROOT / "scenarios" / "nav_foreign.yaml", tmp_path)
+    second = orchestrate(ROOT / "scenarios" / "nav_foreign.yaml", tmp_path)
+    assert first.code == 0, first.stderr
+    assert first.manifest["outcome"]["metrics"]["arrived"] == 1.0
+    assert first.manifest["outcome"]["collisions"] == 0
+    assert first.manifest["digest"] == second.manifest["digest"]
+
+
+def test_external_lockstep_node_joins_the_run(tmp_path):
+    doc = yaml.safe_load((SCENARIOS / "protocol.yaml").read_text())
+    doc["nodes"][1]["external"] = True
+    path = tmp_path / "external.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    orchestrator = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(path),
+                                     "--out", str(tmp_path / "runs"), "--quiet"], cwd=ROOT,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)  # the orchestrator waits for it, however late it comes
+    node = subprocess.run([sys.executable, "-m", "nodes.cli", "counter", "--scenario", str(path),
+                           "--node", "middle", "--lockstep"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=60)
+    out, err = orchestrator.communicate(timeout=60)
+    assert orchestrator.returncode == 0, err
+    assert node.returncode == 0, node.stderr
+    assert "waiting for external node middle" in err
+    assert run_in_process(load_scenario(path)).digest in out
+
+
+def test_remapped_topics_appear_under_their_new_names(tmp_path):
+    doc = yaml.safe_load((SCENARIOS / "protocol.yaml").read_text())
+    doc["nodes"][4]["remap"] = {"/slow": "/renamed_slow"}  # its consumer takes /renamed_slow
+    doc["nodes"][1]["inputs"][1]["topic"] = "/renamed_slow"
+    doc["nodes"][0]["remap"] = {"/source": "/source_for_tools"}  # consumed under the new name
+    doc["nodes"][1]["inputs"][0]["topic"] = "/source_for_tools"
+    doc["nodes"][3]["remap"] = {"/sink": "/watched"}  # nobody consumes it: a warning
+    path = tmp_path / "remap.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    run = orchestrate(path, tmp_path / "runs")
+    assert run.code == 0, run.stderr
+    assert "warning" in run.stderr and "/watched is published but no node" in run.stderr
+    counts = bag_counts(run.run_dir)
+    assert {"/renamed_slow", "/source_for_tools", "/watched"} <= set(counts)
+    assert not {"/slow", "/source", "/sink"} & set(counts)
