@@ -1,6 +1,10 @@
 """The lockstep protocol's own messages, in standard ROS 2 types so ROS tools can watch them.
 
 - ``/clock`` (rosgraph_msgs/Clock): the orchestrator publishes tick ``k``'s time, once per tick.
+- ``/cosim/command`` (std_msgs/String): the orchestrator's commands to every node:
+  ``reset E`` (stop, report ``resetting`` with how many messages each output has sent) and
+  ``restart E {json: topic -> messages sent}`` (start over from tick 0, ignoring older
+  messages still in flight, then report ``ready`` again).
 - ``/cosim/status`` (diagnostic_msgs/DiagnosticStatus): every node reports on it: while
   starting (``waiting`` with the unmatched topics, then ``ready``), after each activation
   (``done`` with the tick, the digest of what it published, step time and metrics), and on
@@ -18,11 +22,13 @@ from rosgraph_msgs.msg import Clock
 
 CLOCK_TOPIC = "/clock"
 STATUS_TOPIC = "/cosim/status"
+COMMAND_TOPIC = "/cosim/command"
 NS_PER_S = 1_000_000_000
 
-WAITING, READY, DONE, ERROR = "waiting", "ready", "done", "error"
+WAITING, READY, DONE, ERROR, RESETTING = "waiting", "ready", "done", "error", "resetting"
 _LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,
-          DONE: DiagnosticStatus.OK, ERROR: DiagnosticStatus.ERROR}  # bytes of length 1
+          DONE: DiagnosticStatus.OK, ERROR: DiagnosticStatus.ERROR,
+          RESETTING: DiagnosticStatus.STALE}  # bytes of length 1
 _CDR_HEADER = b"\x00\x01\x00\x00"  # little-endian plain CDR
 
 

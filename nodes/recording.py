@@ -31,6 +31,12 @@ class PartWriter:
             self._file.write(data)
         self._file.flush()
 
+    def truncate(self) -> None:
+        """Forget everything written so far (the run restarted from tick 0)."""
+        self._file.flush()
+        self._file.seek(0)
+        self._file.truncate()
+
     def close(self) -> None:
         """Flush and close."""
         self._file.close()

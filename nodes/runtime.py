@@ -8,6 +8,7 @@ Only this module (and the transports) touch the network.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -15,15 +16,19 @@ import traceback
 from collections import deque
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
 from nodes.exchange import InputHistory, output_digest, prepare_outputs
 from nodes.protocol import (
     CLOCK_TOPIC,
+    COMMAND_TOPIC,
     DONE,
     ERROR,
     READY,
+    RESETTING,
     STATUS_TOPIC,
     WAITING,
     Status,
@@ -52,16 +57,27 @@ class InputChannel:
         self.history = InputHistory(graph_topic, msg_type)
         self.period = producer_period
         self.received = 0
+        self.base = 0  # the producer's messages sent before the last reset
 
     def accept(self, rec: Received) -> int:
         """Store a sample; return its producer tick (n-th message = n-th activation)."""
-        if rec.sequence is not None and rec.sequence != self.received + 1:
-            raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
-                              f"{self.received + 1}, got {rec.sequence} (a message was lost)")
+        if rec.sequence is not None:
+            if rec.sequence <= self.base:
+                return -1  # sent before a reset, still in flight: not part of this run
+            if rec.sequence != self.base + self.received + 1:
+                raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
+                                  f"{self.base + self.received + 1}, got {rec.sequence} "
+                                  "(a message was lost)")
         tick = self.received * self.period
         self.history.push_bytes(tick, rec.data)
         self.received += 1
         return tick
+
+    def rebase(self, sent_before: int) -> None:
+        """Start over after a reset: the producer had sent ``sent_before`` messages."""
+        self.base = sent_before
+        self.received = 0
+        self.history.samples.clear()
 
 
 class LockstepRuntime:
@@ -108,6 +124,8 @@ class LockstepRuntime:
         # A node told of its ticks by a same_tick input does not wake for /clock.
         self.clock_sub = (self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
                           if driver is None else None)
+        self.command_sub = self.transport.subscription(COMMAND_TOPIC, String, 10)
+        self.sent = {t: 0 for t in self.publishers}
         self.status_pub = self.transport.publisher(STATUS_TOPIC, DiagnosticStatus, 1000)
 
     # -- start ---------------------------------------------------------------------------
@@ -118,7 +136,7 @@ class LockstepRuntime:
         for topic, pub in self.publishers.items():
             if (n := pub.matched()) < self.expected_subscribers[topic]:
                 out.append(f"{topic} ({n}/{self.expected_subscribers[topic]} subscriptions)")
-        subs = list(self.input_subs.items())
+        subs = [*self.input_subs.items(), (COMMAND_TOPIC, self.command_sub)]
         if self.clock_sub is not None:
             subs.append((CLOCK_TOPIC, self.clock_sub))
         for topic, sub in subs:
@@ -148,9 +166,12 @@ class LockstepRuntime:
             if rec.topic == CLOCK_TOPIC:
                 self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
                 continue
+            if rec.topic == COMMAND_TOPIC:
+                self.on_command(deserialize_message(rec.data, String).data)
+                continue
             channel = self.inputs[rec.topic]
             tick = channel.accept(rec)
-            if channel.drives and tick % channel.drives == 0:
+            if channel.drives and tick >= 0 and tick % channel.drives == 0:
                 self.clocks.append(tick)
 
     def run(self) -> None:
@@ -166,6 +187,23 @@ class LockstepRuntime:
                 raise NodeFailure("the orchestrator went away; stopping")
             if not self.clocks and self.upstream_gone():
                 return  # the run is over (or the orchestrator died): nothing will come
+
+    def on_command(self, command: str) -> None:
+        """Handle the orchestrator's reset handshake (see nodes.protocol)."""
+        verb, _, rest = command.partition(" ")
+        epoch, _, payload = rest.partition(" ")
+        if verb == "reset":
+            values = {"epoch": epoch, **{f"sent:{t}": str(n) for t, n in self.sent.items()}}
+            self.report(Status(self.name, RESETTING, values=values))
+        elif verb == "restart":
+            sent = json.loads(payload)
+            for topic, channel in self.inputs.items():
+                channel.rebase(sent.get(topic, 0))
+            self.clocks.clear()
+            self.node.reset(self.scenario.model.seed, self.node.config)
+            if self.recorder:
+                self.recorder.truncate()
+            self.report(Status(self.name, READY, values={"epoch": epoch}))
 
     def upstream_gone(self) -> bool:
         """Whether every publisher this node listens to has disappeared (checked twice a second)."""
@@ -211,6 +249,7 @@ class LockstepRuntime:
         step_ns = time.perf_counter_ns() - start
         for topic, data in items:
             self.publishers[topic].publish(data)
+            self.sent[topic] += 1
         if self.recorder:
             self.recorder.write(tick.index, items)
         values = {"step_ns": str(step_ns)}

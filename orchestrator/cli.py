@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
+    p.add_argument("--paused", action="store_true",
+                   help="start paused: resume or step with the /cosim/pause and /cosim/step "
+                        "ROS 2 services")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")
@@ -95,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
                         enabled=not args.quiet and sys.stderr.isatty())
     try:
         options = RunOptions(out=args.out, in_process=args.in_process,
-                             shuffle_start=args.shuffle_start, on_tick=progress.update,
+                             shuffle_start=args.shuffle_start, paused=args.paused,
+                             on_tick=progress.update,
                              export_usd=args.export_usd)
         outcome = execute(scenario, options)
     except KeyboardInterrupt:

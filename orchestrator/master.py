@@ -7,19 +7,24 @@ the scheduler and the simulator manager).
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
 from nodes.exchange import RunDigest
 from nodes.protocol import (
     CLOCK_TOPIC,
+    COMMAND_TOPIC,
     DONE,
     ERROR,
     READY,
+    RESETTING,
     STATUS_TOPIC,
     Status,
     decode_status,
@@ -68,6 +73,8 @@ class LockstepMaster:
         self.supervisor = supervisor
         self.on_tick = on_tick
         self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 1000)
+        self.command_pub = transport.publisher(COMMAND_TOPIC, String, 10)
+        self.epoch = 0
         self.status_sub = transport.subscription(STATUS_TOPIC, DiagnosticStatus, 10_000)
         self.stats = {name: NodeStats() for name in scenario.nodes}
         self.last_status: dict[str, Status] = {}
@@ -98,7 +105,9 @@ class LockstepMaster:
                 elif status.state == ERROR:
                     self._raise_node_error(status, "start")
             self._check_processes("start")
-            if ready == names and self.clock_pub.matched() >= len(self.sched.clock_driven()):
+            cosim_nodes = len(names) - len(self.proxies)
+            if (ready == names and self.command_pub.matched() >= cosim_nodes
+                    and self.clock_pub.matched() >= len(self.sched.clock_driven())):
                 return
             if time.monotonic() > deadline:
                 raise SimulationError(self._start_timeout_text(names - ready))
@@ -126,13 +135,21 @@ class LockstepMaster:
 
     # -- ticks -------------------------------------------------------------------------------
 
-    def run(self) -> RunResult:
-        """Run every tick; stop early when the goal is reached (if the scenario says so)."""
+    def run(self, control=None) -> RunResult:
+        """Run every tick; stop early when the goal is reached (if the scenario says so).
+
+        ``control`` (a SimControl) may pause, single-step or reset the run between ticks.
+        """
         digest = RunDigest()
         self.loop_started = time.monotonic()
         stop_on_goal = self.scenario.model.success.stop_on_goal and self.scenario.model.goal
         tick_limit_s = self.scenario.model.deadlines.tick / 1e9
-        for k in range(self.sched.n_ticks):
+        k = 0
+        while k < self.sched.n_ticks:
+            if control and control.next_action(k, self._idle(k)) == "reset":
+                self._reset_nodes()
+                digest, k = RunDigest(), 0
+                continue
             self.tick = k
             due = self.sched.due(k)
             self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
@@ -143,7 +160,39 @@ class LockstepMaster:
                 self.on_tick(k)
             if stop_on_goal and goal_reached(self.metrics()):
                 return RunResult(digest.hexdigest(), k + 1, self.metrics(), stopped_early=True)
+            k += 1
         return RunResult(digest.hexdigest(), self.sched.n_ticks, self.metrics())
+
+    def _idle(self, k: int) -> Callable[[], None]:
+        return lambda: self._check_processes(f"pause before tick {k}")
+
+    def _reset_nodes(self) -> None:
+        """Two-phase reset: every node stops and says what it sent; then all restart at 0."""
+        self.epoch += 1
+        sent = self._handshake(f"reset {self.epoch}", RESETTING)
+        counts = {k[5:]: int(v) for values in sent.values() for k, v in values.items()
+                  if k.startswith("sent:")}
+        self._handshake(f"restart {self.epoch} {json.dumps(counts)}", READY)
+        self.stats = {name: NodeStats(ready_s=s.ready_s) for name, s in self.stats.items()}
+        self.tick = -1
+
+    def _handshake(self, command: str, answer: str) -> dict[str, dict[str, str]]:
+        """Publish a command and wait until every node answered it with ``answer``."""
+        self.command_pub.publish(serialize_message(String(data=command)))
+        pending, replies = set(self.scenario.nodes), {}
+        deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
+        while pending:
+            for status in self._statuses():
+                if status.state == answer and status.values.get("epoch") == str(self.epoch):
+                    pending.discard(status.node)
+                    replies[status.node] = status.values
+                elif status.state == ERROR:
+                    self._raise_node_error(status, "reset")
+            self._check_processes("reset")
+            if time.monotonic() > deadline:
+                raise SimulationError(f"reset: node(s) {', '.join(sorted(pending))} did not "
+                                      f"answer '{command.split()[0]}' in time")
+        return replies
 
     def metrics(self) -> dict[str, dict[str, float]]:
         """The latest metrics each node reported."""

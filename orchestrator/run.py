@@ -37,6 +37,7 @@ class RunOptions:
     out: Path = Path("runs")
     in_process: bool = False
     shuffle_start: int | None = None
+    paused: bool = False
     on_tick: object = None
     export_usd: bool = False
 
@@ -172,7 +173,12 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
         log.info("all nodes ready after %.3f s", outcome.start_s)
-        result = master.run()
+        control = _sim_control(scenario, options)
+        try:
+            result = master.run(control)
+        finally:
+            if control:
+                control.close()
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
@@ -183,6 +189,17 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         for proxy in proxies.values():
             proxy.recorder.close()
         transport.close()
+
+
+def _sim_control(scenario: Scenario, options: RunOptions):
+    """The /cosim/* services (ros2 runs only, where ROS 2 tools can reach them)."""
+    if scenario.model.transport != "ros2":
+        return None
+    from orchestrator.simcontrol import SimControl
+
+    foreign = [n for n, p in scenario.nodes.items() if p.foreign]
+    why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
+    return SimControl(scenario.tick_ns, paused=options.paused, can_reset=why)
 
 
 def _announce_external(name: str, argv: list[str]) -> None:
