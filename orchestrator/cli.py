@@ -9,6 +9,7 @@ from pathlib import Path
 
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
+EXIT_DIGEST_MISMATCH = 4
 
 EPILOG = """\
 exit codes:
@@ -16,6 +17,7 @@ exit codes:
   1    the run finished but the goal was not met (or too many collisions)
   2    bad input: the scenario or an option is invalid; nothing was started or written
   3    a node failed: crashed, reported an error, or missed its deadline
+  4    the run finished but its digest is not the one --expect-digest (or --against) names
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
 
 outputs go to runs/<scenario>-<timestamp>/ (see --out): manifest.json with the run
@@ -48,6 +50,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")
+    p.add_argument("--expect-digest", metavar="HEX",
+                   help="exit 4 unless the run's digest is HEX (64 hex digits)")
+    p.add_argument("--against", type=Path, metavar="DIR",
+                   help="a recorded run directory: on a digest mismatch, name the first topic\n"
+                        "and tick that differ from it; its digest is expected unless\n"
+                        "--expect-digest is given")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
     return p
 
@@ -73,11 +81,13 @@ def _interrupt(signum, _frame):
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
     args = build_parser().parse_args(argv)
+    from orchestrator.diff import digest_mismatch, expected_digest
     from orchestrator.errors import ScenarioError
     from orchestrator.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))
+        expected = expected_digest(args.expect_digest, args.against)
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -108,8 +118,14 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         progress.close()
     print_outcome(outcome, quiet=args.quiet)
-    return {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
+    code = {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
             "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)
+    if expected and outcome.digest and code in (EXIT_SUCCESS, EXIT_GOAL_NOT_MET):
+        mismatch = digest_mismatch(expected, outcome.digest, outcome.run_dir, args.against)
+        if mismatch:
+            print(f"cosim-orchestrate: {mismatch}", file=sys.stderr)
+            return EXIT_DIGEST_MISMATCH
+    return code
 
 
 if __name__ == "__main__":

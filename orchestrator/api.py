@@ -1,0 +1,214 @@
+"""cosim from Python: load a scenario, override it, run it, read what it recorded.
+
+    from orchestrator.api import run
+
+    result = run("scenarios/nav.yaml", seed=3, in_process=True, out="runs")
+    assert result.success, result.error
+    for stamp_ns, odom in result.messages("/odom"):   # nav_msgs.msg.Odometry objects
+        ...
+
+Errors are the ones the command line reports: ``ScenarioError`` (bad input, nothing was
+started: exit code 2) and ``SimulationError`` (a node failed: exit code 3).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from orchestrator.errors import ScenarioError, SimulationError
+from orchestrator.run import RunOptions, RunOutcome, execute
+from orchestrator.scenario import Scenario, load_scenario
+
+__all__ = ["EXIT_CODES", "Run", "ScenarioError", "SimulationError", "load", "overrides_for",
+           "run"]
+
+EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
+"""Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
+
+
+def overrides_for(*, seed: int | None = None, duration: str | int | float | None = None,
+                  goal: Mapping[str, float] | None = None,
+                  params: Mapping[str, Mapping[str, Any]] | None = None,
+                  transport: str | None = None,
+                  overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Dotted scenario overrides from keyword arguments.
+
+    ``goal={'x': 1.0}`` sets goal.x only; ``params={'control': {'max_speed': 0.4}}`` sets
+    nodes.control.params.max_speed only; ``overrides`` takes any dotted key as is
+    ('nodes.lidar.rate': 20) and wins over the others.
+    """
+    out: dict[str, Any] = {}
+    if seed is not None:
+        out["seed"] = seed
+    if duration is not None:
+        out["duration"] = duration
+    if transport is not None:
+        out["transport"] = transport
+    for key, value in (goal or {}).items():
+        out[f"goal.{key}"] = value
+    for node, values in (params or {}).items():
+        for key, value in values.items():
+            out[f"nodes.{node}.params.{key}"] = value
+    out.update(overrides or {})
+    return out
+
+
+def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
+    """Load and check a scenario file (or re-load a Scenario) with overrides; see
+    ``overrides_for`` for the keywords. Raises ScenarioError on anything wrong."""
+    extra = overrides_for(**overrides)
+    if isinstance(scenario, Scenario):
+        if not extra:
+            return scenario
+        return load_scenario(scenario.file, {**scenario.overrides, **extra})
+    return load_scenario(scenario, extra)
+
+
+def run(scenario: str | Path | Scenario, *, in_process: bool = False,
+        out: str | Path = "runs", check: bool = True, **overrides: Any) -> Run:
+    """Run a scenario (a file or a loaded Scenario) and return its Run.
+
+    ``in_process=True`` steps every node in this process with no transport (the reference,
+    fastest); otherwise every node is its own process in lockstep over the scenario's
+    transport, in the ROS domain of ``ROS_DOMAIN_ID``. Outputs go to ``out/<name>-<time>/``.
+    With ``check`` (default) a node failure raises SimulationError; a missed goal never
+    raises (look at ``Run.success``). Ctrl-C raises KeyboardInterrupt after the clean-up.
+    """
+    loaded = load(scenario, **overrides)
+    _refuse_foreign_in_process(loaded, in_process)
+    outcome = execute(loaded, RunOptions(out=Path(out), in_process=in_process))
+    result = Run(loaded, outcome, in_process)
+    if outcome.status == "interrupted":
+        raise KeyboardInterrupt(f"run interrupted; outputs in {outcome.run_dir}")
+    if check:
+        result.raise_for_failure()
+    return result
+
+
+def _refuse_foreign_in_process(scenario: Scenario, in_process: bool) -> None:
+    """The CLI's refusal of --in-process for a scenario with foreign programs."""
+    foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
+    if in_process and foreign:
+        raise ScenarioError(scenario.file, "", "in-process runs step classes only; node(s) "
+                            f"{', '.join(foreign)} are foreign programs (command:).",
+                            "in_process=False for this scenario.")
+
+
+@dataclass
+class Run:
+    """A finished run: status, exit code, success, metrics, digest, outputs and messages."""
+
+    scenario: Scenario
+    outcome: RunOutcome
+    in_process: bool = False
+
+    @property
+    def status(self) -> str:
+        """success | goal_not_met | failed | interrupted."""
+        return self.outcome.status
+
+    @property
+    def exit_code(self) -> int:
+        """The exit code cosim-orchestrate gives this run (0, 1, 3 or 130)."""
+        return EXIT_CODES.get(self.status, 3)
+
+    @property
+    def success(self) -> bool:
+        """Whether the scenario's success criteria were met."""
+        return bool(self.outcome.success)
+
+    @property
+    def digest(self) -> str | None:
+        """The run digest (hex), None when the run did not finish."""
+        return self.outcome.digest
+
+    @property
+    def error(self) -> str | None:
+        """Why the run failed, when it did."""
+        return self.outcome.error
+
+    @property
+    def run_dir(self) -> Path:
+        """The run directory: manifest.json, bag/, report.png, logs/."""
+        return Path(self.outcome.run_dir)
+
+    @property
+    def bag(self) -> Path | None:
+        """The rosbag2 (MCAP) directory, None when nothing was recorded."""
+        return Path(self.outcome.bag) if self.outcome.bag else None
+
+    @property
+    def metrics_by_node(self) -> dict[str, dict[str, float]]:
+        """Each node's metrics, e.g. {'physics': {'collisions': 0.0, ...}, ...}."""
+        return dict(self.outcome.result.metrics) if self.outcome.result else {}
+
+    @property
+    def metrics(self) -> dict[str, float]:
+        """All nodes' metrics in one mapping (time_to_goal, path_length, min_clearance, ...)."""
+        return {k: v for m in self.metrics_by_node.values() for k, v in m.items()}
+
+    @property
+    def ticks(self) -> int:
+        """How many ticks ran."""
+        return self.outcome.result.ticks if self.outcome.result else self.outcome.ticks_done
+
+    @property
+    def manifest(self) -> dict[str, Any]:
+        """The run's manifest.json as a dict."""
+        return json.loads((self.run_dir / "manifest.json").read_text())
+
+    def raise_for_failure(self) -> None:
+        """Raise SimulationError when a node failed (what cosim-orchestrate exits 3 for)."""
+        if self.status == "failed":
+            raise SimulationError(f"{self.error} (outputs in {self.run_dir})")
+
+    def topics(self) -> dict[str, type]:
+        """Every recorded topic and its rclpy message class (/clock included)."""
+        from rosgraph_msgs.msg import Clock
+
+        return {"/clock": Clock, **self.scenario.topics}
+
+    def messages(self, topic: str) -> Iterator[tuple[int, Any]]:
+        """(stamp in ns, rclpy message) for every message recorded on ``topic``, in order.
+
+        The messages are the classes nodes publish (nav_msgs.msg.Odometry for /odom, ...).
+        """
+        from rclpy.serialization import deserialize_message
+        from rosbags.highlevel import AnyReader
+
+        if self.bag is None:
+            return
+        with AnyReader([self.bag]) as reader:
+            connections = [c for c in reader.connections if c.topic == topic]
+            if not connections:
+                raise KeyError(f"{topic} was not recorded; topics: "
+                               f"{', '.join(sorted(c.topic for c in reader.connections))}")
+            msg_class = self.topics().get(topic) or _message_class(connections[0].msgtype)
+            for _, stamp, raw in reader.messages(connections=connections):
+                yield stamp, deserialize_message(raw, msg_class)
+
+    def last(self, topic: str) -> Any:
+        """The last message recorded on ``topic`` (None when there is none)."""
+        last = None
+        for _, msg in self.messages(topic):
+            last = msg
+        return last
+
+    def summary(self) -> str:
+        """One line: status, digest, key metrics and the run directory (for assert messages)."""
+        shown = ", ".join(f"{k}={v:g}" for k, v in sorted(self.metrics.items())
+                          if isinstance(v, int | float))
+        error = f" error: {self.error};" if self.error else ""
+        return (f"{self.status}: digest {self.digest or '-'};{error} {shown} "
+                f"-> {self.run_dir}")
+
+
+def _message_class(ros_type: str) -> type:
+    """'sensor_msgs/msg/LaserScan' -> sensor_msgs.msg.LaserScan."""
+    package, _, name = ros_type.rpartition("/")
+    return getattr(importlib.import_module(package.replace("/", ".")), name)
