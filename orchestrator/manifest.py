@@ -77,8 +77,10 @@ def scenario_entry(scenario) -> dict[str, Any]:
 def outputs_entry(outcome) -> dict[str, Any]:
     """Where the outputs are, relative to the run directory (None: not written)."""
     run_dir = outcome.run_dir
+    parts = run_dir / "parts"
     return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
-            "logs": "logs", "parts": "parts"}
+            "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
+            "parts": "parts" if parts.exists() else None}
 
 
 def build_manifest(scenario, outcome, options) -> dict[str, Any]:

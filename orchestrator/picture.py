@@ -165,7 +165,9 @@ def load_world(path: Path | None, laser_frame: str = "laser") -> World:
         return world
     import mujoco
 
-    model = mujoco.MjModel.from_xml_path(str(path))
+    from nodes.worldfile import load_world_model
+
+    model = load_world_model(Path(path))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     for g in np.flatnonzero(static_mask(model)):

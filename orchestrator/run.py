@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import random
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -94,6 +95,8 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
             outcome.report = _write_picture_safely(scenario, outcome)
             if options.export_usd:
                 outcome.usd = _export_usd_safely(scenario, outcome)
+            if outcome.bag is not None:
+                shutil.rmtree(run_dir / "parts", ignore_errors=True)  # the bag holds it all
             write_manifest(scenario, outcome, options)
             logging.getLogger().removeHandler(handler)
             handler.close()
