@@ -99,8 +99,8 @@ def _keyed(entries: Iterable[Entry]) -> dict[tuple[int, str, int], bytes]:
 
 
 def fingerprint(entries: Iterable[Entry]) -> dict[str, dict]:
-    """A compact per-topic form of entries: {topic: {'ticks': [[start, step, count]...],
-    'hashes': base64 of FINGERPRINT_HASH_BYTES per message}}."""
+    """A compact per-topic form of entries: {topic: {'ticks': 'start:step:count ...' (runs
+    of evenly spaced ticks), 'hashes': base64 of FINGERPRINT_HASH_BYTES per message}}."""
     by_topic: dict[str, tuple[list[int], bytearray]] = {}
     for tick, topic, digest in entries:
         ticks, hashes = by_topic.setdefault(topic, ([], bytearray()))
@@ -122,8 +122,8 @@ def fingerprint_entries(print_: dict[str, dict]) -> list[Entry]:
     return entries
 
 
-def _runs(ticks: list[int]) -> list[list[int]]:
-    """[0, 2, 4, 6, 7] -> [[0, 2, 4], [7, 1, 1]]: arithmetic runs [start, step, count]."""
+def _runs(ticks: list[int]) -> str:
+    """[0, 2, 4, 6, 7] -> '0:2:4 7:1:1': arithmetic runs start:step:count."""
     runs: list[list[int]] = []
     for tick in ticks:
         if runs and runs[-1][2] == 1 and tick > runs[-1][0]:
@@ -132,12 +132,13 @@ def _runs(ticks: list[int]) -> list[list[int]]:
             runs[-1][2] += 1
         else:
             runs.append([tick, 1, 1])
-    return runs
+    return " ".join(f"{start}:{step}:{count}" for start, step, count in runs)
 
 
-def _expand(runs: list[list[int]]) -> list[int]:
-    """The inverse of ``_runs``."""
-    return [start + step * i for start, step, count in runs for i in range(count)]
+def _expand(runs: str) -> list[int]:
+    """The inverse of ``_runs``: '0:2:3 7:1:1' -> [0, 2, 4, 7]."""
+    triples = [tuple(map(int, run.split(":"))) for run in runs.split()]
+    return [start + step * i for start, step, count in triples for i in range(count)]
 
 
 def expected_digest(given: str | None, against: Path | None) -> str | None:
