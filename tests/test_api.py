@@ -1,0 +1,129 @@
+"""The Python API (orchestrator.api), the run diff, and cosim-orchestrate --expect-digest."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from std_msgs.msg import Float64, Int64
+
+from orchestrator.api import EXIT_CODES, Run, load, overrides_for, run
+from orchestrator.diff import (
+    _expand,
+    _runs,
+    fingerprint,
+    fingerprint_entries,
+    first_difference,
+    run_dir_entries,
+)
+from orchestrator.errors import ScenarioError, SimulationError
+from tests.helpers import ROOT, SCENARIOS, orchestrate
+
+PROTOCOL = SCENARIOS / "protocol.yaml"
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Run:
+    """One in-process run of the protocol scenario with seed 3."""
+    return run(PROTOCOL, in_process=True, seed=3, out=tmp_path_factory.mktemp("ref"))
+
+
+def test_overrides_for_turns_keywords_into_dotted_keys():
+    """seed, duration, goal and node params become dotted keys; raw overrides win."""
+    got = overrides_for(seed=4, duration="2s", goal={"x": 1.0},
+                        params={"control": {"max_speed": 0.4}},
+                        overrides={"seed": 5, "nodes.lidar.rate": 20})
+    assert got == {"seed": 5, "duration": "2s", "goal.x": 1.0,
+                   "nodes.control.params.max_speed": 0.4, "nodes.lidar.rate": 20}
+
+
+def test_load_applies_overrides_without_touching_the_file():
+    """Overrides reach the checked scenario; re-loading a Scenario keeps its overrides."""
+    before = PROTOCOL.read_bytes()
+    scenario = load(PROTOCOL, seed=11, duration="0.5s", params={"loop": {"gain": -0.2}})
+    assert scenario.model.seed == 11 and scenario.schedule.n_ticks == 51
+    assert scenario.nodes["loop"].params.gain == -0.2
+    again = load(scenario, seed=12)
+    assert again.model.seed == 12 and again.nodes["loop"].params.gain == -0.2
+    assert PROTOCOL.read_bytes() == before
+
+
+def test_run_result_has_status_digest_metrics_and_typed_messages(reference):
+    """A Run: status, exit code, success, digest (= manifest's), metrics, rclpy messages."""
+    assert (reference.status, reference.exit_code, reference.success) == ("success", 0, True)
+    assert reference.digest == reference.manifest["digest"] and len(reference.digest) == 64
+    assert reference.metrics_by_node["sink"]["activations"] == 101
+    assert reference.metrics["activations"] == 101 and reference.ticks == 101
+    loop = list(reference.messages("/loop"))
+    assert len(loop) == 51 and all(isinstance(m, Float64) for _, m in loop)
+    assert [stamp for stamp, _ in loop[:3]] == [0, 20_000_000, 40_000_000]
+    assert isinstance(reference.last("/sink"), Int64)
+    assert "/clock" in reference.topics() and reference.run_dir.is_dir()
+    with pytest.raises(KeyError, match="/nope was not recorded"):
+        list(reference.messages("/nope"))
+
+
+def test_multi_process_run_gives_the_in_process_digest(reference, tmp_path):
+    """Every node its own process, lockstep over ROS 2: the same digest as in-process."""
+    result = run(PROTOCOL, seed=3, out=tmp_path)
+    assert result.status == "success" and result.digest == reference.digest
+    assert result.manifest["transport"] == "ros2"
+
+
+def test_errors_are_the_cli_exceptions(tmp_path):
+    """Bad input is ScenarioError (nothing written); a failing node is SimulationError."""
+    with pytest.raises(ScenarioError, match="nodes.nope"):
+        run(PROTOCOL, in_process=True, out=tmp_path, overrides={"nodes.nope.rate": 10})
+    with pytest.raises(ScenarioError, match="foreign programs"):
+        run(ROOT / "scenarios" / "nav_foreign.yaml", in_process=True, out=tmp_path)
+    assert not list(tmp_path.iterdir())
+    faulty = {"nodes.sink.kind": "faulty", "nodes.sink.params.fail_at": 5}
+    with pytest.raises(SimulationError, match="sink"):
+        run(PROTOCOL, in_process=True, out=tmp_path, overrides=faulty)
+    failed = run(PROTOCOL, in_process=True, out=tmp_path, check=False, overrides=faulty)
+    assert failed.status == "failed" and failed.exit_code == EXIT_CODES["failed"] == 3
+    assert failed.digest is None and "sink" in failed.error
+
+
+def test_tick_runs_round_trip():
+    """Fingerprint ticks are arithmetic runs 'start:step:count'."""
+    for ticks in ([0, 2, 4, 6, 7], [5], [], [1, 1, 2], [0, 1, 2, 3, 10, 20, 30]):
+        assert _expand(_runs(ticks)) == ticks
+    assert _runs([0, 2, 4, 6, 7]) == "0:2:4 7:1:1"
+
+
+def test_first_difference_names_topic_and_tick(reference, tmp_path):
+    """Against itself nothing differs; a changed parameter is found at its topic and tick,
+    from the full bag and from the compact fingerprint alike."""
+    entries, tick_ns = run_dir_entries(reference.run_dir)
+    assert first_difference(entries, entries) is None
+    assert first_difference(fingerprint_entries(fingerprint(entries)), entries) is None
+    changed = run(PROTOCOL, in_process=True, seed=3, out=tmp_path,
+                  params={"sink": {"noise": 5}})
+    other, _ = run_dir_entries(changed.run_dir)
+    diff = first_difference(entries, other, tick_ns)
+    assert (diff.topic, diff.kind) == ("/sink", "differs")
+    assert diff == first_difference(fingerprint_entries(fingerprint(entries)), other, tick_ns)
+    assert f"topic /sink at tick {diff.tick}" in diff.describe()
+    shorter = run(PROTOCOL, in_process=True, seed=3, out=tmp_path, duration="0.5s")
+    cut, _ = run_dir_entries(shorter.run_dir)
+    assert first_difference(entries, cut).describe() == (
+        "topic /middle at tick 51: the reference run has a message here, this run has none")
+
+
+def test_cli_expect_digest(reference, tmp_path):
+    """--expect-digest: 0 on a match; 4 on a mismatch, naming (with --against) the first
+    topic and tick that differ; 2 for a malformed digest or a DIR that is not a run."""
+    ok = orchestrate(PROTOCOL, tmp_path, "--in-process", "--seed", "3", "--quiet",
+                     "--expect-digest", reference.digest.upper())
+    assert ok.code == 0, ok.stderr
+    against = orchestrate(PROTOCOL, tmp_path, "--in-process", "--seed", "3", "--quiet",
+                          "--set", "nodes.sink.params.noise=5", "--against",
+                          str(reference.run_dir))
+    assert against.code == 4, against.stderr
+    assert f"expected {reference.digest}" in against.stderr
+    assert "First difference from" in against.stderr and "topic /sink at tick" in against.stderr
+    bad = orchestrate(PROTOCOL, tmp_path, "--expect-digest", "abc")
+    assert bad.code == 2 and "64 hex digits" in bad.stderr and bad.run_dir is None
+    not_a_run = orchestrate(PROTOCOL, tmp_path, "--against", str(Path(tmp_path) / "none"))
+    assert not_a_run.code == 2 and "not a run directory" in not_a_run.stderr
