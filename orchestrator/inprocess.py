@@ -40,9 +40,12 @@ def make_node(scenario: Scenario, name: str) -> StepNode:
     return node
 
 
-def goal_reached(metrics: dict[str, dict[str, float]]) -> bool:
+def goal_reached(metrics: dict[str, dict[str, float]], ignore: frozenset[str] = frozenset()
+                 ) -> bool:
     """Whether the goal is reached: as a navigator reports it ('goal_reached'), or, when no
-    node reports that, as physics sees it in ground truth ('arrived')."""
+    node reports that, as physics sees it in ground truth ('arrived'). Nodes in ``ignore``
+    (pipelined leaves, whose reports may lag) are not consulted."""
+    metrics = {n: m for n, m in metrics.items() if n not in ignore}
     claimed = [m["goal_reached"] for m in metrics.values() if "goal_reached" in m]
     if claimed:
         return any(v >= 1 for v in claimed)
@@ -86,7 +89,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 observer(k, name, items)
         if on_tick:
             on_tick(k)
-        if stop and goal_reached({n: nodes[n].metrics() for n in nodes}):
+        if stop and goal_reached({n: nodes[n].metrics() for n in nodes}, scenario.pipelined):
             return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), stopped_early=True)
     return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes))
 

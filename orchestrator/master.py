@@ -17,7 +17,6 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from nodes.exchange import RunDigest
 from nodes.protocol import (
     CLOCK_TOPIC,
     COMMAND_TOPIC,
@@ -31,6 +30,7 @@ from nodes.protocol import (
     encode_clock,
 )
 from nodes.transport import Transport
+from orchestrator.acks import AckBook
 from orchestrator.errors import SimulationError
 from orchestrator.inprocess import RunResult, goal_reached
 from orchestrator.scenario import Scenario
@@ -81,7 +81,8 @@ class LockstepMaster:
         self.tick = -1
         self.proxies = proxies or {}
         self.proxy_of = {t: p for p in self.proxies.values() for t in p.topics}
-        self.waiting_for: set[str] = set()
+        self.tick_limit_s = scenario.model.deadlines.tick / 1e9
+        self.leaves = scenario.pipelined
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -138,30 +139,34 @@ class LockstepMaster:
     def run(self, control=None) -> RunResult:
         """Run every tick; stop early when the goal is reached (if the scenario says so).
 
-        ``control`` (a SimControl) may pause, single-step or reset the run between ticks.
+        A leaf node (nothing consumes its outputs, it reports no metrics: a camera) may
+        still be working on tick ``k`` while the others run ``k + 1``: its acknowledgement
+        is only needed before it is due again. ``control`` (a SimControl) may pause,
+        single-step or reset the run between ticks.
         """
-        digest = RunDigest()
         self.loop_started = time.monotonic()
         stop_on_goal = self.scenario.model.success.stop_on_goal and self.scenario.model.goal
-        tick_limit_s = self.scenario.model.deadlines.tick / 1e9
-        k = 0
-        while k < self.sched.n_ticks:
+        book, k = AckBook(self.sched), 0
+        while True:
+            self._settle(book, k)
+            if k and self.on_tick:
+                self.on_tick(k - 1)
+            if k and stop_on_goal and goal_reached(self.metrics(), self.leaves):
+                self._settle(book, None)
+                return RunResult(book.hexdigest(), k, self.metrics(), stopped_early=True)
+            if k == self.sched.n_ticks:
+                break
             if control and control.next_action(k, self._idle(k)) == "reset":
+                self._settle(book, None)
                 self._reset_nodes()
-                digest, k = RunDigest(), 0
+                book, k = AckBook(self.sched), 0
                 continue
             self.tick = k
-            due = self.sched.due(k)
             self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
-            digests = self._collect(k, set(due), time.monotonic() + tick_limit_s)
-            for name in due:
-                digest.add(k, name, bytes.fromhex(digests[name]))
-            if self.on_tick:
-                self.on_tick(k)
-            if stop_on_goal and goal_reached(self.metrics()):
-                return RunResult(digest.hexdigest(), k + 1, self.metrics(), stopped_early=True)
+            book.expect(k, self.sched.due(k), time.monotonic() + self.tick_limit_s)
             k += 1
-        return RunResult(digest.hexdigest(), self.sched.n_ticks, self.metrics())
+        self._settle(book, None)
+        return RunResult(book.hexdigest(), self.sched.n_ticks, self.metrics())
 
     def _idle(self, k: int) -> Callable[[], None]:
         return lambda: self._check_processes(f"pause before tick {k}")
@@ -198,22 +203,21 @@ class LockstepMaster:
         """The latest metrics each node reported."""
         return {name: dict(s.metrics) for name, s in self.stats.items()}
 
-    def _collect(self, k: int, pending: set[str], deadline: float) -> dict[str, str]:
-        digests: dict[str, str] = {}
-        self.waiting_for = pending
-        while pending:
+    def _settle(self, book: AckBook, before_tick: int | None) -> None:
+        """Take reports until nothing owed blocks ``before_tick`` (None: until nothing is owed)."""
+        while blocking := book.blocking(before_tick, self.leaves):
             for status in self._statuses():
-                if status.state == DONE and status.tick == k and status.node in pending:
-                    pending.discard(status.node)
-                    digests[status.node] = status.digest
+                if status.state == DONE and book.record(status.tick, status.node, status.digest):
                     self.stats[status.node].add(status)
                 elif status.state == ERROR:
-                    self._raise_node_error(status, f"tick {k}")
-            if pending:
-                self._check_processes(f"tick {k}")
-                if time.monotonic() > deadline:
-                    raise SimulationError(self._late_text(k, pending), node=min(pending), tick=k)
-        return digests
+                    self._raise_node_error(status, f"tick {status.tick}")
+            oldest = min(t for t, _ in blocking)
+            self._check_processes(f"tick {oldest}")
+            late = [(t, n) for t, n in blocking if book.owed.get((t, n), 1e300) < time.monotonic()]
+            if late:
+                tick = min(t for t, _ in late)
+                names = {n for t, n in late if t == tick}
+                raise SimulationError(self._late_text(tick, names), node=min(names), tick=tick)
 
     def _late_text(self, k: int, pending: set[str]) -> str:
         limit = self.scenario.model.deadlines.tick / 1e9

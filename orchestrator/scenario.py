@@ -94,6 +94,12 @@ class Scenario:
             out.update(plan.outputs)
         return out
 
+    @property
+    def pipelined(self) -> frozenset[str]:
+        """Leaf nodes (nothing consumes their outputs, not foreign) that may lag one activation
+        behind the others; their metrics never decide an early stop, on any driver."""
+        return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].foreign)
+
     def producer_of(self, topic: str) -> str:
         """The node that publishes a graph topic."""
         for plan in self.nodes.values():

@@ -184,3 +184,8 @@ class Schedule:
     def clock_driven(self) -> list[str]:
         """Nodes that need /clock to know when they are due."""
         return [n for n in self.order if self.driving_edge(n) is None]
+
+    def leaves(self) -> list[str]:
+        """Nodes whose outputs no node consumes (a camera): nothing waits for them."""
+        producers = {e.producer for e in self.edges}
+        return [n for n in self.order if n not in producers]
