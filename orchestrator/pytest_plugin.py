@@ -240,8 +240,11 @@ class DomainLease:
     """A ROS domain id no other test or session on this machine uses while it is held.
 
     A held flock on <tmp>/cosim-ros-domains/<id>.lock reserves it among cosim test sessions;
-    an id in the environment of any running process we can see is skipped too.
+    an id in the environment of any running process we can see is skipped too. Successive
+    leases of one session take successive ids, so each test of a session has its own.
     """
+
+    _order: list[int] = []
 
     def __init__(self) -> None:
         self.domain: int | None = None
@@ -251,8 +254,10 @@ class DomainLease:
         lock_dir = Path(tempfile.gettempdir()) / "cosim-ros-domains"
         lock_dir.mkdir(exist_ok=True)
         used = domains_in_use()
-        ids = list(DOMAINS)
-        random.Random(os.getpid()).shuffle(ids)
+        if not DomainLease._order:
+            DomainLease._order = list(DOMAINS)
+            random.Random(os.getpid()).shuffle(DomainLease._order)
+        ids = DomainLease._order
         for domain in (d for d in ids if d not in used):
             handle = open(lock_dir / f"{domain}.lock", "w")  # noqa: SIM115 - held until exit
             try:
@@ -261,6 +266,8 @@ class DomainLease:
                 handle.close()
                 continue
             self.domain, self._file = domain, handle
+            ids.remove(domain)
+            ids.append(domain)
             return domain
         raise RuntimeError(f"cosim: no free ROS domain id in {DOMAINS.start}..{DOMAINS.stop - 1}")
 
