@@ -65,9 +65,13 @@ class Transport(ABC):
 
 
 def create_transport(kind: str, participant: str) -> Transport:
-    """The transport named in the scenario ('ros2'), for a participant (node) name."""
+    """The transport named in the scenario ('ros2' or 'zenoh'), for a participant (node) name."""
     if kind == "ros2":
         from nodes.transport_ros2 import Ros2Transport
 
         return Ros2Transport(participant)
-    raise ValueError(f"transport {kind!r} is not available; use ros2")
+    if kind == "zenoh":
+        from nodes.transport_zenoh import ZenohTransport
+
+        return ZenohTransport(participant)
+    raise ValueError(f"transport {kind!r} is not available; use ros2 or zenoh")
