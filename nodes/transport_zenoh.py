@@ -53,6 +53,7 @@ from nodes.transport import Publisher, Received, Subscription, Transport
 CONNECT_ENV = "COSIM_ZENOH_CONNECT"
 LISTEN_ENV = "COSIM_ZENOH_LISTEN"
 ROUTER_CONNECT_ENV = "COSIM_ZENOH_ROUTER_CONNECT"
+MIRROR_ENV = "COSIM_ZENOH_MIRROR"
 DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 LIVELINESS_ROOT = "@cosim"
 _NO_HASH = "TypeHashNotSupported"
@@ -117,6 +118,14 @@ def _with_free_port(endpoint: str) -> str:
     with socket.socket(family, socket.SOCK_STREAM) as s:
         s.bind((bare, 0))
         return f"{proto}/{host}:{s.getsockname()[1]}"
+
+
+def export_settings(spec) -> None:
+    """Put a scenario's ``zenoh:`` section into the environment (variables already set win)."""
+    for env, values in ((LISTEN_ENV, spec.listen), (ROUTER_CONNECT_ENV, spec.connect),
+                        (MIRROR_ENV, spec.mirror_to_dds)):
+        if values:
+            os.environ.setdefault(env, ",".join(values))
 
 
 def session_config(mode: str, listen: list[str], connect: list[str]) -> zenoh.Config:
@@ -215,6 +224,8 @@ class ZenohTransport(Transport):
             prefix + "**", zenoh.handlers.Callback(self._on_token, indirect=False),
             history=True)
         self._entities: list = []
+        self._mirror = (DdsMirror(self, _endpoints(os.environ.get(MIRROR_ENV)))
+                        if self.root and os.environ.get(MIRROR_ENV) else None)
 
     def _on_token(self, sample: zenoh.Sample) -> None:
         rest = str(sample.key_expr)[self._prefix_len:]
@@ -264,6 +275,8 @@ class ZenohTransport(Transport):
         """Close the session; a root restores the environment it exported."""
         try:
             self._entities.clear()
+            if self._mirror is not None:
+                self._mirror.close()
             self.session.close()
         finally:
             if self._exported is not None:
@@ -273,3 +286,50 @@ class ZenohTransport(Transport):
                 else:
                     os.environ.pop(CONNECT_ENV, None)
                 self._exported = None
+
+
+class DdsMirror:
+    """Republishes chosen zenoh topics on ROS 2 (DDS), so ordinary ros2 tools can watch a run.
+
+    Runs in the orchestrator's process: one rclpy node, one publisher per mirrored topic
+    (created on the first sample, with the type named in the key expression), fed by zenoh
+    subscribers whose callbacks run on a Python thread of their own. Best effort: it never
+    holds the lockstep up, and what it shows is not part of the run digest.
+    """
+
+    def __init__(self, transport: ZenohTransport, topics: list[str]):
+        import rclpy
+
+        from nodes.transport_ros2 import _no_signal_handlers, reliable_qos, use_cosim_dds_profile
+
+        use_cosim_dds_profile()
+        self._qos = reliable_qos(100)
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context, signal_handler_options=_no_signal_handlers())
+        self.node = rclpy.create_node("cosim_zenoh_mirror", context=self._context,
+                                      start_parameter_services=False, enable_rosout=False)
+        self._publishers: dict[str, object] = {}
+        self._subs = [transport.session.declare_subscriber(
+            f"{transport.domain}/{topic.strip('/')}/*/*",
+            zenoh.handlers.Callback(lambda sample, t=topic: self._forward(t, sample)))
+            for topic in topics]
+
+    def _forward(self, topic: str, sample: zenoh.Sample) -> None:
+        pub = self._publishers.get(topic)
+        if pub is None:
+            name = str(sample.key_expr).split("/")[-2]  # 'pkg::msg::dds_::Type_'
+            package, kind, _, type_ = name.split("::")
+            module = __import__(f"{package}.{kind}", fromlist=[type_[:-1]])
+            pub = self.node.create_publisher(getattr(module, type_[:-1]), topic, self._qos)
+            self._publishers[topic] = pub
+        pub.handle.publish_raw(sample.payload.to_bytes())
+
+    def close(self) -> None:
+        """Stop forwarding and shut the rclpy context down."""
+        import rclpy
+
+        for sub in self._subs:
+            sub.undeclare()
+        self.node.destroy_node()
+        if self._context.ok():
+            rclpy.shutdown(context=self._context)

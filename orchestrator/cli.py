@@ -100,6 +100,10 @@ def main(argv: list[str] | None = None) -> int:
     for warning in scenario.warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
+    if scenario.model.transport == "zenoh" and not args.in_process:
+        from nodes.transport_zenoh import export_settings
+
+        export_settings(scenario.model.zenoh)  # endpoints and mirrors, through the environment
     from orchestrator.progress import Progress
     from orchestrator.report import print_outcome
     from orchestrator.run import RunOptions, execute

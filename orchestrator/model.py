@@ -89,6 +89,21 @@ class DeadlineSpec(Strict):
     tick: DurationNs = Field(10_000_000_000, description=DURATION_HELP)
 
 
+class ZenohSpec(Strict):
+    """Where the zenoh transport's sessions meet (used only with ``transport: zenoh``)."""
+
+    listen: list[str] = Field(
+        default_factory=list,
+        description="zenoh endpoints the orchestrator's router listens on and its nodes connect "
+                    "to, e.g. ['tcp/10.0.0.1:7447']; default tcp/127.0.0.1 on a free port")
+    connect: list[str] = Field(
+        default_factory=list,
+        description="zenoh endpoints the orchestrator's router also connects to (e.g. a zenohd)")
+    mirror_to_dds: list[Topic] = Field(
+        default_factory=list,
+        description="topics the orchestrator republishes on ROS 2 (DDS) for ros2 tools")
+
+
 class ScenarioModel(Strict):
     """A whole scenario file."""
 
@@ -101,4 +116,5 @@ class ScenarioModel(Strict):
     goal: GoalSpec | None = None
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
+    zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     nodes: list[NodeSpec] = Field(min_length=1)

@@ -88,6 +88,7 @@ class Supervisor:
         full_env = dict(os.environ if env is None else env)
         full_env["COSIM_PARENT_PID"] = str(os.getpid())
         full_env.setdefault("PYTHONUNBUFFERED", "1")
+        argv = launch_prefix(name, full_env) + list(argv)
         with open(log_path, "ab") as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, env=full_env, cwd=cwd,
@@ -168,6 +169,20 @@ def _alive(ps: psutil.Process) -> bool:
         return ps.is_running() and ps.status() != psutil.STATUS_ZOMBIE
     except psutil.Error:
         return False
+
+
+def launch_prefix(name: str, env: dict[str, str]) -> list[str]:
+    """The command that wraps node ``name``'s process, from ``COSIM_LAUNCH_PREFIX``.
+
+    A JSON object mapping node names to a command line, e.g.
+    ``{"lidar": "ip netns exec cosim_b"}``: how tests place a node in another network
+    namespace (a stand-in for another host). The command must exec the node (keep its pid).
+    """
+    import json
+    import shlex
+
+    prefixes = json.loads(env.get("COSIM_LAUNCH_PREFIX") or "{}")
+    return shlex.split(prefixes.get(name, ""))
 
 
 def node_argv(scenario_file: Path, kind: str, name: str, run_dir: Path | None,

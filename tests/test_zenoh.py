@@ -1,0 +1,175 @@
+"""The zenoh transport: same digests as in-process and ros2, same fault handling, other hosts."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+import yaml
+
+from nodes.transport_zenoh import liveliness_key, topic_key, type_hash
+from orchestrator.inprocess import run_in_process
+from orchestrator.scenario import load_scenario
+from tests.helpers import ROOT, SCENARIOS, orchestrate
+
+LONG = SCENARIOS / "long_chain.yaml"
+SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison: run shorter
+
+
+def all_scenarios() -> list[Path]:
+    """Every scenario of the repository that cosim runs alone (no foreign ROS 2 program)."""
+    out = []
+    for path in sorted([*(ROOT / "scenarios").glob("*.yaml"), *SCENARIOS.glob("*.yaml")]):
+        doc = yaml.safe_load(path.read_text())
+        if not any("command" in node for node in doc.get("nodes", [])):
+            out.append(path)
+    return out
+
+
+def test_keys_follow_rmw_zenoh_and_carry_the_domain():
+    from rosgraph_msgs.msg import Clock
+
+    assert type_hash(Clock).startswith("RIHS01_")
+    assert topic_key("/clock", Clock, 5) == (
+        "5/clock/rosgraph_msgs::msg::dds_::Clock_/" + type_hash(Clock))
+    assert liveliness_key("pub", "/cosim/status", "cosim_a", 5) == (
+        "@cosim/5/pub/cosim/status/cosim_a")
+
+
+@pytest.mark.parametrize("path", all_scenarios(), ids=lambda p: p.stem)
+def test_digest_over_zenoh_equals_in_process(tmp_path, path):
+    duration = SHORT.get(path.name)
+    args = ("--duration", duration) if duration else ()
+    run = orchestrate(path, tmp_path, "--transport", "zenoh", *args)
+    assert run.code in (0, 1), run.stderr
+    overrides = {"duration": duration} if duration else {}
+    assert run.manifest["digest"] == run_in_process(load_scenario(path, overrides)).digest
+
+
+def test_protocol_digest_is_the_same_over_zenoh_ros2_and_in_process(tmp_path):
+    path = SCENARIOS / "protocol.yaml"
+    digests = {}
+    for transport in ("zenoh", "ros2"):
+        run = orchestrate(path, tmp_path / transport, "--transport", transport)
+        assert run.code == 0, run.stderr
+        digests[transport] = run.manifest["digest"]
+    digests["in-process"] = run_in_process(load_scenario(path)).digest
+    assert len(set(digests.values())) == 1, digests
+
+
+@pytest.mark.parametrize("mode,expect", [("kill", "killed by signal SIGKILL"),
+                                         ("exit", "exit code 7")])
+def test_node_dying_over_zenoh_is_named_with_the_tick_as_over_ros2(tmp_path, mode, expect):
+    tick = 2 * random.Random(f"zenoh-{mode}").randrange(3, 30)  # tail acts on even ticks
+    doc = yaml.safe_load(LONG.read_text())
+    doc["duration"] = "1s"
+    doc["nodes"][2].update(kind="faulty", params={"output": "/tail", "fail_at": tick,
+                                                  "mode": mode})
+    path = tmp_path / "dies.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    run = orchestrate(path, tmp_path / "out", "--transport", "zenoh")
+    assert run.code == 3
+    assert f"node tail died at tick {tick} ({expect})" in run.stderr
+
+
+def test_sigkill_mid_run_over_zenoh_exits_3_naming_node_and_tick(tmp_path):
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(LONG), "--out",
+                             str(tmp_path), "--transport", "zenoh"], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 60
+        while not (parts := list(tmp_path.glob("*/parts/tail.rec"))) or \
+                parts[0].stat().st_size < 2000:
+            assert proc.poll() is None and time.monotonic() < end, proc.communicate()
+            time.sleep(0.05)
+        children = psutil.Process(proc.pid).children()
+        victim = next(c for c in children if "--node middle" in " ".join(c.cmdline()))
+        victim.send_signal(signal.SIGKILL)
+        killed = time.monotonic()
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert time.monotonic() - killed < 2.0
+    assert proc.returncode == 3, err
+    assert "node middle died at tick" in err and "(killed by signal SIGKILL)" in err
+
+
+# -- two network namespaces joined by a veth pair: nodes on "another host" -------------------
+
+
+def _ip(*args: str) -> None:
+    subprocess.run(["ip", *args], check=True, capture_output=True)
+
+
+@pytest.fixture
+def two_hosts():
+    """Namespaces A (10.77.N.1) and B (10.77.N.2) joined by a veth pair; removed afterwards."""
+    if os.geteuid() != 0 or shutil.which("ip") is None:
+        reason = "needs root and iproute2 to make network namespaces"
+        print(f"skipped: {reason}")
+        pytest.skip(reason)
+    n = os.getpid() % 250 + 1
+    a, b = f"cosim{os.getpid()}a", f"cosim{os.getpid()}b"
+    veth_a, veth_b = f"cz{os.getpid()}a"[:15], f"cz{os.getpid()}b"[:15]
+    try:
+        _ip("netns", "add", a)
+        _ip("netns", "add", b)
+        _ip("link", "add", veth_a, "type", "veth", "peer", "name", veth_b)
+        for ns, dev, host in ((a, veth_a, 1), (b, veth_b, 2)):
+            _ip("link", "set", dev, "netns", ns)
+            _ip("-n", ns, "addr", "add", f"10.77.{n}.{host}/24", "dev", dev)
+            _ip("-n", ns, "link", "set", dev, "up")
+            _ip("-n", ns, "link", "set", "lo", "up")
+    except (subprocess.CalledProcessError, OSError) as exc:
+        _remove_namespaces(a, b)
+        reason = f"cannot make network namespaces here: {getattr(exc, 'stderr', exc)!r}"
+        print(f"skipped: {reason}")
+        pytest.skip(reason)
+    try:
+        yield a, b, f"10.77.{n}.1"
+    finally:
+        _remove_namespaces(a, b)
+
+
+def _remove_namespaces(*names: str) -> None:
+    for ns in names:
+        pids = subprocess.run(["ip", "netns", "pids", ns], capture_output=True, text=True)
+        for pid in pids.stdout.split():
+            try:
+                os.kill(int(pid), signal.SIGKILL)
+            except (OSError, ValueError):
+                pass
+        subprocess.run(["ip", "netns", "del", ns], capture_output=True)
+
+
+@pytest.mark.parametrize("name", ["protocol", "nav"])
+def test_nodes_in_another_network_namespace_over_tcp_give_the_same_digest(tmp_path, two_hosts,
+                                                                          name):
+    ns_a, ns_b, address = two_hosts
+    path = SCENARIOS / "protocol.yaml" if name == "protocol" else ROOT / "scenarios/nav.yaml"
+    scenario = load_scenario(path)
+    moved = list(scenario.nodes)[1::2]  # every other node runs in namespace B
+    env = dict(os.environ, COSIM_LAUNCH_PREFIX=json.dumps(
+        {node: f"ip netns exec {ns_b}" for node in moved}))
+    endpoint = f"tcp/{address}:7447"
+    proc = subprocess.run(
+        ["ip", "netns", "exec", ns_a, sys.executable, "-m", "orchestrator.cli", str(path),
+         "--out", str(tmp_path), "--transport", "zenoh", "--quiet",
+         "--set", f"zenoh.listen={json.dumps([endpoint])}"],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    manifest = json.loads(next(tmp_path.glob("*/manifest.json")).read_text())
+    assert manifest["digest"] == run_in_process(scenario).digest
+    logs = next(tmp_path.glob("*/logs"))
+    assert all((logs / f"{node}.log").exists() for node in moved)
