@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 from std_msgs.msg import Float64, Int64
 
 from orchestrator.api import EXIT_CODES, Run, load, overrides_for, run
+from orchestrator.cli import main
 from orchestrator.diff import (
     _expand,
     _runs,
@@ -111,7 +110,7 @@ def test_first_difference_names_topic_and_tick(reference, tmp_path):
         "topic /middle at tick 51: the reference run has a message here, this run has none")
 
 
-def test_cli_expect_digest(reference, tmp_path):
+def test_cli_expect_digest(reference, tmp_path, capsys):
     """--expect-digest: 0 on a match; 4 on a mismatch, naming (with --against) the first
     topic and tick that differ; 2 for a malformed digest or a DIR that is not a run."""
     ok = orchestrate(PROTOCOL, tmp_path, "--in-process", "--seed", "3", "--quiet",
@@ -123,7 +122,9 @@ def test_cli_expect_digest(reference, tmp_path):
     assert against.code == 4, against.stderr
     assert f"expected {reference.digest}" in against.stderr
     assert "First difference from" in against.stderr and "topic /sink at tick" in against.stderr
-    bad = orchestrate(PROTOCOL, tmp_path, "--expect-digest", "abc")
-    assert bad.code == 2 and "64 hex digits" in bad.stderr and bad.run_dir is None
-    not_a_run = orchestrate(PROTOCOL, tmp_path, "--against", str(Path(tmp_path) / "none"))
-    assert not_a_run.code == 2 and "not a run directory" in not_a_run.stderr
+    before = set(tmp_path.iterdir())
+    assert main([str(PROTOCOL), "--out", str(tmp_path), "--expect-digest", "abc"]) == 2
+    assert "64 hex digits" in capsys.readouterr().err
+    assert main([str(PROTOCOL), "--out", str(tmp_path), "--against", str(tmp_path / "no")]) == 2
+    assert "not a run directory" in capsys.readouterr().err
+    assert set(tmp_path.iterdir()) == before
