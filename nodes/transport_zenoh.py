@@ -30,6 +30,10 @@ subscriber per session counts them. A publisher's count is the number of subscri
 tokens of its topic, and 0 while zenoh's own matching status says no subscriber is routed
 yet (so "matched" means data can flow, as DDS discovery does).
 
+Large messages: zenoh's shared-memory transport optimisation (on by default: messages over
+3 KiB between sessions of one host travel through a shared-memory pool) is kept;
+``COSIM_ZENOH_SHM=0`` turns it off (bench/zenoh_chain.py measures both).
+
 Receiving: every subscriber is a direct callback (run on zenoh's network thread) that
 appends ``Received`` items to one queue per participant; ``wait()`` blocks on that queue, so
 a node blocks on one thing whatever the number of its inputs.
@@ -54,6 +58,7 @@ CONNECT_ENV = "COSIM_ZENOH_CONNECT"
 LISTEN_ENV = "COSIM_ZENOH_LISTEN"
 ROUTER_CONNECT_ENV = "COSIM_ZENOH_ROUTER_CONNECT"
 MIRROR_ENV = "COSIM_ZENOH_MIRROR"
+SHM_ENV = "COSIM_ZENOH_SHM"
 DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 LIVELINESS_ROOT = "@cosim"
 _NO_HASH = "TypeHashNotSupported"
@@ -136,6 +141,8 @@ def session_config(mode: str, listen: list[str], connect: list[str]) -> zenoh.Co
     config.insert_json5("connect/endpoints", json.dumps(connect))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "false")
+    if os.environ.get(SHM_ENV) == "0":  # large messages go through shared memory by default
+        config.insert_json5("transport/shared_memory/enabled", "false")
     if mode == "client":
         config.insert_json5("connect/timeout_ms", "30000")
         config.insert_json5("connect/exit_on_failure", "true")

@@ -173,3 +173,40 @@ def test_nodes_in_another_network_namespace_over_tcp_give_the_same_digest(tmp_pa
     assert manifest["digest"] == run_in_process(scenario).digest
     logs = next(tmp_path.glob("*/logs"))
     assert all((logs / f"{node}.log").exists() for node in moved)
+
+
+def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
+    import rclpy
+    import rclpy.executors
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Int64
+
+    from nodes.transport_ros2 import use_cosim_dds_profile
+
+    use_cosim_dds_profile()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("watcher", context=context)
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    seen: list[int] = []
+    node.create_subscription(Int64, "/source", lambda m: seen.append(m.data),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrator.cli",
+                             str(SCENARIOS / "protocol.yaml"), "--out", str(tmp_path),
+                             "--transport", "zenoh", "--duration", "5s", "--quiet",
+                             "--set", 'zenoh.mirror_to_dds=["/source"]'],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        while proc.poll() is None:
+            executor.spin_once(timeout_sec=0.05)
+        _, err = proc.communicate()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+    assert proc.returncode == 0, err
+    assert len(seen) > 100  # 500 published at 100 Hz; DDS discovery may miss the first ones
