@@ -166,10 +166,10 @@ class GoldenStore:
 
         entries = self.entries(file)
         if self.update:
-            found, tick_ns = run_dir_entries(result.run_dir)
+            found = run_dir_entries(result.run_dir)[0] if result.bag else []
             entries[key] = {"digest": result.digest, "scenario": result.scenario.name,
-                            "seed": result.scenario.model.seed, "tick_ns": tick_ns,
-                            "messages": fingerprint(found)}
+                            "seed": result.scenario.model.seed,
+                            "tick_ns": result.scenario.tick_ns, "messages": fingerprint(found)}
             self.changed.add(file)
             return None
         golden = entries.get(key)
@@ -193,7 +193,7 @@ def mismatch_message(file: Path, key: str, golden: dict[str, Any], result) -> st
     """The failure text of a changed digest, naming the first topic and tick that differ."""
     from orchestrator.diff import fingerprint_entries, first_difference, run_dir_entries
 
-    actual, tick_ns = run_dir_entries(result.run_dir)
+    actual, tick_ns = run_dir_entries(result.run_dir) if result.bag else ([], None)
     diff = first_difference(fingerprint_entries(golden.get("messages", {})), actual, tick_ns)
     where = diff.describe() if diff else ("every recorded message matches the golden hashes; "
                                           "what else the digest covers changed (nodes, schedule)")
