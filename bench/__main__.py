@@ -1,6 +1,19 @@
-"""`python -m bench` (make bench): every benchmark, one after the other."""
+"""`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import lockstep
+from bench import lockstep, messages, nav, sensors
+
+
+def main() -> None:
+    """Lockstep (with scaling 1..8), nav, messages, sensors."""
+    print("== lockstep: ticks/s, trivial nodes at 1 kHz ==")
+    lockstep.main(["--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
+    print("\n== nav: multi-process over in-process ==")
+    nav.main([])
+    print("\n== message cost ==")
+    messages.main()
+    print("\n== sensor cost ==")
+    sensors.main()
+
 
 if __name__ == "__main__":
-    lockstep.main([])
+    main()

@@ -51,10 +51,12 @@ def main(argv: list[str] | None = None) -> list[tuple[str, float]]:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seconds", type=int, default=3, help="sim seconds per case at 1 kHz")
     p.add_argument("--transport", default="ros2")
+    p.add_argument("--parallel", type=int, nargs="*", default=[1, 3, 6],
+                   help="numbers of independent nodes to measure (scaling: 1 2 3 4 5 6 7 8)")
     args = p.parse_args(argv)
     rows = [("bare rclpy ping-pong (round trips/s)", ping_pong())]
     with tempfile.TemporaryDirectory() as tmp:
-        cases = [chain(3, args.seconds)] + [parallel(n, args.seconds) for n in (1, 3, 6)]
+        cases = [chain(3, args.seconds)] + [parallel(n, args.seconds) for n in args.parallel]
         for doc in cases:
             m = run_manifest(write_scenario(doc, Path(tmp)), "--transport", args.transport)
             rows.append((f"{doc['name']} over {args.transport} (ticks/s)", m["ticks_per_s"]))
