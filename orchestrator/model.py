@@ -112,9 +112,9 @@ class ScenarioModel(Strict):
     duration: DurationNs = Field(description=DURATION_HELP)
     tick: DurationNs | None = Field(None, description=DURATION_HELP + "; default: gcd of periods")
     transport: Literal["ros2", "zenoh"] = Field("ros2", description="ros2 or zenoh")
+    zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     world: str | None = Field(None, description="path of the world file, relative to this file")
     goal: GoalSpec | None = None
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
-    zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     nodes: list[NodeSpec] = Field(min_length=1)
