@@ -52,3 +52,20 @@ def no_process_left_behind(request):
                 pass
         if names:
             pytest.fail(f"{request.node.nodeid} left processes behind: {names}")
+
+
+@pytest.fixture
+def ros_node():
+    """A plain rclpy node and its executor in the test's process, as a user's script has."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("cosim_test_user", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield node, executor
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)

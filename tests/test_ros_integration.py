@@ -10,11 +10,9 @@ import sys
 import time
 
 import pytest
-import rclpy
 import yaml
 from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
 
 from orchestrator.inprocess import run_in_process
 from orchestrator.scenario import load_scenario
@@ -22,19 +20,6 @@ from tests.helpers import ROOT, SCENARIOS, orchestrate
 from tests.test_supervision import bag_counts
 
 ECHO = SCENARIOS / "foreign_echo.yaml"
-
-
-@pytest.fixture
-def ros_node():
-    """A plain rclpy node in this test's process, as a user's terminal would have."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node("test_teleop", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    yield node, executor
-    node.destroy_node()
-    rclpy.shutdown(context=context)
 
 
 def test_realtime_physics_is_driven_by_a_plain_rclpy_publisher(ros_node):

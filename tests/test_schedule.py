@@ -70,7 +70,7 @@ def test_inputs_of_and_history_depth():
     s = nav_schedule()
     assert [e.topic for e in s.inputs_of["control"]] == ["/scan", "/odom"]
     assert s.inputs_of["physics"][0].mode == DELAYED
-    assert s.history_depth(s.edges[2]) == 5 + 2  # control holds up to 5 physics samples
+    assert s.history_depth(s.edges[2]) == 2 * 5 + 64  # control holds up to 5 physics samples
 
 
 def test_cycle_named():

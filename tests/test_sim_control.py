@@ -6,9 +6,6 @@ import subprocess
 import sys
 import time
 
-import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import SetBool, Trigger
 
 from orchestrator.inprocess import run_in_process
@@ -18,49 +15,36 @@ from tests.helpers import ROOT, SCENARIOS
 PROTOCOL = SCENARIOS / "protocol.yaml"
 
 
-@pytest.fixture
-def client_node():
-    """A plain rclpy node that calls the services, as a user's script would."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node("sim_remote", context=context)
-    node.executor_ = SingleThreadedExecutor(context=context)
-    node.executor_.add_node(node)
-    yield node
-    node.executor_.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
-
-
-def call(node, srv_type, name: str, request):
-    """Call a service and wait for its answer."""
+def call(ros, srv_type, name: str, request):
+    """Call a service from the test's plain rclpy node and wait for its answer."""
+    node, executor = ros
     client = node.create_client(srv_type, name)
     assert client.wait_for_service(timeout_sec=30), f"{name} never appeared"
     future = client.call_async(request)
-    node.executor_.spin_until_future_complete(future, timeout_sec=30)
+    executor.spin_until_future_complete(future, timeout_sec=30)
     assert future.done(), f"{name} did not answer"
     node.destroy_client(client)
     return future.result()
 
 
-def test_pause_step_reset_resume(tmp_path, client_node):
+def test_pause_step_reset_resume(tmp_path, ros_node):
     run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(PROTOCOL), "--paused",
                             "--quiet", "--out", str(tmp_path)], cwd=ROOT,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         for _ in range(3):
-            reply = call(client_node, Trigger, "/cosim/step", Trigger.Request())
+            reply = call(ros_node, Trigger, "/cosim/step", Trigger.Request())
             assert reply.success, reply.message
         time.sleep(0.5)
-        reply = call(client_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
+        reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
         assert reply.message.startswith("paused at tick 3 "), reply.message
-        reply = call(client_node, Trigger, "/cosim/reset", Trigger.Request())
+        reply = call(ros_node, Trigger, "/cosim/reset", Trigger.Request())
         assert reply.success and "resetting to tick 0" in reply.message
-        call(client_node, Trigger, "/cosim/step", Trigger.Request())
+        call(ros_node, Trigger, "/cosim/step", Trigger.Request())
         time.sleep(0.5)
-        reply = call(client_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
+        reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
         assert reply.message.startswith("paused at tick 1 "), reply.message
-        reply = call(client_node, SetBool, "/cosim/pause", SetBool.Request(data=False))
+        reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=False))
         assert reply.success and reply.message.startswith("running")
         out, err = run.communicate(timeout=60)
     finally:
@@ -72,13 +56,13 @@ def test_pause_step_reset_resume(tmp_path, client_node):
     assert f"digest {fresh}" in out  # the run after the reset equals a fresh run
 
 
-def test_step_while_running_is_refused(tmp_path, client_node):
+def test_step_while_running_is_refused(tmp_path, ros_node):
     long_run = SCENARIOS / "long_chain.yaml"
     run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(long_run), "--quiet",
                             "--out", str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     try:
-        reply = call(client_node, Trigger, "/cosim/step", Trigger.Request())
+        reply = call(ros_node, Trigger, "/cosim/step", Trigger.Request())
         assert not reply.success and reply.message.startswith("not paused")
         assert "running at tick" in reply.message
     finally:
