@@ -42,6 +42,24 @@ def chain_rates(repeats: int, seconds: int) -> dict[str, float]:
     return {t: statistics.median(v) for t, v in rates.items()}
 
 
+def chain_cpu_per_tick(seconds: int) -> dict[str, float]:
+    """CPU microseconds per tick of the 3-node chain, all processes together (orchestrator and
+    nodes), from runs of 1 s and 1 + ``seconds`` s: the difference cancels the start-up cost,
+    and CPU time, unlike ticks/s, hardly depends on what else the machine is doing."""
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for transport in ("zenoh", "ros2"):
+            cpu = []
+            for secs in (1, 1 + seconds):
+                doc = chain(3, secs)
+                doc["name"] = f"chain3_{secs}s"
+                m = run_manifest(write_scenario(doc, Path(tmp)), "--transport", transport)
+                cpu.append(m["orchestrator"]["cpu_s"]
+                           + sum(n["cpu_s"] for n in m["nodes"].values()))
+            out[transport] = (cpu[1] - cpu[0]) / (seconds * 1000) * 1e6
+    return out
+
+
 def nav_without_camera(repeats: int) -> dict[str, float]:
     """Median wall seconds of nav.yaml without the camera node, per way of running."""
     doc = yaml.safe_load((ROOT / "scenarios" / "nav.yaml").read_text())
@@ -135,6 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     for transport, rate in rates.items():
         print(f"chain3 over {transport:5s} (ticks/s, median of {args.repeats}) {rate:10.0f}")
     print(f"chain3 zenoh / ros2 {rates['zenoh'] / rates['ros2']:.2f}")
+    for transport, us in chain_cpu_per_tick(args.seconds).items():
+        print(f"chain3 over {transport:5s} CPU per tick, all processes (us) {us:8.0f}")
     if not args.skip_nav:
         walls = nav_without_camera(args.repeats)
         for way, wall in walls.items():

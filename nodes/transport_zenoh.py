@@ -1,18 +1,21 @@
 """The zenoh transport: the same CDR bytes as ros2, carried by eclipse-zenoh sessions.
 
-Topology (a star, no multicast anywhere):
-- The orchestrator's session is a zenoh *router* listening on loopback only
+Topology (a mesh of direct TCP links, no multicast anywhere):
+- The orchestrator's session is a zenoh peer listening on loopback only
   (``tcp/127.0.0.1:<free port>``, or the endpoints in ``COSIM_ZENOH_LISTEN``, which the
   scenario's ``zenoh.listen`` sets). When it opens, it exports its endpoints to the
   environment as ``COSIM_ZENOH_CONNECT`` so the node processes it spawns inherit them (the
   previous value is restored on close). It also connects to ``zenoh.connect`` endpoints
   (``COSIM_ZENOH_ROUTER_CONNECT``), e.g. a zenohd on another host.
-- A node's session is a zenoh *client* of the endpoints in ``COSIM_ZENOH_CONNECT``; it
-  listens on nothing, so a node on another host (or network namespace) only needs to reach
-  the orchestrator's endpoint over TCP. Node-to-node data is routed by the orchestrator's
-  session (in zenoh's Rust threads; the orchestrator's Python code never sees it).
+- A node's session is a peer that connects to ``COSIM_ZENOH_CONNECT`` and listens on a free
+  port of its own address on the route to that endpoint (127.0.0.1 for a loopback one, the
+  host's interface address for a remote one). Gossip scouting (over those links, never
+  multicast) tells every peer the others' endpoints, and each pair links directly, so data
+  goes node to node in one hop. (A star, nodes as clients routed by an orchestrator
+  router, was measured first: twice the CPU per tick in the orchestrator and 1.5x in the
+  nodes, and fewer ticks/s; see bench/README.md.)
 - A session opened with no ``COSIM_ZENOH_CONNECT`` (a ``cosim-node`` run by hand, a
-  benchmark) is a root itself. Multicast and gossip scouting are off.
+  benchmark) is a root itself.
 
 Key expressions follow rmw_zenoh's layout: ``<domain>/<topic without leading
 slash>/<type>/<type hash>``, e.g. ``5/clock/rosgraph_msgs::msg::dds_::Clock_/RIHS01_692f...``,
@@ -28,7 +31,8 @@ Discovery (``matched()``): every publisher and subscription declares a livelines
 ``@cosim/<domain>/<pub|sub>/<topic without leading slash>/<participant>``; one liveliness
 subscriber per session counts them. A publisher's count is the number of subscription
 tokens of its topic, and 0 while zenoh's own matching status says no subscriber is routed
-yet (so "matched" means data can flow, as DDS discovery does).
+yet (peers route only to their direct neighbours, so "matched" means the direct link is up
+and data can flow, as DDS discovery does).
 
 Large messages: zenoh's shared-memory transport optimisation (on by default: messages over
 3 KiB between sessions of one host travel through a shared-memory pool) is kept;
@@ -133,17 +137,29 @@ def export_settings(spec) -> None:
             os.environ.setdefault(env, ",".join(values))
 
 
+def _route_address(endpoint: str) -> str:
+    """This host's address on the route to ``endpoint`` ('127.0.0.1' for a loopback one)."""
+    address = endpoint.partition("/")[2].split("#")[0]
+    host, _, port = address.rpartition(":")
+    bare = host.strip("[]")
+    family = socket.AF_INET6 if ":" in bare else socket.AF_INET
+    with socket.socket(family, socket.SOCK_DGRAM) as s:
+        s.connect((bare, int(port or 7447)))
+        local = s.getsockname()[0]
+    return f"[{local}]" if family == socket.AF_INET6 else local
+
+
 def session_config(mode: str, listen: list[str], connect: list[str]) -> zenoh.Config:
-    """A zenoh config: ``mode``, explicit endpoints, no multicast or gossip scouting."""
+    """A zenoh config: ``mode``, explicit endpoints, gossip scouting only (no multicast)."""
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("listen/endpoints", json.dumps(listen))
     config.insert_json5("connect/endpoints", json.dumps(connect))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "true")  # learn peers from the root
     if os.environ.get(SHM_ENV) == "0":  # large messages go through shared memory by default
         config.insert_json5("transport/shared_memory/enabled", "false")
-    if mode == "client":
+    if connect:
         config.insert_json5("connect/timeout_ms", "30000")
         config.insert_json5("connect/exit_on_failure", "true")
     return config
@@ -212,11 +228,12 @@ class ZenohTransport(Transport):
         if self.root:
             listen = [_with_free_port(e) for e in
                       _endpoints(os.environ.get(LISTEN_ENV)) or [DEFAULT_LISTEN]]
-            config = session_config("router", listen,
+            config = session_config("peer", listen,
                                     _endpoints(os.environ.get(ROUTER_CONNECT_ENV)))
             self.endpoints = listen
-        else:
-            config = session_config("client", [], connect)
+        else:  # listen where the orchestrator's peers can reach us, for direct links
+            listen = [_with_free_port(f"tcp/{_route_address(connect[0])}:0")]
+            config = session_config("peer", listen, connect)
             self.endpoints = connect
         self.session = zenoh.open(config)
         if self.root:  # children (node processes) connect here
