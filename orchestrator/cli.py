@@ -97,6 +97,11 @@ def main(argv: list[str] | None = None) -> int:
               f"node(s) {', '.join(foreign)} are foreign programs (command:). Run without "
               "--in-process.", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if scenario.model.transport == "zenoh" and foreign and not args.in_process:
+        print(f"cosim-orchestrate: error: {scenario.file}: transport: zenoh carries cosim nodes "
+              f"only; node(s) {', '.join(foreign)} are foreign ROS 2 programs (command:) that "
+              "talk DDS. Use transport ros2.", file=sys.stderr)
+        return EXIT_BAD_INPUT
     for warning in scenario.warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)

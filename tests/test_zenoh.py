@@ -210,3 +210,10 @@ def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
         rclpy.shutdown(context=context)
     assert proc.returncode == 0, err
     assert len(seen) > 100  # 500 published at 100 Hz; DDS discovery may miss the first ones
+
+
+def test_foreign_programs_over_zenoh_are_refused_before_anything_starts(tmp_path):
+    run = orchestrate(SCENARIOS / "foreign_echo.yaml", tmp_path, "--transport", "zenoh")
+    assert run.code == 2
+    assert "foreign ROS 2 programs" in run.stderr and "echo" in run.stderr
+    assert not list(tmp_path.glob("*"))
