@@ -91,17 +91,18 @@ def test_kill_9_node_mid_run_stops_within_2_s_and_keeps_the_recording(tmp_path):
     assert counts["/head"] > 50 and counts["/middle"] > 50 and counts["/clock"] > 50
 
 
+@pytest.mark.parametrize("transport", ["ros2", "zenoh"])
 @pytest.mark.parametrize("mode,expect", [("kill", "killed by signal SIGKILL"),
                                          ("exit", "exit code 7")])
-def test_node_dying_at_a_random_tick_is_named_with_the_tick(tmp_path, mode, expect):
-    tick = 2 * random.Random(f"{mode}-1").randrange(3, 30)  # tail acts on even ticks
+def test_node_dying_at_a_random_tick_is_named_with_the_tick(tmp_path, mode, expect, transport):
+    tick = 2 * random.Random(f"{transport}-{mode}").randrange(3, 30)  # tail acts on even ticks
     doc = yaml.safe_load(LONG.read_text())
     doc["duration"] = "1s"
     doc["nodes"][2].update(kind="faulty", params={"output": "/tail", "fail_at": tick,
                                                   "mode": mode})
     path = tmp_path / "dies.yaml"
     path.write_text(yaml.safe_dump(doc))
-    run = orchestrate(path, tmp_path / "out")
+    run = orchestrate(path, tmp_path / "out", "--transport", transport)
     assert run.code == 3
     assert f"node tail died at tick {tick} ({expect})" in run.stderr
     counts = bag_counts(run.run_dir)

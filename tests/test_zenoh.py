@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import shutil
 import signal
 import subprocess
@@ -64,21 +63,6 @@ def test_protocol_digest_is_the_same_over_zenoh_ros2_and_in_process(tmp_path):
         digests[transport] = run.manifest["digest"]
     digests["in-process"] = run_in_process(load_scenario(path)).digest
     assert len(set(digests.values())) == 1, digests
-
-
-@pytest.mark.parametrize("mode,expect", [("kill", "killed by signal SIGKILL"),
-                                         ("exit", "exit code 7")])
-def test_node_dying_over_zenoh_is_named_with_the_tick_as_over_ros2(tmp_path, mode, expect):
-    tick = 2 * random.Random(f"zenoh-{mode}").randrange(3, 30)  # tail acts on even ticks
-    doc = yaml.safe_load(LONG.read_text())
-    doc["duration"] = "1s"
-    doc["nodes"][2].update(kind="faulty", params={"output": "/tail", "fail_at": tick,
-                                                  "mode": mode})
-    path = tmp_path / "dies.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    run = orchestrate(path, tmp_path / "out", "--transport", "zenoh")
-    assert run.code == 3
-    assert f"node tail died at tick {tick} ({expect})" in run.stderr
 
 
 def test_sigkill_mid_run_over_zenoh_exits_3_naming_node_and_tick(tmp_path):
