@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -22,6 +23,7 @@ class RunResult:
     ticks: int
     metrics: dict[str, dict[str, float]] = field(default_factory=dict)
     stopped_early: bool = False
+    step_ns: dict[str, list[int]] = field(default_factory=dict)  # in-process: [n, total, worst]
 
 
 def node_config(scenario: Scenario, name: str) -> NodeConfig:
@@ -64,6 +66,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
         for inp in plan.inputs:
             consumers.setdefault(inp.graph_topic, []).append(histories[(plan.name, inp.topic)])
     digest = RunDigest()
+    cost: dict[str, list[int]] = {}
     stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
@@ -74,6 +77,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 wanted = sched.input_tick(edge, k)
                 if wanted is not None:
                     inputs[inp.topic] = histories[(name, inp.topic)].take(wanted)
+            started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
                 outputs = nodes[name].step(tick, inputs)
                 items = prepare_outputs(name, plan.declared_outputs,
@@ -81,6 +85,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             except Exception as exc:
                 raise SimulationError(f"node {name} failed at tick {k}: "
                                       f"{type(exc).__name__}: {exc}", node=name, tick=k) from exc
+            _account(cost.setdefault(name, [0, 0, 0]), time.perf_counter_ns() - started)
             digest.add(k, name, output_digest(k, items))
             for topic, data in items:
                 for history in consumers.get(topic, ()):
@@ -90,8 +95,14 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
         if on_tick:
             on_tick(k)
         if stop and goal_reached({n: nodes[n].metrics() for n in nodes}, scenario.pipelined):
-            return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), stopped_early=True)
-    return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes))
+            return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost)
+    return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost)
+
+
+def _account(entry: list[int], step_ns: int) -> None:
+    entry[0] += 1
+    entry[1] += step_ns
+    entry[2] = max(entry[2], step_ns)
 
 
 def _metrics(nodes: dict[str, StepNode]) -> dict[str, dict[str, float]]:

@@ -37,10 +37,19 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
-def in_process_entries(scenario, ticks: int) -> dict[str, Any]:
-    """Per-node entries of an in-process run: activations served (the cost is the process's)."""
-    return {name: {"ticks": (ticks - 1) // scenario.schedule.periods[name] + 1 if ticks else 0}
-            for name in scenario.schedule.order}
+def in_process_entries(scenario, ticks: int, result=None) -> dict[str, Any]:
+    """Per-node entries of an in-process run: activations served, mean and worst step time
+    (CPU and memory are the one process's, under 'orchestrator')."""
+    out = {}
+    for name in scenario.schedule.order:
+        entry: dict[str, Any] = {
+            "ticks": (ticks - 1) // scenario.schedule.periods[name] + 1 if ticks else 0}
+        n, total, worst = (result.step_ns.get(name) if result else None) or (0, 0, 0)
+        if n:
+            entry.update(step_ms_mean=round(total / n / 1e6, 4),
+                         step_ms_worst=round(worst / 1e6, 4))
+        out[name] = entry
+    return out
 
 
 def own_cost() -> dict[str, float]:
@@ -91,7 +100,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     metrics = {k: v for m in (result.metrics.values() if result else []) for k, v in m.items()}
     nodes = {name: node_entry(stats, proc) for name, (stats, proc) in outcome.node_stats.items()}
     if options.in_process and not nodes:
-        nodes = in_process_entries(scenario, ticks)
+        nodes = in_process_entries(scenario, ticks, result)
     return {
         "scenario": scenario_entry(scenario),
         "seed": scenario.model.seed,
