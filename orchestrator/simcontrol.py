@@ -75,8 +75,10 @@ class SimControl:
         rclpy.shutdown(context=self._context)
 
     def _on_pause(self, request, response):
+        # Pausing again only reports the state (steps already asked for still run).
         self.paused = bool(request.data)
-        self.steps = 0
+        if not self.paused:
+            self.steps = 0
         response.success = True
         response.message = self.state()
         return response

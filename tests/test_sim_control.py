@@ -27,6 +27,17 @@ def call(ros, srv_type, name: str, request):
     return future.result()
 
 
+def wait_paused_at(ros, tick: int, timeout: float = 20.0) -> str:
+    """Ask for the state (pausing again changes nothing) until it says 'paused at tick N'."""
+    end = time.monotonic() + timeout
+    while True:
+        message = call(ros, SetBool, "/cosim/pause", SetBool.Request(data=True)).message
+        if message.startswith(f"paused at tick {tick} ") or time.monotonic() > end:
+            assert message.startswith(f"paused at tick {tick} "), message
+            return message
+        time.sleep(0.1)
+
+
 def test_pause_step_reset_resume(tmp_path, ros_node):
     run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(PROTOCOL), "--paused",
                             "--quiet", "--out", str(tmp_path)], cwd=ROOT,
@@ -35,15 +46,11 @@ def test_pause_step_reset_resume(tmp_path, ros_node):
         for _ in range(3):
             reply = call(ros_node, Trigger, "/cosim/step", Trigger.Request())
             assert reply.success, reply.message
-        time.sleep(0.5)
-        reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
-        assert reply.message.startswith("paused at tick 3 "), reply.message
+        assert wait_paused_at(ros_node, 3)
         reply = call(ros_node, Trigger, "/cosim/reset", Trigger.Request())
         assert reply.success and "resetting to tick 0" in reply.message
         call(ros_node, Trigger, "/cosim/step", Trigger.Request())
-        time.sleep(0.5)
-        reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=True))
-        assert reply.message.startswith("paused at tick 1 "), reply.message
+        assert wait_paused_at(ros_node, 1)
         reply = call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=False))
         assert reply.success and reply.message.startswith("running")
         out, err = run.communicate(timeout=60)
