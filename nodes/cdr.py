@@ -30,7 +30,10 @@ class CdrLayoutError(ValueError):
 def canonical_cdr(data: bytes, msg_class: type) -> bytes:
     """``data`` with every padding byte set to zero; raises CdrLayoutError on a mismatch."""
     buf = bytearray(data)
-    end = _walk_struct(buf, _HEADER, _plan(msg_class))
+    try:
+        end = _walk(buf, _HEADER, _plan(msg_class))
+    except struct.error as exc:
+        raise CdrLayoutError(f"{msg_class.__name__}: layout runs past the data") from exc
     if end > len(buf):
         raise CdrLayoutError(f"{msg_class.__name__}: layout runs past the data")
     buf[end:] = bytes(len(buf) - end)
@@ -39,28 +42,105 @@ def canonical_cdr(data: bytes, msg_class: type) -> bytes:
 
 @cache
 def _plan(msg_class: type) -> tuple:
-    """The message's fields as ops: ('p', size) | ('s',) | ('m', plan) | ('a'|'q', op, n)."""
+    """The message's layout as flat ops, nested structs inlined:
+    ('b', table) a block of fixed-size fields, ('s',) a string, ('qp', size) a sequence of
+    primitives, ('q', ops) a sequence and ('a', ops, n) an array of anything else."""
+    ops: list[tuple] = []
+    run: list[tuple[int, int]] = []  # (alignment, size) of consecutive fixed-size fields
+    _flatten(msg_class, ops, run)
+    _close_run(ops, run)
+    return tuple(ops)
+
+
+def _flatten(msg_class: type, ops: list, run: list) -> None:
     slots = getattr(msg_class, "SLOT_TYPES", ())
     if not slots:
-        return (("p", 1),)  # an empty struct carries one placeholder byte
-    return tuple(_op(slot) for slot in slots)
+        run.append((1, 1))  # an empty struct carries one placeholder byte
+    for slot in slots:
+        _flatten_slot(slot, ops, run)
 
 
-def _op(slot) -> tuple:
+def _flatten_slot(slot, ops: list, run: list) -> None:
     if isinstance(slot, d.BasicType):
-        return ("p", _SIZES[slot.typename])
-    if isinstance(slot, d.AbstractWString):
+        size = _SIZES[slot.typename]
+        run.append((min(size, 8), size))
+    elif isinstance(slot, d.AbstractWString):
         raise CdrLayoutError("wstring fields are not supported")
-    if isinstance(slot, d.AbstractString):
-        return ("s",)
-    if isinstance(slot, d.NamespacedType):
+    elif isinstance(slot, d.AbstractString):
+        _close_run(ops, run)
+        ops.append(("s",))
+    elif isinstance(slot, d.NamespacedType):
         module = importlib.import_module(".".join(slot.namespaces))
-        return ("m", _plan(getattr(module, slot.name)))
-    if isinstance(slot, d.Array):
-        return ("a", _op(slot.value_type), slot.size)
-    if isinstance(slot, d.AbstractSequence):
-        return ("q", _op(slot.value_type), 0)
-    raise CdrLayoutError(f"unsupported field type {slot!r}")
+        _flatten(getattr(module, slot.name), ops, run)
+    elif isinstance(slot, d.Array) and isinstance(slot.value_type, d.BasicType):
+        size = _SIZES[slot.value_type.typename]
+        run.extend([(min(size, 8), size)] * slot.size)
+    elif isinstance(slot, d.Array):
+        _close_run(ops, run)
+        ops.append(("a", _element_plan(slot.value_type), slot.size))
+    elif isinstance(slot, d.AbstractSequence) and isinstance(slot.value_type, d.BasicType):
+        _close_run(ops, run)
+        ops.append(("qp", _SIZES[slot.value_type.typename]))
+    elif isinstance(slot, d.AbstractSequence):
+        _close_run(ops, run)
+        ops.append(("q", _element_plan(slot.value_type)))
+    else:
+        raise CdrLayoutError(f"unsupported field type {slot!r}")
+
+
+def _element_plan(slot) -> tuple:
+    ops: list[tuple] = []
+    run: list[tuple[int, int]] = []
+    _flatten_slot(slot, ops, run)
+    _close_run(ops, run)
+    return tuple(ops)
+
+
+def _close_run(ops: list, run: list) -> None:
+    """Turn a run of fixed-size fields into one block op: for each start offset modulo 8,
+    how far the block reaches and where its padding lies (alignments divide 8)."""
+    if not run:
+        return
+    table = []
+    for residue in range(8):
+        pos, pads = residue, []
+        for align, size in run:
+            pad = -pos % align
+            if pad:
+                pads.append((pos - residue, pad))
+            pos += pad + size
+        table.append((pos - residue, tuple(pads)))
+    ops.append(("b", tuple(table)))
+    run.clear()
+
+
+def _walk(buf: bytearray, pos: int, ops: tuple) -> int:
+    for op in ops:
+        kind = op[0]
+        if kind == "b":
+            advance, pads = op[1][(pos - _HEADER) & 7]
+            for offset, n in pads:
+                buf[pos + offset:pos + offset + n] = bytes(n)
+            pos += advance
+        elif kind == "s":
+            pos = _align(buf, pos, 4)
+            pos += 4 + _U32.unpack_from(buf, pos)[0]
+        elif kind == "qp":
+            pos = _align(buf, pos, 4)
+            count = _U32.unpack_from(buf, pos)[0]
+            pos += 4
+            if count:
+                pos = _align(buf, pos, min(op[1], 8)) + count * op[1]
+        elif kind == "q":
+            pos = _align(buf, pos, 4)
+            count = _U32.unpack_from(buf, pos)[0]
+            pos += 4
+            for _ in range(count):
+                pos = _walk(buf, pos, op[1])
+        else:  # "a"
+            for _ in range(op[2]):
+                pos = _walk(buf, pos, op[1])
+    return pos
 
 
 def _align(buf: bytearray, pos: int, size: int) -> int:
@@ -68,30 +148,3 @@ def _align(buf: bytearray, pos: int, size: int) -> int:
     if pad:
         buf[pos:pos + pad] = bytes(pad)
     return pos + pad
-
-
-def _walk_struct(buf: bytearray, pos: int, plan: tuple) -> int:
-    for op in plan:
-        pos = _walk(buf, pos, op)
-    return pos
-
-
-def _walk(buf: bytearray, pos: int, op: tuple) -> int:
-    kind = op[0]
-    if kind == "p":
-        return _align(buf, pos, min(op[1], 8)) + op[1]
-    if kind == "s":
-        pos = _align(buf, pos, 4)
-        return pos + 4 + _U32.unpack_from(buf, pos)[0]
-    if kind == "m":
-        return _walk_struct(buf, pos, op[1])
-    element, count = op[1], op[2]
-    if kind == "q":
-        pos = _align(buf, pos, 4)
-        count = _U32.unpack_from(buf, pos)[0]
-        pos += 4
-    if element[0] == "p":
-        return _align(buf, pos, min(element[1], 8)) + count * element[1] if count else pos
-    for _ in range(count):
-        pos = _walk(buf, pos, element)
-    return pos
