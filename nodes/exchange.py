@@ -91,10 +91,6 @@ class InputHistory:
         self.msg_type = msg_type
         self.samples: deque[tuple[int, Any]] = deque()
 
-    def push(self, tick: int, msg: Any) -> None:
-        """Add the producer's sample of ``tick`` (ticks arrive in increasing order)."""
-        self.samples.append((tick, msg))
-
     def push_bytes(self, tick: int, data: bytes) -> None:
         """Add a serialised sample; it is deserialised only if a step ever takes it (slow
         consumers skip most samples of a fast producer)."""

@@ -50,7 +50,6 @@ class RealtimeRuntime:
             transport.subscription(CLOCK_TOPIC, Clock, 10)
         self.stop_requested = False
         self.served = -1
-        self.steps = 0
 
     def request_stop(self, *_args) -> None:
         """Signal handler: leave the loop."""
@@ -104,4 +103,3 @@ class RealtimeRuntime:
         for topic, data in items:
             self.publishers[topic].publish(data)
         self.served = k
-        self.steps += 1
