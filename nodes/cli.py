@@ -115,12 +115,14 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
     from nodes.transport import create_transport
     from orchestrator.inprocess import make_node
 
-    node = make_node(scenario, name)
+    # Publishers and subscriptions first: DDS discovery then runs in the transport's own
+    # threads while the node builds its model (MuJoCo compile, renderer set-up).
     transport = create_transport(scenario.model.transport, f"cosim_{name}")
     recorder = PartWriter(run_dir / "parts" / f"{name}.rec") if run_dir else None
-    runtime = LockstepRuntime(scenario, name, node, transport, recorder)
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder)
     install_stop_handlers(runtime)
     try:
+        runtime.node = make_node(scenario, name)
         _run_maybe_profiled(runtime, run_dir, name)
         return EXIT_OK
     except KeyboardInterrupt:
@@ -141,13 +143,17 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
 
 
 def _run_maybe_profiled(runtime, run_dir: Path | None, name: str) -> None:
-    """Run; with COSIM_PROFILE=1 and a run directory, write a cProfile of the node there."""
-    if not (os.environ.get("COSIM_PROFILE") and run_dir):
+    """Run; with COSIM_PROFILE set and a run directory, write a cProfile of the node there
+    (COSIM_PROFILE=cpu counts the main thread's CPU time instead of wall time: on a loaded
+    machine wall time charges a call for the other processes that ran meanwhile)."""
+    mode = os.environ.get("COSIM_PROFILE")
+    if not (mode and run_dir):
         runtime.run()
         return
     import cProfile
+    import time
 
-    profiler = cProfile.Profile()
+    profiler = cProfile.Profile(time.thread_time) if mode == "cpu" else cProfile.Profile()
     try:
         profiler.runcall(runtime.run)
     finally:

@@ -6,9 +6,11 @@
   ``restart E {json: topic -> messages sent}`` (start over from tick 0, ignoring older
   messages still in flight, then report ``ready`` again).
 - ``/cosim/status`` (diagnostic_msgs/DiagnosticStatus): every node reports on it: while
-  starting (``waiting`` with the unmatched topics, then ``ready``), after each activation
-  (``done`` with the tick, the digest of what it published, step time and metrics), and on
-  failure (``error`` with the exception and a traceback excerpt).
+  starting (``waiting`` with the unmatched topics, then ``ready``), after its activations
+  (``done``: the ticks it served since its last report, space-separated and aligned: ``ticks``,
+  ``digests`` of what it published, ``step_ns``, and one ``metric.<name>`` per metric, ``-``
+  where a tick did not report it; one report covers every tick served in one wake-up), and
+  on failure (``error`` with the exception and a traceback excerpt).
 """
 
 from __future__ import annotations
@@ -47,9 +49,20 @@ def decode_clock(data: bytes) -> int:
     return sec * NS_PER_S + nsec
 
 
+@dataclass(slots=True)
+class Done:
+    """One activation a node reports as done: its tick, output digest, step time, metrics."""
+
+    node: str
+    tick: int
+    digest: str
+    step_ns: int = 0
+    metrics: dict[str, float] = field(default_factory=dict)
+
+
 @dataclass
 class Status:
-    """One status report of a node."""
+    """One status report of a node (a ``done`` report lists its activations in ``done``)."""
 
     node: str
     state: str
@@ -57,6 +70,34 @@ class Status:
     digest: str = ""
     detail: str = ""
     values: dict[str, str] = field(default_factory=dict)
+    done: list[Done] = field(default_factory=list)
+
+
+def done_status(node: str, done: list[Done]) -> Status:
+    """The ``done`` report of a batch of activations (in tick order)."""
+    values = {"ticks": " ".join(str(d.tick) for d in done),
+              "digests": " ".join(d.digest for d in done),
+              "step_ns": " ".join(str(d.step_ns) for d in done)}
+    names = sorted({key for d in done for key in d.metrics})
+    for key in names:
+        values[f"metric.{key}"] = " ".join(repr(float(d.metrics[key])) if key in d.metrics
+                                           else "-" for d in done)
+    return Status(node, DONE, done[-1].tick, values=values, done=done)
+
+
+def _parse_done(status: Status) -> list[Done]:
+    values = status.values
+    ticks = values.get("ticks", "").split()
+    digests = values.get("digests", "").split()
+    steps = values.get("step_ns", "").split()
+    done = [Done(status.node, int(t), d, int(s))
+            for t, d, s in zip(ticks, digests, steps, strict=True)]
+    for key, column in values.items():
+        if key.startswith("metric."):
+            for entry, value in zip(done, column.split(), strict=True):
+                if value != "-":
+                    entry.metrics[key[7:]] = float(value)
+    return done
 
 
 def encode_status(status: Status) -> bytes:
@@ -89,17 +130,22 @@ def decode_status(data: bytes) -> Status:
     for _ in range(count):
         key, pos = _get_string(data, pos)
         values[key], pos = _get_string(data, pos)
+    return _status(node, detail, digest, values)
+
+
+def _status(node: str, detail: str, digest: str, values: dict[str, str]) -> Status:
     state = values.pop("state", ERROR)
     tick = int(values.pop("tick", "-1"))
-    return Status(node, state, tick, digest, detail, values)
+    status = Status(node, state, tick, digest, detail, values)
+    if state == DONE:
+        status.done = _parse_done(status)
+    return status
 
 
 def _decode_status_slow(data: bytes) -> Status:
     msg = deserialize_message(data, DiagnosticStatus)
     values = {kv.key: kv.value for kv in msg.values}
-    state = values.pop("state", ERROR)
-    tick = int(values.pop("tick", "-1"))
-    return Status(msg.name, state, tick, msg.hardware_id, msg.message, values)
+    return _status(msg.name, msg.message, msg.hardware_id, values)
 
 
 def _align(out: bytearray) -> None:

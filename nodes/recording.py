@@ -1,7 +1,8 @@
 """Per-node recording of published messages, written by the node itself off the lockstep path.
 
 Each node appends what it publishes to ``<run dir>/parts/<node>.rec`` and flushes after
-every activation, so a crash keeps everything up to the last finished tick. The
+every activation, so a crash keeps everything up to the last finished tick (and tells
+which tick a dead node was working on). The
 orchestrator merges the parts into a rosbag2 (MCAP) directory at the end of the run.
 Record: int64 tick, uint16 topic length, uint32 data length, topic, CDR bytes.
 """

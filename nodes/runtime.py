@@ -25,20 +25,23 @@ from nodes.exchange import InputHistory, output_digest, prepare_outputs
 from nodes.protocol import (
     CLOCK_TOPIC,
     COMMAND_TOPIC,
-    DONE,
     ERROR,
     READY,
     RESETTING,
     STATUS_TOPIC,
     WAITING,
+    Done,
     Status,
     decode_clock,
+    done_status,
     encode_status,
 )
 from nodes.recording import PartWriter
 from nodes.transport import Received, Transport
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
+MAX_BATCH = 64  # activations per 'done' report, at most
+REPORT_LATEST_S = 0.05  # a step running this long first reports the activations before it
 STATUS_PERIOD_S = 0.05
 
 
@@ -81,9 +84,10 @@ class InputChannel:
 
 
 class LockstepRuntime:
-    """Runs one node of a scenario in lockstep with the orchestrator."""
+    """Runs one node of a scenario in lockstep with the orchestrator (its step ``node`` may
+    be attached after construction, before ``run``)."""
 
-    def __init__(self, scenario, name: str, node: StepNode, transport: Transport,
+    def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
                  recorder: PartWriter | None = None):
         self.scenario = scenario
         self.name = name
@@ -98,6 +102,8 @@ class LockstepRuntime:
         self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
         self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
         self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
+        self.unreported: list[Done] = []  # activations served since the last 'done' report
+        self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self._wire()
 
     def _wire(self) -> None:
@@ -180,6 +186,7 @@ class LockstepRuntime:
         while not self.stop_requested:
             while self.clocks and self.try_tick(self.clocks[0]):
                 self.clocks.popleft()
+            self.report_done()
             if self.stop_requested:
                 break
             self.receive(POLL_NS)
@@ -193,6 +200,7 @@ class LockstepRuntime:
         verb, _, rest = command.partition(" ")
         epoch, _, payload = rest.partition(" ")
         if verb == "reset":
+            self.report_done()
             values = {"epoch": epoch, **{f"sent:{t}": str(n) for t, n in self.sent.items()}}
             self.report(Status(self.name, RESETTING, values=values))
         elif verb == "restart":
@@ -235,6 +243,9 @@ class LockstepRuntime:
         """Step, publish, record and report one activation."""
         if self.step_delay_s:
             time.sleep(self.step_delay_s)  # test-only slowdown; must not change any output
+        armed = self.alarm and bool(self.unreported)
+        if armed:  # a slow or hung step must not hide the ticks served before it
+            signal.setitimer(signal.ITIMER_REAL, REPORT_LATEST_S)
         start = time.perf_counter_ns()
         self.in_step = True
         try:
@@ -246,23 +257,35 @@ class LockstepRuntime:
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
         finally:
             self.in_step = False
+            if armed:
+                signal.setitimer(signal.ITIMER_REAL, 0)
         step_ns = time.perf_counter_ns() - start
         for topic, data in items:
             self.publishers[topic].publish(data)
             self.sent[topic] += 1
         if self.recorder:
             self.recorder.write(tick.index, items)
-        values = {"step_ns": str(step_ns)}
-        values.update({f"metric.{k}": repr(float(v)) for k, v in self.node.metrics().items()})
-        self.report(Status(self.name, DONE, tick.index, output_digest(tick.index, items).hex(),
-                           values=values))
+        self.unreported.append(Done(self.name, tick.index, output_digest(tick.index, items).hex(),
+                                    step_ns,
+                                    {k: float(v) for k, v in self.node.metrics().items()}))
+        if len(self.unreported) >= MAX_BATCH:
+            self.report_done()
+
+    def report_done(self, *_signal) -> None:
+        """Report the activations served since the last report, in one message. Also the
+        SIGALRM handler of a slow step."""
+        batch, self.unreported = self.unreported, []
+        if batch:
+            self.report(done_status(self.name, batch))
 
     def report(self, status: Status) -> None:
         """Publish a status message."""
         self.status_pub.publish(encode_status(status))
 
     def report_error(self, tick: int, exc: BaseException) -> None:
-        """Report an exception with a traceback excerpt, and make sure it is delivered."""
+        """Report an exception with a traceback excerpt, and make sure it is delivered
+        (after the activations served before it)."""
+        self.report_done()
         excerpt = "".join(traceback.format_exception(exc)[-6:])
         detail = f"{type(exc).__name__}: {exc}\n{excerpt}"
         self.report(Status(self.name, ERROR, tick, detail=detail))
@@ -279,6 +302,9 @@ class LockstepRuntime:
 
 
 def install_stop_handlers(runtime: LockstepRuntime) -> None:
-    """SIGINT and SIGTERM end the run loop cleanly (exit code 0, no traceback)."""
+    """SIGINT and SIGTERM end the run loop cleanly (exit code 0, no traceback); SIGALRM
+    reports the activations served before a step that runs long."""
     signal.signal(signal.SIGINT, runtime.request_stop)
     signal.signal(signal.SIGTERM, runtime.request_stop)
+    signal.signal(signal.SIGALRM, runtime.report_done)
+    runtime.alarm = True

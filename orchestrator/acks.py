@@ -1,60 +1,123 @@
 """The acknowledgements a run is owed, and the run digest folded from them in schedule order.
 
-Acknowledgements may arrive out of tick order (a leaf node such as a camera may still be
-rendering tick ``k`` while physics runs ``k + 1``), but the digest is always folded tick by
-tick and, within a tick, in the schedule's order, so it cannot depend on timing.
+The master may publish ``/clock`` for a few ticks ahead of the last finished one (the
+pipeline window), and a leaf node such as a camera may still be rendering tick ``k``
+while physics runs ``k + 1``; so acknowledgements arrive out of tick order. Two ordered
+views come out of the book whatever the arrival order:
+
+- *decided* ticks: every due node that may not lag has acknowledged, so the stop decision
+  (goal reached) can be taken for that tick, exactly as the in-process run takes it;
+- *folded* ticks: every due node has acknowledged; the digest is folded tick by tick and,
+  within a tick, in the schedule's order, so it cannot depend on timing.
 """
 
 from __future__ import annotations
 
+from collections import deque
+
 from nodes.exchange import RunDigest
+from nodes.protocol import Done
 from orchestrator.schedule import Schedule
 
 
 class AckBook:
-    """(tick, node) pairs still owed, with deadlines; the digest of all that has come in."""
+    """(tick, node) acknowledgements still owed, and what has come in, in tick order."""
 
-    def __init__(self, sched: Schedule):
+    def __init__(self, sched: Schedule, lagging: frozenset[str] = frozenset()):
         self.sched = sched
-        self.owed: dict[tuple[int, str], float] = {}
-        self.received: dict[int, dict[str, bytes]] = {}
+        self.lagging = lagging
+        self.owed: dict[str, deque[int]] = {n: deque() for n in sched.periods}
+        self.deadline: dict[str, float] = {}  # of each node's oldest owed tick
+        self.received: dict[int, dict[str, Done]] = {}
+        self.expected_until = 0  # ticks below this were expected (their clock went out)
         self.next_fold = 0
+        self.next_decided = 0
+        self.end: int | None = None
         self._digest = RunDigest()
 
-    def expect(self, tick: int, names: tuple[str, ...], deadline: float) -> None:
-        """The due nodes of ``tick`` each owe an acknowledgement by ``deadline``."""
-        for name in names:
-            self.owed[(tick, name)] = deadline
-        self.received.setdefault(tick, {})
+    def expect(self, tick: int, now: float, limit_s: float) -> None:
+        """The nodes due at ``tick`` each owe an acknowledgement; a node's deadline runs
+        ``limit_s`` from when the tick is the oldest it owes (it cannot start it earlier)."""
+        for name in self.sched.due(tick):
+            if not self.owed[name]:
+                self.deadline[name] = now + limit_s
+            self.owed[name].append(tick)
+        self.received[tick] = {}
+        self.expected_until = tick + 1
 
-    def record(self, tick: int, node: str, digest_hex: str) -> bool:
-        """File an acknowledgement; False when it was not owed (a duplicate or a stray)."""
-        if self.owed.pop((tick, node), None) is None:
+    def record(self, done: Done, now: float, limit_s: float) -> bool:
+        """File an activation reported done; False when it was not owed (a duplicate, a
+        stray, or a tick after the end of a run stopped early)."""
+        owed = self.owed.get(done.node)
+        if not owed or done.tick not in owed:
             return False
-        self.received[tick][node] = bytes.fromhex(digest_hex)
-        self._fold()
+        owed.remove(done.tick)
+        if owed:
+            self.deadline[done.node] = now + limit_s
+        self.received[done.tick][done.node] = done
         return True
 
-    def _fold(self) -> None:
-        while self.next_fold in self.received:
-            got = self.received[self.next_fold]
-            due = self.sched.due(self.next_fold)
+    def oldest_owed(self) -> dict[str, int]:
+        """Each node that owes something: the oldest tick it owes."""
+        return {name: ticks[0] for name, ticks in self.owed.items() if ticks}
+
+    def late(self, now: float) -> list[tuple[int, str]]:
+        """(tick, node) whose deadline has passed."""
+        return [(ticks[0], name) for name, ticks in self.owed.items()
+                if ticks and self.deadline[name] < now]
+
+    def pending(self) -> bool:
+        """Whether any acknowledgement is still owed."""
+        return any(self.owed.values())
+
+    def may_start(self, tick: int, window: int) -> bool:
+        """Whether ``tick`` may start while acknowledgements are owed: no node would then be
+        more than ``window`` ticks behind (a lagging node: ``window`` plus its period - 1)."""
+        for name, ticks in self.owed.items():
+            if ticks:
+                slack = self.sched.periods[name] if name in self.lagging else 1
+                if tick - ticks[0] >= slack + window - 1:
+                    return False
+        return True
+
+    def take_decided(self) -> tuple[int, dict[str, Done]] | None:
+        """The next tick in order whose non-lagging acknowledgements are all in, with them."""
+        tick = self.next_decided
+        if tick >= self.expected_until or (self.end is not None and tick >= self.end):
+            return None
+        got = self.received.get(tick)
+        if got is None:
+            return None
+        for name in self.sched.due(tick):
+            if name not in got and name not in self.lagging:
+                return None
+        self.next_decided += 1
+        if tick < self.next_fold:
+            del self.received[tick]
+        return tick, {n: s for n, s in got.items() if n not in self.lagging}
+
+    def take_folded(self) -> list[tuple[int, dict[str, Done]]]:
+        """Fold every tick that is complete, in order; return them with their reports."""
+        folded = []
+        while self.next_fold in self.received and (self.end is None or self.next_fold < self.end):
+            tick = self.next_fold
+            got, due = self.received[tick], self.sched.due(tick)
             if len(got) < len(due):
-                return
+                break
             for name in due:
-                self._digest.add(self.next_fold, name, got[name])
-            del self.received[self.next_fold]
+                self._digest.add(tick, name, bytes.fromhex(got[name].digest))
+            if tick < self.next_decided:
+                del self.received[tick]
+            folded.append((tick, got))
             self.next_fold += 1
+        return folded
 
-    def blocking(self, before_tick: int | None, leaves: frozenset[str]) -> list[tuple[int, str]]:
-        """Owed pairs that must arrive before ``before_tick`` starts (None: all of them).
-
-        A leaf node's acknowledgement may wait until that node is due again.
-        """
-        if before_tick is None:
-            return list(self.owed)
-        return [(t, n) for (t, n) in self.owed
-                if n not in leaves or self.sched.is_due(n, before_tick)]
+    def close(self, end: int) -> None:
+        """The run ends before ``end``: acknowledgements of later ticks are no longer owed."""
+        self.end = end
+        for ticks in self.owed.values():
+            while ticks and ticks[-1] >= end:
+                ticks.pop()
 
     def hexdigest(self) -> str:
         """The digest of every tick folded so far."""

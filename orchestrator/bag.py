@@ -25,8 +25,11 @@ def ros_type_name(msg_class: type) -> str:
     return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
 
-def write_bag(scenario, run_dir: Path, ticks_run: int) -> Path | None:
-    """Write ``<run dir>/bag`` from the node parts and the clock; None when nothing ran."""
+def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) -> Path | None:
+    """Write ``<run dir>/bag`` from the node parts and the clock; None when nothing ran.
+
+    A finished run keeps ticks ``0 .. ticks_run - 1`` only: nodes may have worked ahead
+    of a stop decision (the pipeline window). A failed run keeps everything recorded."""
     parts = {name: run_dir / "parts" / f"{name}.rec" for name in scenario.schedule.order}
     parts = {name: path for name, path in parts.items() if path.exists()}
     if not parts and ticks_run == 0:
@@ -46,6 +49,6 @@ def write_bag(scenario, run_dir: Path, ticks_run: int) -> Path | None:
             connections[topic] = writer.add_connection(topic, ros_type_name(msg_class),
                                                        typestore=typestore)
         for tick, _, topic, data in heapq.merge(clock, *streams):
-            if tick <= last_tick or topic != CLOCK_TOPIC:
+            if tick <= last_tick or (topic != CLOCK_TOPIC and not finished):
                 writer.write(connections[topic], scenario.schedule.time_ns(tick), data)
     return bag

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from nodes.cdr import canonical_cdr
 from nodes.exchange import output_digest
-from nodes.protocol import DONE, Status
+from nodes.protocol import DONE, Done, Status
 from nodes.recording import PartWriter
 from nodes.transport import Received, Transport
 from orchestrator.errors import SimulationError
@@ -89,7 +89,8 @@ class ForeignProxy:
                       self.received[topic][activation * n:(activation + 1) * n]]
         if self.recorder:
             self.recorder.write(tick, items)
-        return Status(self.name, DONE, tick, output_digest(tick, items).hex())
+        done = Done(self.name, tick, output_digest(tick, items).hex())
+        return Status(self.name, DONE, tick, done=[done])
 
     def missing(self, tick: int) -> str:
         """What the program still owes for ``tick``, e.g. '0 of 1 messages on /cmd_vel'."""

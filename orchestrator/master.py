@@ -12,6 +12,8 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.serialization import serialize_message
@@ -26,15 +28,18 @@ from nodes.protocol import (
     READY,
     RESETTING,
     STATUS_TOPIC,
+    Done,
     Status,
     decode_status,
     encode_clock,
 )
+from nodes.recording import read_part
 from nodes.transport import Transport
 from orchestrator.acks import AckBook
 from orchestrator.errors import SimulationError
 from orchestrator.inprocess import RunResult, goal_reached
 from orchestrator.scenario import Scenario
+from orchestrator.schedule import PIPELINE_WINDOW
 from orchestrator.supervisor import Supervisor
 
 LIVENESS_PERIOD_S = 0.1
@@ -52,27 +57,26 @@ class NodeStats:
     ready_s: float | None = None
     metrics: dict[str, float] = field(default_factory=dict)
 
-    def add(self, status: Status) -> None:
-        """Account one 'done' report."""
+    def add(self, done: Done) -> None:
+        """Account one activation reported done."""
         self.ticks += 1
-        step = int(status.values.get("step_ns", "0"))
-        self.step_ns_total += step
-        self.step_ns_worst = max(self.step_ns_worst, step)
-        for key, value in status.values.items():
-            if key.startswith("metric."):
-                self.metrics[key[7:]] = float(value)
+        self.step_ns_total += done.step_ns
+        self.step_ns_worst = max(self.step_ns_worst, done.step_ns)
+        self.metrics.update(done.metrics)
 
 
 class LockstepMaster:
     """Drives a scenario's ticks over a transport, watching the supervisor's processes."""
 
     def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
-                 on_tick: Callable[[int], None] | None = None, proxies: dict | None = None):
+                 on_tick: Callable[[int], None] | None = None, proxies: dict | None = None,
+                 parts_dir: Path | None = None):
         self.scenario = scenario
         self.sched = scenario.schedule
         self.transport = transport
         self.supervisor = supervisor
         self.on_tick = on_tick
+        self.parts_dir = parts_dir  # where nodes record: tells the tick a dead node was at
         self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 1000)
         self.command_pub = transport.publisher(COMMAND_TOPIC, String, 10)
         self.epoch = 0
@@ -85,8 +89,14 @@ class LockstepMaster:
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.leaves = scenario.pipelined
         # COSIM_NO_PIPELINE=1 makes every node finish each tick before the next (benchmarks);
-        # the outputs, digest and stop decision are the same either way.
-        self.may_lag = frozenset() if os.environ.get("COSIM_NO_PIPELINE") else self.leaves
+        # the outputs, digest and stop decision are the same either way. Foreign programs
+        # follow /clock as ROS nodes do, answering each tick: no clock runs ahead for them.
+        strict = bool(os.environ.get("COSIM_NO_PIPELINE"))
+        self.may_lag = frozenset() if strict else self.leaves
+        wanted = int(os.environ.get("COSIM_WINDOW", PIPELINE_WINDOW))  # benchmarks only
+        self.window = 1 if strict or self.proxies else max(1, min(wanted, PIPELINE_WINDOW))
+        self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
+        self.published, self.end = 0, None
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -143,34 +153,72 @@ class LockstepMaster:
     def run(self, control=None) -> RunResult:
         """Run every tick; stop early when the goal is reached (if the scenario says so).
 
-        A leaf node (nothing consumes its outputs, it reports no metrics: a camera) may
-        still be working on tick ``k`` while the others run ``k + 1``: its acknowledgement
-        is only needed before it is due again. ``control`` (a SimControl) may pause,
-        single-step or reset the run between ticks.
+        ``/clock`` may run up to ``window`` ticks ahead of the oldest tick a node still owes
+        (a leaf such as a camera: its period more): a node acts on a tick as soon as the
+        inputs the schedule names are there, so outputs cannot depend on how far ahead the
+        clock is, and the stop decision is taken tick by tick in order, as in-process.
+        ``control`` (a SimControl) may pause, single-step or reset the run between ticks.
         """
         self.loop_started = time.monotonic()
-        stop_on_goal = self.scenario.model.success.stop_on_goal and self.scenario.model.goal
-        book, k = AckBook(self.sched), 0
+        book = self._new_book()
+        n = self.sched.n_ticks
         while True:
-            self._settle(book, k)
-            if k and self.on_tick:
-                self.on_tick(k - 1)
-            if k and stop_on_goal and goal_reached(self.metrics(), self.leaves):
-                self._settle(book, None)
-                return RunResult(book.hexdigest(), k, self.metrics(), stopped_early=True)
-            if k == self.sched.n_ticks:
+            self._decide(book)
+            k = self.published
+            if self.end is None and k < n and book.may_start(k, self.window):
+                if control:
+                    if control.next_action(k, self._idle(k), partial(self._drain, book)) == "reset":
+                        self._drain(book)
+                        self._reset_nodes()
+                        book = self._new_book()
+                        continue
+                    self._decide(book)  # ticks finished before a pause may have met the goal
+                    if self.end is not None:
+                        continue
+                self._publish(book, k)
+            elif self.end is not None or book.next_decided >= n:
                 break
-            if control and control.next_action(k, self._idle(k)) == "reset":
-                self._settle(book, None)
-                self._reset_nodes()
-                book, k = AckBook(self.sched), 0
-                continue
-            self.tick = k
-            self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
-            book.expect(k, self.sched.due(k), time.monotonic() + self.tick_limit_s)
-            k += 1
-        self._settle(book, None)
-        return RunResult(book.hexdigest(), self.sched.n_ticks, self.metrics())
+            else:
+                self._take_reports(book)
+        end = n if self.end is None else self.end
+        book.close(end)
+        self._drain(book)
+        return RunResult(book.hexdigest(), end, self.metrics(), stopped_early=self.end is not None)
+
+    def _new_book(self) -> AckBook:
+        self.published, self.end = 0, None
+        self.decided_metrics: dict[str, dict[str, float]] = {}
+        self.book = AckBook(self.sched, self.may_lag)
+        return self.book
+
+    def _publish(self, book: AckBook, k: int) -> None:
+        self.tick = k
+        self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
+        book.expect(k, time.monotonic(), self.tick_limit_s)
+        self.published = k + 1
+
+    def _decide(self, book: AckBook) -> None:
+        """Take the stop decision for every newly decided tick, in order; account folded ones."""
+        while self.end is None and (item := book.take_decided()) is not None:
+            tick, reports = item
+            for name, done in reports.items():
+                if done.metrics:
+                    self.decided_metrics[name] = done.metrics
+            if self.on_tick:
+                self.on_tick(tick)
+            if self.stop_on_goal and goal_reached(self.decided_metrics, self.leaves):
+                self.end = tick + 1
+                book.close(self.end)
+        for _, reports in book.take_folded():
+            for name, done in reports.items():
+                self.stats[name].add(done)
+
+    def _drain(self, book: AckBook) -> None:
+        """Take reports until nothing is owed (the ticks in flight are finished)."""
+        while book.pending():
+            self._take_reports(book)
+            self._decide(book)
+        self._decide(book)
 
     def _idle(self, k: int) -> Callable[[], None]:
         return lambda: self._check_processes(f"pause before tick {k}")
@@ -207,21 +255,21 @@ class LockstepMaster:
         """The latest metrics each node reported."""
         return {name: dict(s.metrics) for name, s in self.stats.items()}
 
-    def _settle(self, book: AckBook, before_tick: int | None) -> None:
-        """Take reports until nothing owed blocks ``before_tick`` (None: until nothing is owed)."""
-        while blocking := book.blocking(before_tick, self.may_lag):
-            for status in self._statuses():
-                if status.state == DONE and book.record(status.tick, status.node, status.digest):
-                    self.stats[status.node].add(status)
-                elif status.state == ERROR:
-                    self._raise_node_error(status, f"tick {status.tick}")
-            oldest = min(t for t, _ in blocking)
-            self._check_processes(f"tick {oldest}")
-            late = [(t, n) for t, n in blocking if book.owed.get((t, n), 1e300) < time.monotonic()]
-            if late:
-                tick = min(t for t, _ in late)
-                names = {n for t, n in late if t == tick}
-                raise SimulationError(self._late_text(tick, names), node=min(names), tick=tick)
+    def _take_reports(self, book: AckBook) -> None:
+        """Wait a little for reports and file them; fail on an error, a death or a deadline."""
+        for status in self._statuses():
+            if status.state == DONE:
+                now = time.monotonic()
+                for done in status.done:
+                    book.record(done, now, self.tick_limit_s)
+            elif status.state == ERROR:
+                self._raise_node_error(status, f"tick {status.tick}")
+        oldest = book.oldest_owed()
+        self._check_processes(f"tick {min(oldest.values(), default=self.tick)}")
+        if late := book.late(time.monotonic()):
+            tick = min(t for t, _ in late)
+            names = {n for t, n in late if t == tick}
+            raise SimulationError(self._late_text(tick, names), node=min(names), tick=tick)
 
     def _late_text(self, k: int, pending: set[str]) -> str:
         limit = self.scenario.model.deadlines.tick / 1e9
@@ -269,10 +317,26 @@ class LockstepMaster:
         for proc in self.supervisor.dead():
             if proc.name in self.scenario.nodes:
                 self._drain_errors(proc.name)
+                tick = self._tick_of(proc.name)
+                when = when if tick is None else f"tick {tick}"
                 raise SimulationError(
                     f"node {proc.name} died at {when} ({proc.exit_text()}). "
                     f"Last lines of its log ({proc.log_path}):\n{proc.log_tail()}",
-                    node=proc.name, tick=max(self.tick, 0))
+                    node=proc.name, tick=max(self.tick, 0) if tick is None else tick)
+
+    def _tick_of(self, name: str) -> int | None:
+        """The tick a node was working on: the one after the last it recorded, or the
+        oldest it owes (its latest reports may have died with it), None before the run."""
+        book = getattr(self, "book", None)
+        if book is None:
+            return None
+        ticks = [book.oldest_owed().get(name, -1)]
+        part = self.parts_dir / f"{name}.rec" if self.parts_dir else None
+        if part is not None and part.exists():
+            last = max((tick for tick, _, _ in read_part(part)), default=None)
+            if last is not None:
+                ticks.append(last + self.sched.periods[name])
+        return max(ticks) if max(ticks) >= 0 else None
 
     def _drain_errors(self, name: str) -> None:
         """A node that reported an error before dying: report that error instead."""

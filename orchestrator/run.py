@@ -107,7 +107,7 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     """Write the bag from what was recorded; a failure here must not hide the run's own."""
     ticks = outcome.result.ticks if outcome.result else outcome.ticks_done
     try:
-        return write_bag(scenario, outcome.run_dir, ticks)
+        return write_bag(scenario, outcome.run_dir, ticks, finished=outcome.result is not None)
     except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
         log.error("could not write the bag: %s", exc)
         return None
@@ -156,7 +156,8 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
     proxies = {name: ForeignProxy(plan, plan.period_ticks, transport,
                                   PartWriter(run_dir / "parts" / f"{name}.rec"))
                for name, plan in scenario.nodes.items() if plan.foreign}
-    master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies)
+    master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies,
+                            run_dir / "parts")
     try:
         order = list(scenario.nodes)
         if options.shuffle_start is not None:

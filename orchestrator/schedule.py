@@ -74,6 +74,13 @@ def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
+# How many ticks /clock may run ahead of the oldest tick a node still owes. Nodes wait for
+# the exact samples the schedule names, so this changes when work happens, never what it
+# computes; it lets a producer's next ticks overlap its consumers' current one and batches
+# the wake-ups of every process (measured in bench/README.md).
+PIPELINE_WINDOW = 16
+
+
 class Schedule:
     """Who acts at each tick, in which order, and which producer tick each input consumes."""
 
@@ -166,11 +173,13 @@ class Schedule:
 
     def history_depth(self, edge: Edge) -> int:
         """History to keep on both sides of an edge: the samples a consumer may hold between
-        its activations, twice, plus a fixed margin. The margin is also the window in which
+        its activations, twice, plus a fixed margin, plus the pipeline window (a producer
+        may be that many ticks ahead of its consumer). The margin is also the window in which
         a reliable writer can still resend a sample that a starved reader missed (measured:
         7 samples were not enough on a loaded 2-core machine; a lost sample is a sequence-gap
         error, never a silent divergence)."""
-        return 2 * -(-self.periods[edge.consumer] // self.periods[edge.producer]) + 64
+        ratio = -(-self.periods[edge.consumer] // self.periods[edge.producer])
+        return 2 * ratio + 64 + PIPELINE_WINDOW
 
     def driving_edge(self, node: str) -> Edge | None:
         """A same_tick input whose samples tell the node every tick it is due, or None.

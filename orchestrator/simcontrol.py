@@ -49,13 +49,19 @@ class SimControl:
         ns = self.tick * self.tick_ns
         return f"{word} at tick {self.tick} (sim time {ns // 10**9}.{ns % 10**9:09d} s)"
 
-    def next_action(self, tick: int, idle: Callable[[], None]) -> str:
-        """Before tick ``tick``: 'tick' to run it, 'reset' to start over; blocks while paused."""
+    def next_action(self, tick: int, idle: Callable[[], None],
+                    settle: Callable[[], None] = lambda: None) -> str:
+        """Before tick ``tick``: 'tick' to run it, 'reset' to start over; blocks while paused.
+
+        ``settle`` finishes the ticks still in flight; it is called before pausing or
+        resetting, so a paused run has really done every tick before ``tick``."""
         self.tick = tick
         now = time.monotonic()
         if now >= self._next_poll:
             self._next_poll = now + POLL_PERIOD_S
             self.executor.spin_once(timeout_sec=0)
+        if self.reset_requested or (self.paused and not self.steps):
+            settle()
         while True:
             if self.reset_requested:
                 self.reset_requested = False

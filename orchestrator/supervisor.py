@@ -12,12 +12,14 @@ import signal
 import subprocess
 import sys
 import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import psutil
 
-from nodes.parent import PR_SET_PDEATHSIG
+from nodes.parent import PR_SET_PDEATHSIG, die_with_parent
 
 SIGINT_TIMEOUT_S = 3.0
 SIGTERM_TIMEOUT_S = 2.0
@@ -29,12 +31,41 @@ def _arm_parent_death() -> None:  # runs in the child between fork and exec
     ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
+class ForkedChild:
+    """The part of ``subprocess.Popen`` the supervisor uses, for a child made by ``os.fork``."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        """The exit code (negative: killed by that signal), or None while it runs."""
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+            except ChildProcessError:  # reaped elsewhere (psutil.wait_procs): exit unknown
+                self.returncode = 0
+                return self.returncode
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Wait for the exit; subprocess.TimeoutExpired after ``timeout`` seconds."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            if deadline is not None and time.monotonic() > deadline:
+                raise subprocess.TimeoutExpired(str(self.pid), timeout)
+            time.sleep(0.01)
+        return self.returncode
+
+
 @dataclass
 class NodeProcess:
     """A spawned node: its process, log file and the psutil handle for CPU and memory."""
 
     name: str
-    popen: subprocess.Popen
+    popen: subprocess.Popen | ForkedChild
     log_path: Path
     ps: psutil.Process | None = None
     peak_rss: int = 0
@@ -101,6 +132,29 @@ class Supervisor:
         self.procs[name] = proc
         return proc
 
+    def fork(self, name: str, target: Callable[[], int]) -> NodeProcess:
+        """Start one node as a fork of this process running ``target`` (its exit code),
+        output to ``<log dir>/<name>.log``. The child inherits every module and the loaded
+        scenario, so it skips the imports and parsing a fresh interpreter would repeat
+        (most of a node's start-up). Only call it while :func:`fork_is_safe`."""
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        log_path = self.log_dir / f"{name}.log"
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:
+            _forked_child(log_fd, parent, target)  # never returns
+        os.close(log_fd)
+        proc = NodeProcess(name, ForkedChild(pid), log_path)
+        try:
+            proc.ps = psutil.Process(pid)
+        except psutil.Error:
+            proc.ps = None
+        self.procs[name] = proc
+        return proc
+
     def dead(self) -> list[NodeProcess]:
         """Nodes whose process has exited."""
         return [p for p in self.procs.values() if p.popen.poll() is not None]
@@ -124,12 +178,20 @@ class Supervisor:
                 for ps in pending:
                     _signal(ps, sig)
                     _signal(ps, signal.SIGCONT)  # a stopped process must run to see it
-                _, pending = psutil.wait_procs(pending, timeout=timeout)
+                gone, pending = psutil.wait_procs(pending, timeout=timeout)
+                self._note_exit_codes(gone)
             for proc in self.procs.values():
                 try:
                     proc.popen.wait(timeout=1.0)
                 except subprocess.TimeoutExpired:
                     pass
+
+    def _note_exit_codes(self, gone: list[psutil.Process]) -> None:
+        """psutil reaps the children it waits for: keep the exit codes it saw."""
+        codes = {ps.pid: ps.returncode for ps in gone if ps.returncode is not None}
+        for proc in self.procs.values():
+            if proc.popen.returncode is None and proc.popen.pid in codes:
+                proc.popen.returncode = codes[proc.popen.pid]
 
     def _tree(self, proc: NodeProcess) -> list[psutil.Process]:
         procs = []
@@ -141,6 +203,52 @@ class Supervisor:
             except psutil.Error:
                 continue
         return list({p.pid: p for p in procs}.values())
+
+
+def fork_is_safe() -> bool:
+    """Whether this process may fork node processes: no transport library is loaded yet
+    (their threads would be missing in the child) and no Python thread is running.
+    ``COSIM_SPAWN=exec`` always starts fresh interpreters instead."""
+    if os.environ.get("COSIM_SPAWN") == "exec" or not hasattr(os, "fork"):
+        return False
+    loaded = ("rclpy._rclpy_pybind11", "zenoh")
+    return threading.active_count() == 1 and not any(m in sys.modules for m in loaded)
+
+
+def _forked_child(log_fd: int, parent: int, target: Callable[[], int]) -> None:
+    """In a forked node: a session and log of its own, then ``target``; always exits."""
+    code = 1
+    try:
+        os.setsid()
+        null = os.open(os.devnull, os.O_RDONLY)
+        os.dup2(null, 0)
+        os.dup2(log_fd, 1)
+        os.dup2(log_fd, 2)
+        os.close(null)
+        os.close(log_fd)
+        sys.stdin = open(os.devnull)  # noqa: SIM115 - the process ends with os._exit
+        sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115
+        sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115
+        for sig in (signal.SIGTERM, signal.SIGALRM):
+            signal.signal(sig, signal.SIG_DFL)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        import logging
+
+        logging.getLogger().handlers.clear()  # the orchestrator's log file is not ours
+        os.environ["COSIM_PARENT_PID"] = str(parent)
+        die_with_parent()
+        code = target()
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    except BaseException:  # noqa: BLE001 - reported in the node's log, like an uncaught error
+        import traceback
+
+        traceback.print_exc()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(code)
 
 
 def _signal(ps: psutil.Process, sig: int) -> None:

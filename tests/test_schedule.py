@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from orchestrator.schedule import (
     DELAYED,
+    PIPELINE_WINDOW,
     SAME_TICK,
     CycleError,
     Edge,
@@ -70,7 +71,8 @@ def test_inputs_of_and_history_depth():
     s = nav_schedule()
     assert [e.topic for e in s.inputs_of["control"]] == ["/scan", "/odom"]
     assert s.inputs_of["physics"][0].mode == DELAYED
-    assert s.history_depth(s.edges[2]) == 2 * 5 + 64  # control holds up to 5 physics samples
+    # control holds up to 5 physics samples; physics may run the pipeline window ahead
+    assert s.history_depth(s.edges[2]) == 2 * 5 + 64 + PIPELINE_WINDOW
 
 
 def test_cycle_named():
