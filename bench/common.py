@@ -28,12 +28,14 @@ def write_scenario(doc: dict, directory: Path) -> Path:
     return path
 
 
-def run_manifest(scenario: Path, *args: str, out: Path | None = None) -> dict:
-    """Run cosim-orchestrate on a scenario and return its manifest."""
+def run_manifest(scenario: Path, *args: str, out: Path | None = None,
+                 env: dict[str, str] | None = None) -> dict:
+    """Run cosim-orchestrate on a scenario (``env``: extra variables) and return its manifest."""
     out = out or Path(tempfile.mkdtemp(prefix="cosim-bench-"))
     cmd = [sys.executable, "-m", "orchestrator.cli", str(scenario), "--quiet", "--out", str(out),
            *args]
-    proc = subprocess.run(cmd, env=bench_env(), capture_output=True, text=True, cwd=ROOT)
+    proc = subprocess.run(cmd, env={**bench_env(), **(env or {})}, capture_output=True,
+                          text=True, cwd=ROOT)
     runs = sorted(out.glob("*/manifest.json"), key=lambda p: p.stat().st_mtime)
     if not runs:
         raise RuntimeError(f"{' '.join(cmd)} wrote no manifest:\n{proc.stderr}")
@@ -44,3 +46,9 @@ def counter(name: str, rate: int, inputs: list[str] = ()) -> dict:
     """A counter node spec publishing /<name>."""
     return {"name": name, "kind": "counter", "rate": rate, "params": {"output": f"/{name}"},
             "inputs": [{"topic": t, "mode": "same_tick"} for t in inputs]}
+
+
+def cpu_s(manifest: dict) -> float:
+    """CPU seconds of every process of a multi-process run (orchestrator and nodes)."""
+    return manifest["orchestrator"]["cpu_s"] + sum(
+        n.get("cpu_s", 0.0) for n in manifest["nodes"].values())

@@ -5,6 +5,9 @@
 Prints ticks/s for a same-tick chain of 3 nodes and for 1, 3 and 6 independent nodes,
 each over the full protocol (clock, status reports, sequence checks, digest), and the
 round trips/s of two bare rclpy processes exchanging one message each way (the floor).
+The chain also runs strictly in lockstep (COSIM_NO_PIPELINE=1: every node finishes tick k
+before /clock says k + 1) beside the default pipelined protocol, with the CPU time all
+processes spent per tick (less sensitive to other load on the machine than ticks/s).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from bench.common import bench_env, counter, run_manifest, write_scenario
+from bench.common import bench_env, counter, cpu_s, run_manifest, write_scenario
 
 RATE = 1000
 
@@ -46,6 +49,22 @@ def ping_pong(round_trips: int = 3000) -> float:
         child.wait(timeout=30)
 
 
+def chain_modes(seconds: int, transport: str, tmp: Path) -> list[tuple[str, float]]:
+    """The 3-node chain pipelined and strictly in lockstep, with CPU us per tick (the CPU of
+    a 1-tick run, i.e. start-up and the work after the run, subtracted)."""
+    rows = []
+    doc = chain(3, seconds)
+    base_doc = {**doc, "name": "chain3_base", "duration": "1ms"}
+    for label, env in (("pipelined", {}), ("strict lockstep", {"COSIM_NO_PIPELINE": "1"})):
+        base = run_manifest(write_scenario(base_doc, tmp), "--transport", transport, env=env)
+        m = run_manifest(write_scenario(doc, tmp), "--transport", transport, env=env)
+        per_tick = (cpu_s(m) - cpu_s(base)) / m["ticks"] * 1e6
+        print(f"  chain3 {label:16s} {m['ticks_per_s']:8.0f} ticks/s  {per_tick:6.0f} us CPU "
+              f"per tick (all processes)  digest {m['digest'][:12]}")
+        rows.append((f"chain3 {label} over {transport} (ticks/s)", m["ticks_per_s"]))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> list[tuple[str, float]]:
     """Run every case and print a table; returns (case, ticks/s) rows."""
     p = argparse.ArgumentParser(description=__doc__)
@@ -56,6 +75,7 @@ def main(argv: list[str] | None = None) -> list[tuple[str, float]]:
     args = p.parse_args(argv)
     rows = [("bare rclpy ping-pong (round trips/s)", ping_pong())]
     with tempfile.TemporaryDirectory() as tmp:
+        rows += chain_modes(args.seconds, args.transport, Path(tmp))
         cases = [chain(3, args.seconds)] + [parallel(n, args.seconds) for n in args.parallel]
         for doc in cases:
             m = run_manifest(write_scenario(doc, Path(tmp)), "--transport", args.transport)

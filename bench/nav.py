@@ -45,7 +45,9 @@ def report(label: str, runs: dict[str, dict]) -> None:
           f"{loop_s(multi) / loop_s(inproc):.2f}x; whole run {multi['wall_time_s']:.2f} s vs "
           f"{inproc['wall_time_s']:.2f} s; RTF {multi['sim_time_s'] / loop_s(multi):.1f} vs "
           f"{inproc['sim_time_s'] / loop_s(inproc):.1f}; digests {same}")
-    print(f"  start-up (command to first tick): {multi['start_s']:.2f} s; ready per node: " +
+    startup = multi.get("startup", {})
+    print(f"  start-up: command to first tick {startup.get('command_to_first_tick_s', '-')} s, "
+          f"run start to first tick {multi['start_s']:.2f} s; ready per node: " +
           ", ".join(f"{n} {v.get('ready_s', '-')} s" for n, v in multi["nodes"].items()))
     print("  per node (multi-process): " + "; ".join(
         f"{n} step {v.get('step_ms_mean', 0):.2f} ms x {v.get('ticks', 0)}, CPU "
@@ -58,6 +60,10 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--transport", default="ros2")
     args = p.parse_args(argv)
     report("nav, camera on ", case(NAV, args.transport))
+    fresh = run_manifest(NAV, "--transport", args.transport, env={"COSIM_SPAWN": "exec"})
+    print(f"  start-up with fresh interpreters (COSIM_SPAWN=exec) instead of forks: command "
+          f"to first tick {fresh.get('startup', {}).get('command_to_first_tick_s', '-')} s, "
+          f"run start to first tick {fresh['start_s']:.2f} s")
     nocam = without_camera()
     try:
         report("nav, camera off", case(nocam, args.transport))

@@ -76,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    from nodes.parent import name_this_process
+
+    name_this_process(name)
     if args.realtime:
         return run_realtime(scenario, name, args.rtf)
     return run_lockstep(scenario, name, args.run_dir)
@@ -125,8 +128,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
         runtime.node = make_node(scenario, name)
         _run_maybe_profiled(runtime, run_dir, name)
         return EXIT_OK
-    except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt:  # a step cut short by the orchestrator's stop is a clean end
+        return EXIT_OK if runtime.stop_requested else EXIT_INTERRUPTED
     except NodeFailure as exc:
         if exc.__cause__ is None:
             runtime.report_error(-1, exc)

@@ -57,11 +57,9 @@ from pathlib import Path
 import zenoh
 
 from nodes.transport import Publisher, Received, Subscription, Transport
+from nodes.zenoh_settings import LISTEN_ENV, MIRROR_ENV, ROUTER_CONNECT_ENV
 
 CONNECT_ENV = "COSIM_ZENOH_CONNECT"
-LISTEN_ENV = "COSIM_ZENOH_LISTEN"
-ROUTER_CONNECT_ENV = "COSIM_ZENOH_ROUTER_CONNECT"
-MIRROR_ENV = "COSIM_ZENOH_MIRROR"
 SHM_ENV = "COSIM_ZENOH_SHM"
 DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 LIVELINESS_ROOT = "@cosim"
@@ -127,14 +125,6 @@ def _with_free_port(endpoint: str) -> str:
     with socket.socket(family, socket.SOCK_STREAM) as s:
         s.bind((bare, 0))
         return f"{proto}/{host}:{s.getsockname()[1]}"
-
-
-def export_settings(spec) -> None:
-    """Put a scenario's ``zenoh:`` section into the environment (variables already set win)."""
-    for env, values in ((LISTEN_ENV, spec.listen), (ROUTER_CONNECT_ENV, spec.connect),
-                        (MIRROR_ENV, spec.mirror_to_dds)):
-        if values:
-            os.environ.setdefault(env, ",".join(values))
 
 
 def _route_address(endpoint: str) -> str:

@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
     if scenario.model.transport == "zenoh" and not args.in_process:
-        from nodes.transport_zenoh import export_settings
+        from nodes.zenoh_settings import export_settings
 
         export_settings(scenario.model.zenoh)  # endpoints and mirrors, through the environment
     from orchestrator.progress import Progress

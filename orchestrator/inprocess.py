@@ -4,26 +4,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from nodes.contract import NodeConfig, StepNode, Tick
 from nodes.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
 from orchestrator.errors import SimulationError
+from orchestrator.results import RunResult, goal_reached
 from orchestrator.scenario import Scenario
 
 Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 """Called after each activation with (tick, node, [(topic, bytes)])."""
-
-
-@dataclass
-class RunResult:
-    """What a run produced: digest, ticks run, per-node metrics and whether it stopped early."""
-
-    digest: str
-    ticks: int
-    metrics: dict[str, dict[str, float]] = field(default_factory=dict)
-    stopped_early: bool = False
-    step_ns: dict[str, list[int]] = field(default_factory=dict)  # in-process: [n, total, worst]
 
 
 def node_config(scenario: Scenario, name: str) -> NodeConfig:
@@ -40,18 +29,6 @@ def make_node(scenario: Scenario, name: str) -> StepNode:
     node = scenario.nodes[name].step_class()()
     node.reset(scenario.model.seed, node_config(scenario, name))
     return node
-
-
-def goal_reached(metrics: dict[str, dict[str, float]], ignore: frozenset[str] = frozenset()
-                 ) -> bool:
-    """Whether the goal is reached: as a navigator reports it ('goal_reached'), or, when no
-    node reports that, as physics sees it in ground truth ('arrived'). Nodes in ``ignore``
-    (pipelined leaves, whose reports may lag) are not consulted."""
-    metrics = {n: m for n, m in metrics.items() if n not in ignore}
-    claimed = [m["goal_reached"] for m in metrics.values() if "goal_reached" in m]
-    if claimed:
-        return any(v >= 1 for v in claimed)
-    return any(m.get("arrived", 0) >= 1 for m in metrics.values())
 
 
 def run_in_process(scenario: Scenario, observer: Observer | None = None,

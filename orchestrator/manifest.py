@@ -23,6 +23,17 @@ def software_versions() -> dict[str, str]:
     return out
 
 
+def startup_entry(outcome) -> dict[str, Any]:
+    """Start-up: from the orchestrator process's creation (the command) to the first tick,
+    from the run's start (scenario checked) to it, and how node processes were started."""
+    spawned = {getattr(proc, "started", None) for _, proc in outcome.node_stats.values() if proc}
+    first = getattr(outcome, "command_to_first_tick_s", None)
+    return {"command_to_first_tick_s": round(first, 3) if first is not None else None,
+            "run_start_to_first_tick_s": (round(outcome.start_s, 3)
+                                          if outcome.start_s is not None else None),
+            "node_processes": "/".join(sorted(s for s in spawned if s)) or None}
+
+
 def node_entry(stats, proc) -> dict[str, Any]:
     """Per-node cost: CPU, peak memory, ticks served, mean and worst step time."""
     entry: dict[str, Any] = {"ticks": stats.ticks}
@@ -32,7 +43,8 @@ def node_entry(stats, proc) -> dict[str, Any]:
     if stats.ready_s is not None:
         entry["ready_s"] = round(stats.ready_s, 3)
     if proc is not None:
-        entry.update(pid=proc.popen.pid, exit=proc.exit_text(), cpu_s=round(proc.cpu_s, 3),
+        entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
+                     cpu_s=round(proc.cpu_s, 3),
                      peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
     return entry
 
@@ -116,6 +128,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "sim_time_s": sim_s,
         "wall_time_s": round(outcome.wall_s, 3),
         "start_s": round(outcome.start_s, 3) if outcome.start_s is not None else None,
+        "startup": startup_entry(outcome),
         "loop_s": round(outcome.loop_s, 4) if outcome.loop_s is not None else None,
         "ticks_per_s": round(ticks / outcome.loop_s, 1) if outcome.loop_s else None,
         "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,

@@ -37,7 +37,7 @@ from nodes.recording import read_part
 from nodes.transport import Transport
 from orchestrator.acks import AckBook
 from orchestrator.errors import SimulationError
-from orchestrator.inprocess import RunResult, goal_reached
+from orchestrator.results import RunResult, goal_reached
 from orchestrator.scenario import Scenario
 from orchestrator.schedule import PIPELINE_WINDOW
 from orchestrator.supervisor import Supervisor

@@ -23,8 +23,8 @@ class Progress:
         self._first: tuple[float, int] | None = None
         self._bar = None
         self._task = None
-        if enabled:
-            self._open(console)
+        self._console = console  # the bar opens at the first tick: its refresh thread must
+        # not exist yet when the orchestrator forks the node processes
 
     def _open(self, console) -> None:
         from rich.console import Console
@@ -37,17 +37,19 @@ class Progress:
             TextColumn("{task.fields[rtf]}"), TextColumn("{task.fields[eta]}"),
             console=console or Console(stderr=True), transient=True,
             refresh_per_second=1 / REDRAW_S)
-        self._task = self._bar.add_task("starting nodes", total=self.total_ticks,
+        self._task = self._bar.add_task("running", total=self.total_ticks,
                                         **self._fields(-1, None))
         self._bar.start()
 
     def update(self, tick: int) -> None:
         """Called after every finished tick; redraws at most every ``REDRAW_S`` seconds."""
-        if self._bar is None:
+        if not self.enabled:
             return
         now = time.monotonic()
         if now < self._next:
             return
+        if self._bar is None:
+            self._open(self._console)
         self._next = now + REDRAW_S
         if self._first is None:
             self._first = (now, tick)

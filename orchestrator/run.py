@@ -2,31 +2,31 @@
 
 Process management (``supervisor``) and the tick loop (``master``) are separate; this
 module wires them together, keeps what was recorded whatever happens, and writes the
-manifest.
+manifest. Node processes are forked from this one once the scenario is loaded and before
+any transport library is (``Supervisor.fork``), so the modules imported here at the top
+must not load rclpy or zenoh: what needs them is imported after the nodes are started.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import random
 import shutil
 import sys
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from nodes.recording import PartWriter
 from nodes.transport import create_transport
-from orchestrator.bag import write_bag
 from orchestrator.errors import SimulationError
-from orchestrator.foreign import ForeignProxy, foreign_argv
-from orchestrator.inprocess import RunResult, goal_reached, run_in_process
 from orchestrator.manifest import write_manifest
-from orchestrator.master import LockstepMaster
-from orchestrator.picture import write_report_png
+from orchestrator.results import RunResult, goal_reached
 from orchestrator.rundir import make_run_dir
 from orchestrator.scenario import Scenario
-from orchestrator.supervisor import Supervisor, node_argv, signals_ignored
+from orchestrator.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
 
 log = logging.getLogger("cosim")
 
@@ -53,6 +53,7 @@ class RunOutcome:
     error: str | None = None
     wall_s: float = 0.0
     start_s: float | None = None
+    command_to_first_tick_s: float | None = None
     loop_s: float | None = None
     bag: Path | None = None
     ticks_done: int = 0
@@ -77,6 +78,7 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
     try:
         if options.in_process:
             outcome.start_s = time.monotonic() - started
+            outcome.command_to_first_tick_s = _since_process_start()
             outcome.result = _in_process(scenario, run_dir, options.on_tick)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
@@ -107,6 +109,8 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     """Write the bag from what was recorded; a failure here must not hide the run's own."""
     ticks = outcome.result.ticks if outcome.result else outcome.ticks_done
     try:
+        from orchestrator.bag import write_bag
+
         return write_bag(scenario, outcome.run_dir, ticks, finished=outcome.result is not None)
     except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
         log.error("could not write the bag: %s", exc)
@@ -115,6 +119,8 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
 def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     try:
+        from orchestrator.picture import write_report_png
+
         return write_report_png(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)
@@ -140,6 +146,8 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
 
 def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
+    from orchestrator.inprocess import run_in_process
+
     writers = {name: PartWriter(run_dir / "parts" / f"{name}.rec") for name in scenario.nodes}
     try:
         return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
@@ -152,30 +160,31 @@ def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
 def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
                    outcome: RunOutcome, started: float) -> RunResult:
     supervisor = Supervisor(run_dir / "logs")
-    transport = create_transport(scenario.model.transport, "cosim_orchestrator")
-    proxies = {name: ForeignProxy(plan, plan.period_ticks, transport,
-                                  PartWriter(run_dir / "parts" / f"{name}.rec"))
-               for name, plan in scenario.nodes.items() if plan.foreign}
-    master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies,
-                            run_dir / "parts")
+    master = transport = None
+    proxies: dict = {}
+    # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
+    # then start as fresh interpreters: a process with a session open must not fork).
+    opens_first = scenario.model.transport == "zenoh"
     try:
-        order = list(scenario.nodes)
-        if options.shuffle_start is not None:
-            random.Random(options.shuffle_start).shuffle(order)
-        for name in order:
-            plan = scenario.nodes[name]
-            argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
-                             scenario.overrides)
-            if plan.spec.external:
-                _announce_external(name, argv)
-            elif plan.foreign:
-                supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
-                                 cwd=scenario.file.parent.resolve())
-            else:
-                supervisor.spawn(name, argv)
-        log.info("spawned %s", ", ".join(order))
+        if opens_first:
+            transport = create_transport(scenario.model.transport, "cosim_orchestrator")
+        if not _start_nodes(scenario, run_dir, options, supervisor):
+            # Fresh interpreters take seconds to start: load what the end of the run needs
+            # meanwhile, so that a failed run exits promptly.
+            import orchestrator.picture  # noqa: F401
+        from orchestrator.foreign import ForeignProxy
+        from orchestrator.master import LockstepMaster
+
+        if not opens_first:
+            transport = create_transport(scenario.model.transport, "cosim_orchestrator")
+        proxies = {name: ForeignProxy(plan, plan.period_ticks, transport,
+                                      PartWriter(run_dir / "parts" / f"{name}.rec"))
+                   for name, plan in scenario.nodes.items() if plan.foreign}
+        master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies,
+                                run_dir / "parts")
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
+        outcome.command_to_first_tick_s = _since_process_start()
         log.info("all nodes ready after %.3f s", outcome.start_s)
         control = _sim_control(scenario, options)
         try:
@@ -186,13 +195,47 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
-        outcome.ticks_done = max(master.tick, 0)
-        outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
-                              for name in scenario.nodes}
+        if master is not None:
+            outcome.ticks_done = max(master.tick, 0)
+            outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
+                                  for name in scenario.nodes}
         supervisor.shutdown()
         for proxy in proxies.values():
             proxy.recorder.close()
-        transport.close()
+        if transport is not None:
+            transport.close()
+
+
+def _start_nodes(scenario: Scenario, run_dir: Path, options: RunOptions,
+                 supervisor: Supervisor) -> bool:
+    """Start every node process: cosim nodes forked from this process when that is safe
+    (and no launch prefix wraps them), fresh interpreters otherwise; foreign programs by
+    their command; external nodes are announced for the user to start. True when any node
+    was forked."""
+    from nodes.cli import run_lockstep
+    from orchestrator.supervisor import launch_prefix
+
+    order = list(scenario.nodes)
+    if options.shuffle_start is not None:
+        random.Random(options.shuffle_start).shuffle(order)
+    # Foreign programs last: what starts them imports rclpy, after which forking is unsafe.
+    for name in sorted(order, key=lambda n: scenario.nodes[n].foreign):
+        plan = scenario.nodes[name]
+        argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
+                         scenario.overrides)
+        if plan.spec.external:
+            _announce_external(name, argv)
+        elif plan.foreign:
+            from orchestrator.foreign import foreign_argv
+
+            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
+                             cwd=scenario.file.parent.resolve())
+        elif fork_is_safe() and not launch_prefix(name, dict(os.environ)):
+            supervisor.fork(name, partial(run_lockstep, scenario, name, run_dir))
+        else:
+            supervisor.spawn(name, argv)
+    log.info("started %s", ", ".join(order))
+    return any(p.started == "fork" for p in supervisor.procs.values())
 
 
 def _sim_control(scenario: Scenario, options: RunOptions):
@@ -212,6 +255,18 @@ def _announce_external(name: str, argv: list[str]) -> None:
     log.info("waiting for external node %s: %s", name, command)
     print(f"cosim-orchestrate: waiting for external node {name}; start it with:\n  {command}",
           file=sys.stderr, flush=True)
+
+
+def _since_process_start() -> float | None:
+    """Seconds since this process was created (the command, when run from the CLI), from
+    the kernel's start time of the process and the boot-time clock (Linux; else None)."""
+    try:
+        with open("/proc/self/stat") as stat:
+            after_name = stat.read().rpartition(")")[2].split()
+        started = int(after_name[19]) / os.sysconf("SC_CLK_TCK")  # field 22: starttime
+        return time.clock_gettime(time.CLOCK_BOOTTIME) - started
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
 
 
 def _judge(scenario: Scenario, outcome: RunOutcome) -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import psutil
 
-from nodes.parent import PR_SET_PDEATHSIG, die_with_parent
+from nodes.parent import PR_SET_PDEATHSIG, die_with_parent, name_this_process
 
 SIGINT_TIMEOUT_S = 3.0
 SIGTERM_TIMEOUT_S = 2.0
@@ -68,6 +68,7 @@ class NodeProcess:
     popen: subprocess.Popen | ForkedChild
     log_path: Path
     ps: psutil.Process | None = None
+    started: str = "exec"  # 'fork' of the orchestrator, or 'exec' of a fresh program
     peak_rss: int = 0
     cpu_s: float = 0.0
     tree: set[int] = field(default_factory=set)
@@ -145,9 +146,9 @@ class Supervisor:
         parent = os.getpid()
         pid = os.fork()
         if pid == 0:
-            _forked_child(log_fd, parent, target)  # never returns
+            _forked_child(name, log_fd, parent, target)  # never returns
         os.close(log_fd)
-        proc = NodeProcess(name, ForkedChild(pid), log_path)
+        proc = NodeProcess(name, ForkedChild(pid), log_path, started="fork")
         try:
             proc.ps = psutil.Process(pid)
         except psutil.Error:
@@ -206,20 +207,22 @@ class Supervisor:
 
 
 def fork_is_safe() -> bool:
-    """Whether this process may fork node processes: no transport library is loaded yet
-    (their threads would be missing in the child) and no Python thread is running.
+    """Whether this process may fork node processes: rclpy's native library is not loaded
+    (its threads would be missing in the child), no zenoh session or Python thread runs.
     ``COSIM_SPAWN=exec`` always starts fresh interpreters instead."""
     if os.environ.get("COSIM_SPAWN") == "exec" or not hasattr(os, "fork"):
         return False
-    loaded = ("rclpy._rclpy_pybind11", "zenoh")
-    return threading.active_count() == 1 and not any(m in sys.modules for m in loaded)
+    zenoh_open = "nodes.transport_zenoh" in sys.modules  # imported only to open a session
+    return (threading.active_count() == 1 and not zenoh_open
+            and "rclpy._rclpy_pybind11" not in sys.modules)
 
 
-def _forked_child(log_fd: int, parent: int, target: Callable[[], int]) -> None:
-    """In a forked node: a session and log of its own, then ``target``; always exits."""
+def _forked_child(name: str, log_fd: int, parent: int, target: Callable[[], int]) -> None:
+    """In a forked node: a session, log and name of its own, then ``target``; always exits."""
     code = 1
     try:
         os.setsid()
+        name_this_process(name)
         null = os.open(os.devnull, os.O_RDONLY)
         os.dup2(null, 0)
         os.dup2(log_fd, 1)

@@ -35,3 +35,16 @@ def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240) -> 
                           timeout=timeout, cwd=ROOT)
     new = sorted(set(out.glob("*")) - before) if out.exists() else []
     return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
+
+
+def node_process(orchestrator_pid: int, name: str):
+    """The psutil process of node ``name`` among an orchestrator's children (by the process
+    name every node gives itself, whether forked or started as a fresh interpreter)."""
+    import psutil
+
+    from nodes.parent import process_name
+
+    for child in psutil.Process(orchestrator_pid).children():
+        if child.name() == process_name(name):
+            return child
+    raise LookupError(name)

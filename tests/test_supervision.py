@@ -13,7 +13,7 @@ import pytest
 import yaml
 from rosbags.highlevel import AnyReader
 
-from tests.helpers import ROOT, SCENARIOS, orchestrate
+from tests.helpers import ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
 
@@ -30,10 +30,7 @@ class LiveRun:
 
     def node(self, name: str) -> psutil.Process:
         """The process of node ``name``."""
-        for child in self.ps.children():
-            if f"--node {name}" in " ".join(child.cmdline()):
-                return child
-        raise LookupError(name)
+        return node_process(self.proc.pid, name)
 
     def wait_running(self, min_bytes: int = 2000, timeout: float = 60) -> None:
         """Wait until ticks are being recorded."""

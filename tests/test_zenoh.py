@@ -11,14 +11,13 @@ import sys
 import time
 from pathlib import Path
 
-import psutil
 import pytest
 import yaml
 
 from nodes.transport_zenoh import liveliness_key, topic_key, type_hash
 from orchestrator.inprocess import run_in_process
 from orchestrator.scenario import load_scenario
-from tests.helpers import ROOT, SCENARIOS, orchestrate
+from tests.helpers import ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
 SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison: run shorter
@@ -75,8 +74,7 @@ def test_sigkill_mid_run_over_zenoh_exits_3_naming_node_and_tick(tmp_path):
                 parts[0].stat().st_size < 2000:
             assert proc.poll() is None and time.monotonic() < end, proc.communicate()
             time.sleep(0.05)
-        children = psutil.Process(proc.pid).children()
-        victim = next(c for c in children if "--node middle" in " ".join(c.cmdline()))
+        victim = node_process(proc.pid, "middle")
         victim.send_signal(signal.SIGKILL)
         killed = time.monotonic()
         _, err = proc.communicate(timeout=30)

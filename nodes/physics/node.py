@@ -119,9 +119,9 @@ class PhysicsNode(StepNode):
         self._head(inputs.get("/joint_commands"))
         if self.started:
             v, w = m.twist_of(inputs.get("/cmd_vel"))
+            ctrl, (left_act, right_act) = self.data.ctrl, self.wheel_act
             for _ in range(self.substeps):
-                left, right = self.drive.update(v, w, self.dt)
-                self.data.ctrl[self.wheel_act] = left, right
+                ctrl[left_act], ctrl[right_act] = self.drive.update(v, w, self.dt)
                 mujoco.mj_step(self.model, self.data)
                 self.collisions.update(self.data)
         self.started = True
