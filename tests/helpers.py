@@ -27,12 +27,15 @@ class CliRun:
         return json.loads((self.run_dir / "manifest.json").read_text())
 
 
-def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240) -> CliRun:
-    """Run cosim-orchestrate as a real process and wait for it."""
+def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240,
+                env: dict[str, str] | None = None) -> CliRun:
+    """Run cosim-orchestrate as a real process (``env``: extra variables) and wait for it."""
+    import os
+
     before = set(out.glob("*")) if out.exists() else set()
     proc = subprocess.run([sys.executable, "-m", "orchestrator.cli", str(scenario),
                            "--out", str(out), *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=ROOT)
+                          timeout=timeout, cwd=ROOT, env={**os.environ, **(env or {})})
     new = sorted(set(out.glob("*")) - before) if out.exists() else []
     return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
 
