@@ -23,7 +23,7 @@ test: install
 	$(BIN)/python -m pytest
 
 bench: install
-	$(BIN)/python -m bench
+	$(BIN)/python -u -m bench
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

@@ -7,6 +7,8 @@ def main() -> None:
     """Lockstep (with scaling 1..8), nav, messages, sensors."""
     print("== lockstep: ticks/s, trivial nodes at 1 kHz ==")
     lockstep.main(["--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
+    print("\n== lockstep over zenoh: the same chain ==")
+    lockstep.main(["--transport", "zenoh", "--parallel"])
     print("\n== nav: multi-process over in-process ==")
     nav.main([])
     print("\n== message cost ==")

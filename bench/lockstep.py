@@ -43,10 +43,15 @@ def ping_pong(round_trips: int = 3000) -> float:
                              env=bench_env())
     try:
         out = subprocess.run([sys.executable, "-m", "bench.pingpong", "ping", str(round_trips)],
-                             env=bench_env(), capture_output=True, text=True, check=True)
+                             env=bench_env(), capture_output=True, text=True, check=True,
+                             timeout=120)
         return float(out.stdout.split()[-1])
     finally:
-        child.wait(timeout=30)
+        try:
+            child.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.wait()
 
 
 def chain_modes(seconds: int, transport: str, tmp: Path) -> list[tuple[str, float]]:

@@ -9,8 +9,7 @@ few is caught by the tick deadline, naming what is missing.
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
+import time
 
 from nodes.cdr import canonical_cdr
 from nodes.exchange import output_digest
@@ -19,17 +18,7 @@ from nodes.recording import PartWriter
 from nodes.transport import Received, Transport
 from orchestrator.errors import SimulationError
 
-
-def foreign_argv(plan, scenario_dir: Path) -> list[str]:
-    """The program's command line: 'python' means this interpreter; use_sim_time and the
-    scenario's remaps are appended as a ROS arguments block of their own."""
-    argv = list(plan.spec.command)
-    if argv[0] in ("python", "python3"):
-        argv[0] = sys.executable
-    argv += ["--ros-args", "-p", "use_sim_time:=true"]
-    for own, graph in plan.spec.remap.items():
-        argv += ["-r", f"{own}:={graph}"]
-    return argv
+SETTLE_S = 0.5
 
 
 class ForeignProxy:
@@ -44,6 +33,7 @@ class ForeignProxy:
         self.received: dict[str, list[bytes]] = {t: [] for t in self.classes}
         self.recorder = recorder
         self.activations = 0
+        self._matched_since: float | None = None
 
     @property
     def topics(self) -> set[str]:
@@ -51,8 +41,18 @@ class ForeignProxy:
         return set(self.subs)
 
     def ready(self) -> bool:
-        """Whether the program's publishers are matched (it has started and joined)."""
-        return all(sub.matched() >= 1 for sub in self.subs.values())
+        """Whether the program's publishers have been matched for ``SETTLE_S`` (it has
+        started and joined). Our readers seeing its writers does not prove its writers
+        see our readers yet, and a volatile writer drops what it publishes before that:
+        the settle time covers the other half of discovery, which cosim cannot observe
+        in a program it does not run."""
+        if not all(sub.matched() >= 1 for sub in self.subs.values()):
+            self._matched_since = None
+            return False
+        now = time.monotonic()
+        if self._matched_since is None:
+            self._matched_since = now
+        return now - self._matched_since >= SETTLE_S
 
     def unmatched(self) -> str:
         """Outputs the program has not yet advertised, for the start-deadline message."""

@@ -213,21 +213,20 @@ def _start_nodes(scenario: Scenario, run_dir: Path, options: RunOptions,
     their command; external nodes are announced for the user to start. True when any node
     was forked."""
     from nodes.cli import run_lockstep
+    from orchestrator.foreign_command import foreign_argv
     from orchestrator.supervisor import launch_prefix
 
     order = list(scenario.nodes)
     if options.shuffle_start is not None:
         random.Random(options.shuffle_start).shuffle(order)
-    # Foreign programs last: what starts them imports rclpy, after which forking is unsafe.
-    for name in sorted(order, key=lambda n: scenario.nodes[n].foreign):
+    # Foreign programs first: they take longest to start and join.
+    for name in sorted(order, key=lambda n: not scenario.nodes[n].foreign):
         plan = scenario.nodes[name]
         argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
                          scenario.overrides)
         if plan.spec.external:
             _announce_external(name, argv)
         elif plan.foreign:
-            from orchestrator.foreign import foreign_argv
-
             supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
                              cwd=scenario.file.parent.resolve())
         elif fork_is_safe() and not launch_prefix(name, dict(os.environ)):

@@ -54,6 +54,7 @@ def test_foreign_program_runs_in_lockstep_twice_alike(tmp_path):
     first = orchestrate(ECHO, tmp_path)
     second = orchestrate(ECHO, tmp_path)
     assert first.code == 0, first.stderr
+    assert second.code == 0, second.stderr
     assert first.manifest["digest"] == second.manifest["digest"]
     counts = bag_counts(first.run_dir)
     assert counts["/echoed"] == counts["/source"] == counts["/sink"] == 101

@@ -56,10 +56,7 @@ class RgbdCamera:
         self.cam = named_id(model, mujoco.mjtObj.mjOBJ_CAMERA, params.camera)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, params.width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, params.height)
-        self.renderer = mujoco.Renderer(model, params.height, params.width)
-        for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
-                     mujoco.mjtRndFlag.mjRND_SKYBOX):
-            self.renderer.scene.flags[flag] = 0
+        self._renderer: mujoco.Renderer | None = None  # made at the first render (below)
         self.option = mujoco.MjvOption()
         self.option.geomgroup[:] = group_mask(params.geom_groups)
         self.info = self._camera_info(float(model.cam_fovy[self.cam]))
@@ -76,6 +73,20 @@ class RgbdCamera:
         info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
         info.p = [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
         return info
+
+    @property
+    def renderer(self) -> mujoco.Renderer:
+        """The GL renderer, made on first use: setting up an EGL context takes most of a
+        camera's start-up, and a camera first renders at its first activation, which (as a
+        leaf nothing waits for) overlaps the other nodes' first ticks instead of delaying
+        the start of the run. Same pixels either way."""
+        if self._renderer is None:
+            p = self.params
+            self._renderer = mujoco.Renderer(self.mirror.model, p.height, p.width)
+            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
+                         mujoco.mjtRndFlag.mjRND_SKYBOX):
+                self._renderer.scene.flags[flag] = 0
+        return self._renderer
 
     def render(self) -> tuple[Image, Image | None, CameraInfo]:
         """(colour, depth or None, camera info) of the mirrored world now."""
@@ -102,5 +113,7 @@ class RgbdCamera:
         return msg
 
     def close(self) -> None:
-        """Release the GL context."""
-        self.renderer.close()
+        """Release the GL context (if one was made)."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
