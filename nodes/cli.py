@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -120,7 +121,13 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
 
     # Publishers and subscriptions first: DDS discovery then runs in the transport's own
     # threads while the node builds its model (MuJoCo compile, renderer set-up).
-    transport = create_transport(scenario.model.transport, f"cosim_{name}")
+    # The transport's threads start with SIGALRM blocked (they inherit this thread's mask),
+    # so the alarm that reports before a slow step always lands on this thread.
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+    try:
+        transport = create_transport(scenario.model.transport, f"cosim_{name}")
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     recorder = PartWriter(run_dir / "parts" / f"{name}.rec") if run_dir else None
     runtime = LockstepRuntime(scenario, name, None, transport, recorder)
     install_stop_handlers(runtime)
