@@ -28,8 +28,8 @@ class AckBook:
         self.lagging = lagging
         self.owed: dict[str, deque[int]] = {n: deque() for n in sched.periods}
         self.deadline: dict[str, float] = {}  # of each node's oldest owed tick
-        self.received: dict[int, dict[str, Done]] = {}
-        self.expected_until = 0  # ticks below this were expected (their clock went out)
+        self.received: dict[int, dict[str, Done]] = {}  # from the tick's clock until both
+        # decided and folded: an undecided tick has an entry exactly when it was expected
         self.next_fold = 0
         self.next_decided = 0
         self.end: int | None = None
@@ -43,7 +43,6 @@ class AckBook:
                 self.deadline[name] = now + limit_s
             self.owed[name].append(tick)
         self.received[tick] = {}
-        self.expected_until = tick + 1
 
     def record(self, done: Done, now: float, limit_s: float) -> bool:
         """File an activation reported done; False when it was not owed (a duplicate, a
@@ -83,10 +82,8 @@ class AckBook:
     def take_decided(self) -> tuple[int, dict[str, Done]] | None:
         """The next tick in order whose non-lagging acknowledgements are all in, with them."""
         tick = self.next_decided
-        if tick >= self.expected_until or (self.end is not None and tick >= self.end):
-            return None
         got = self.received.get(tick)
-        if got is None:
+        if got is None or (self.end is not None and tick >= self.end):
             return None
         for name in self.sched.due(tick):
             if name not in got and name not in self.lagging:

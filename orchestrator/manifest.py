@@ -26,12 +26,12 @@ def software_versions() -> dict[str, str]:
 def startup_entry(outcome) -> dict[str, Any]:
     """Start-up: from the orchestrator process's creation (the command) to the first tick,
     from the run's start (scenario checked) to it, and how node processes were started."""
-    spawned = {getattr(proc, "started", None) for _, proc in outcome.node_stats.values() if proc}
-    first = getattr(outcome, "command_to_first_tick_s", None)
+    spawned = {proc.started for _, proc in outcome.node_stats.values() if proc}
+    first = outcome.command_to_first_tick_s
     return {"command_to_first_tick_s": round(first, 3) if first is not None else None,
             "run_start_to_first_tick_s": (round(outcome.start_s, 3)
                                           if outcome.start_s is not None else None),
-            "node_processes": "/".join(sorted(s for s in spawned if s)) or None}
+            "node_processes": "/".join(sorted(spawned)) or None}
 
 
 def node_entry(stats, proc) -> dict[str, Any]:

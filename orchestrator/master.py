@@ -97,6 +97,7 @@ class LockstepMaster:
         self.window = 1 if strict or self.proxies else max(1, min(wanted, PIPELINE_WINDOW))
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
+        self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -327,10 +328,9 @@ class LockstepMaster:
     def _tick_of(self, name: str) -> int | None:
         """The tick a node was working on: the one after the last it recorded, or the
         oldest it owes (its latest reports may have died with it), None before the run."""
-        book = getattr(self, "book", None)
-        if book is None:
+        if self.book is None:
             return None
-        ticks = [book.oldest_owed().get(name, -1)]
+        ticks = [self.book.oldest_owed().get(name, -1)]
         part = self.parts_dir / f"{name}.rec" if self.parts_dir else None
         if part is not None and part.exists():
             last = max((tick for tick, _, _ in read_part(part)), default=None)

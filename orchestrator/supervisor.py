@@ -115,8 +115,7 @@ class Supervisor:
     def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None,
               cwd: Path | None = None) -> NodeProcess:
         """Start one node, its output going to ``<log dir>/<name>.log``."""
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        log_path = self.log_dir / f"{name}.log"
+        log_path = self._log_path(name)
         full_env = dict(os.environ if env is None else env)
         full_env["COSIM_PARENT_PID"] = str(os.getpid())
         full_env.setdefault("PYTHONUNBUFFERED", "1")
@@ -125,21 +124,14 @@ class Supervisor:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, env=full_env, cwd=cwd,
                                      start_new_session=True, preexec_fn=_arm_parent_death)
-        proc = NodeProcess(name, popen, log_path)
-        try:
-            proc.ps = psutil.Process(popen.pid)
-        except psutil.Error:
-            proc.ps = None
-        self.procs[name] = proc
-        return proc
+        return self._register(NodeProcess(name, popen, log_path))
 
     def fork(self, name: str, target: Callable[[], int]) -> NodeProcess:
         """Start one node as a fork of this process running ``target`` (its exit code),
         output to ``<log dir>/<name>.log``. The child inherits every module and the loaded
         scenario, so it skips the imports and parsing a fresh interpreter would repeat
         (most of a node's start-up). Only call it while :func:`fork_is_safe`."""
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        log_path = self.log_dir / f"{name}.log"
+        log_path = self._log_path(name)
         for stream in (sys.stdout, sys.stderr):
             stream.flush()
         log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
@@ -148,12 +140,19 @@ class Supervisor:
         if pid == 0:
             _forked_child(name, log_fd, parent, target)  # never returns
         os.close(log_fd)
-        proc = NodeProcess(name, ForkedChild(pid), log_path, started="fork")
+        return self._register(NodeProcess(name, ForkedChild(pid), log_path, started="fork"))
+
+    def _log_path(self, name: str) -> Path:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        return self.log_dir / f"{name}.log"
+
+    def _register(self, proc: NodeProcess) -> NodeProcess:
+        """Keep a started node, with its psutil handle (None if it is already gone)."""
         try:
-            proc.ps = psutil.Process(pid)
+            proc.ps = psutil.Process(proc.popen.pid)
         except psutil.Error:
             proc.ps = None
-        self.procs[name] = proc
+        self.procs[proc.name] = proc
         return proc
 
     def dead(self) -> list[NodeProcess]:
