@@ -13,9 +13,9 @@ from collections.abc import Iterable
 from typing import Any
 
 from builtin_interfaces.msg import Time
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 
-from nodes.cdr import canonical_cdr
+from nodes.cdr_encode import encode
 from nodes.contract import Tick
 
 NS_PER_S = 1_000_000_000
@@ -51,7 +51,7 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         header = getattr(msg, "header", None)
         if header is not None and hasattr(header, "stamp"):
             header.stamp = when
-        items.append((names[own], canonical_cdr(serialize_message(msg), declared[own])))
+        items.append((names[own], encode(msg)))
     items.sort()
     return items
 
