@@ -23,6 +23,23 @@ def test_a_batch_of_done_reports_round_trips_through_diagnostic_status_bytes():
     assert decoded.values["ticks"] == "5 10 15"  # readable with ROS tools
 
 
+def test_status_bytes_are_what_rclpy_writes_and_read_back_from_rclpy_bytes():
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from rclpy.serialization import serialize_message
+
+    from nodes.cdr import canonical_cdr
+    from nodes.protocol import ERROR, Status
+
+    status = Status("cam\u00e9ra", ERROR, 7, "d1", "d\u00e9tail \u20ac", {"k": "v\u00e9", "ab": ""})
+    msg = DiagnosticStatus(level=DiagnosticStatus.ERROR, name=status.node, message=status.detail,
+                           hardware_id=status.digest, values=[
+                               KeyValue(key=k, value=v) for k, v in
+                               [("state", ERROR), ("tick", "7"), *status.values.items()]])
+    rclpy_bytes = canonical_cdr(serialize_message(msg), DiagnosticStatus)
+    assert encode_status(status) == rclpy_bytes
+    assert decode_status(rclpy_bytes) == status
+
+
 def test_a_malformed_done_report_is_refused():
     status = done_status("a", [Done("a", 1, "00" * 32)])
     status.values["digests"] += " " + "11" * 32  # one digest too many
