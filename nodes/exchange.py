@@ -13,8 +13,8 @@ from collections.abc import Iterable
 from typing import Any
 
 from builtin_interfaces.msg import Time
-from rclpy.serialization import deserialize_message
 
+from nodes.cdr_decode import decode
 from nodes.cdr_encode import encode
 from nodes.contract import Tick
 
@@ -109,6 +109,6 @@ class InputHistory:
             raise LookupError(f"{self.topic}: no sample of tick {tick} (have {have})")
         sample = self.samples[0][1]
         if isinstance(sample, bytes):  # the same bytes every transport delivers
-            sample = deserialize_message(sample, self.msg_type)
+            sample = decode(sample, self.msg_type)
             self.samples[0] = (tick, sample)
         return sample

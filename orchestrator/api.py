@@ -178,8 +178,9 @@ class Run:
 
         The messages are the classes nodes publish (nav_msgs.msg.Odometry for /odom, ...).
         """
-        from rclpy.serialization import deserialize_message
         from rosbags.highlevel import AnyReader
+
+        from nodes.cdr_decode import decode
 
         if self.bag is None:
             return
@@ -190,7 +191,7 @@ class Run:
                                f"{', '.join(sorted(c.topic for c in reader.connections))}")
             msg_class = self.topics().get(topic) or _message_class(connections[0].msgtype)
             for _, stamp, raw in reader.messages(connections=connections):
-                yield stamp, deserialize_message(raw, msg_class)
+                yield stamp, decode(raw, msg_class)
 
     def last(self, topic: str) -> Any:
         """The last message recorded on ``topic`` (None when there is none)."""
