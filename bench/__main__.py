@@ -1,16 +1,18 @@
 """`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import lockstep, messages, nav, sensors
+from bench import lockstep, messages, nav, profile, sensors
 
 
 def main() -> None:
-    """Lockstep (with scaling 1..8), nav, messages, sensors."""
+    """Lockstep (with scaling 1..8), nav, where nav's time goes, messages, sensors."""
     print("== lockstep: ticks/s, trivial nodes at 1 kHz ==")
     lockstep.main(["--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
     print("\n== lockstep over zenoh: the same chain ==")
     lockstep.main(["--transport", "zenoh", "--parallel"])
     print("\n== nav: multi-process over in-process ==")
     nav.main([])
+    print("\n== nav: where each process spends its time (py-spy) ==")
+    profile.main([])
     print("\n== message cost ==")
     messages.main()
     print("\n== sensor cost ==")

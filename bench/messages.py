@@ -2,9 +2,12 @@
 
     python -m bench.messages
 
-For each: build + serialise (+ canonicalise) in this process, then a round trip of the
-CDR bytes to a second process and back over the transport, beside the round trip of an
-8-byte message measured in the same run. Also the cost of handing rclpy a Python list
+For each: serialise with rclpy (+ zeroing the padding) and with cosim's generated encoder
+(``nodes.cdr_encode``, same bytes), deserialise with rclpy and with the generated decoder
+(``nodes.cdr_decode``, same objects), then a round trip of the CDR bytes to a second process
+and back over the transport, beside the round trip of an 8-byte message measured in the
+same run. The nav scenario's busiest messages (odometry, a 360-beam scan, a 123-pose plan)
+are measured beside the images. Also the cost of handing rclpy a Python list
 instead of bytes/array (rclpy converts sequences element by element: rclpy issue 763).
 """
 
@@ -18,11 +21,13 @@ import time
 
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Image, PointCloud2, PointField
+from sensor_msgs.msg import Image, LaserScan, PointCloud2, PointField
 from std_msgs.msg import Int64
 
 from bench.common import bench_env
 from nodes.cdr import canonical_cdr
+from nodes.cdr_decode import decode
+from nodes.cdr_encode import encode
 
 ECHO_TOPICS = ("/bench_msg_ping", "/bench_msg_pong")
 
@@ -39,7 +44,19 @@ def payloads() -> dict[str, object]:
                         row_step=16 * 32768, is_dense=True,
                         data=np.zeros(32768 * 4, np.float32).tobytes())
     return {"Int64 (8 bytes)": Int64(data=1), "Image 640x480 rgb8": rgb,
-            "Image 640x480 32FC1": depth, "PointCloud2 32k points": cloud}
+            "Image 640x480 32FC1": depth, "PointCloud2 32k points": cloud, **nav_payloads()}
+
+
+def nav_payloads() -> dict[str, object]:
+    """Odometry, a 360-beam LaserScan and a 123-pose Path as the nav nodes build them."""
+    from nodes.control.plan import path_message
+    from nodes.physics.messages import odometry
+
+    odom = odometry(np.array([1.0, 2.0, 0.1, 1.0, 0.0, 0.0, 0.0]), np.full(6, 0.1), "odom",
+                    "base_link")
+    scan = LaserScan(ranges=array.array("f", np.linspace(0.2, 8.0, 360, dtype=np.float32)))
+    path = path_message(np.cumsum(np.full((123, 2), 0.1), axis=0), "map", 0.5)
+    return {"Odometry": odom, "LaserScan 360 beams": scan, "Path 123 poses": path}
 
 
 def timed(fn, repeats: int) -> float:
@@ -51,12 +68,20 @@ def timed(fn, repeats: int) -> float:
 
 
 def round_trip_ms(transport, pub, data: bytes, repeats: int) -> float:
-    """Mean ms for ``data`` to go to the echo process and come back."""
+    """Mean ms for ``data`` to go to the echo process and come back. Echoes are counted,
+    not wake-ups: a wait may return nothing (a spurious wake-up of the wait set) or two
+    echoes at once, and treating either as one round trip put the two processes out of
+    step (the cause of the 'no echo' failures inside make bench)."""
     start = time.perf_counter()
     for _ in range(repeats):
         pub.publish(data)
-        if not transport.wait(10_000_000_000):
-            raise TimeoutError("no echo within 10 s (is the echo process gone?)")
+        deadline = time.monotonic() + 10.0
+        echoed = 0
+        while not echoed:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("no echo within 10 s (is the echo process gone?)")
+            echoed = len(transport.wait(int(left * 1e9)))
     return (time.perf_counter() - start) / repeats * 1e3
 
 
@@ -77,8 +102,8 @@ def echo(count: int) -> None:
     t.close()
 
 
-def main() -> list[tuple[str, float, float, float]]:
-    """Print the table; returns (message, serialise ms, round trip ms, list ms) rows."""
+def main() -> list[tuple]:
+    """Print the table; returns its rows (message, then the ms of each column)."""
     from nodes.transport_ros2 import Ros2Transport
 
     repeats = 30
@@ -94,28 +119,34 @@ def main() -> list[tuple[str, float, float, float]]:
     rows = []
     for name, msg in msgs.items():
         ser = timed(lambda m=msg: canonical_cdr(serialize_message(m), type(m)), repeats)
+        enc = timed(lambda m=msg: encode(m), repeats)
         data = serialize_message(msg)
         deser = timed(lambda d=data, m=msg: deserialize_message(d, type(m)), repeats)
+        dec = timed(lambda d=data, m=msg: decode(d, type(m)), repeats)
         try:
             rtt = round_trip_ms(t, pub, data, repeats)
         except TimeoutError as exc:
             print(f"{name}: round trip not measured: {exc}")
             rtt = math.nan
-        as_list = list_cost(msg)
-        rows.append((name, ser, deser, rtt, as_list))
+        rows.append((name, ser, enc, deser, dec, rtt, list_cost(msg)))
     try:
         child.wait(timeout=60)
     except subprocess.TimeoutExpired:
         child.kill()
     t.close()
-    floor = rows[0][3]
-    print(f"{'message':26s} {'serialise':>10s} {'deserialise':>12s} {'round trip':>11s}"
-          f" {'x 8-byte':>9s} {'data as list':>13s}")
-    for name, ser, deser, rtt, as_list in rows:
-        listed = f"{as_list:10.2f} ms" if as_list else "         -"
-        print(f"{name:26s} {ser:8.3f} ms {deser:9.3f} ms {rtt:8.3f} ms {rtt / floor:9.1f}"
-              f" {listed}")
+    print_rows(rows)
     return rows
+
+
+def print_rows(rows: list[tuple]) -> None:
+    """The table: ms per operation, rclpy beside cosim's generated code."""
+    floor = rows[0][5]
+    print(f"{'message':24s} {'rclpy ser':>10s} {'cosim enc':>10s} {'rclpy de':>10s}"
+          f" {'cosim dec':>10s} {'round trip':>11s} {'x 8-byte':>9s} {'as list':>9s}  (ms)")
+    for name, ser, enc, deser, dec, rtt, as_list in rows:
+        listed = f"{as_list:9.2f}" if as_list else "        -"
+        print(f"{name:24s} {ser:10.3f} {enc:10.3f} {deser:10.3f} {dec:10.3f} {rtt:11.3f}"
+              f" {rtt / floor:9.1f} {listed}")
 
 
 def list_cost(msg) -> float | None:
