@@ -24,16 +24,22 @@ class CollisionCounter:
                                           & ~floor[:, None] & ~floor[None, :]).tolist()
         self.touching: frozenset[tuple[int, int]] = frozenset()
         self.events = 0
+        self._last_geoms = b""  # the contact list of the last check, as bytes
 
     def update(self, data: mujoco.MjData) -> None:
         """Look at the current contacts and count the pairs that are new."""
         n = data.ncon
         if n == 0:
             self.touching = frozenset()
+            self._last_geoms = b""
             return
+        geoms = data.contact.geom[:n]
+        key = geoms.tobytes()
+        if key == self._last_geoms:
+            return  # the same contacts as one substep ago (wheels on the floor): nothing new
+        self._last_geoms = key
         counted = self.counted
-        now = frozenset((a, b) if a < b else (b, a)
-                        for a, b in data.contact.geom[:n].tolist() if counted[a][b])
+        now = frozenset((a, b) if a < b else (b, a) for a, b in geoms.tolist() if counted[a][b])
         if now:
             self.events += len(now - self.touching)
         self.touching = now
