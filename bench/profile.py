@@ -89,8 +89,7 @@ def summarise(raw: Path, manifest: dict) -> dict[str, tuple[Counter, Counter]]:
         code = [f for f in frames if not f.startswith("process ")]
         if not code:
             continue
-        cats, leaves = out[names.get(pid, "orchestrator" if "orchestrator.cli" in procs[-1]
-                                     else f"pid {pid}")]
+        cats, leaves = out[names.get(pid, "orchestrator")]  # the one process not a node
         cats[categorise(code)] += int(count)
         leaves[code[-1]] += int(count)
     return dict(out)
