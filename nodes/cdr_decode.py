@@ -12,7 +12,6 @@ packages against rclpy, value and type. Types it does not cover go the rclpy way
 from __future__ import annotations
 
 import array
-import importlib
 import struct
 import sys
 from collections.abc import Callable
@@ -23,16 +22,11 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from rosidl_parser import definition as d
 
-from nodes.cdr_encode import _CODES, _run_format
+from nodes.cdr_codegen import SourceWriter, Unsupported, class_of, code_of, size_of
 
 _HEADER = b"\x00\x01\x00\x00"
-_U32 = struct.Struct("<I")
 
 Decoder = Callable[[bytes], Any]
-
-
-class _Unsupported(Exception):
-    """A field type this generator does not read (the rclpy path handles it)."""
 
 
 def decode(data: bytes, msg_class: type) -> Any:
@@ -55,7 +49,7 @@ def decoder_for(msg_class: type) -> Decoder | None:
     try:
         root = reader.new_message(msg_class)
         reader.message(msg_class, root)
-    except _Unsupported:
+    except Unsupported:
         return None
     return reader.compile(msg_class.__name__, root)
 
@@ -70,28 +64,12 @@ def _numeric_sequence(data: bytes, code: str, start: int, end: int) -> array.arr
     return out
 
 
-class _Reader:
+class _Reader(SourceWriter):
     """Generates the source of one decoder: statements reading bytes ``b`` from offset ``p``."""
 
     def __init__(self) -> None:
-        self.lines: list[str] = []
-        self.consts: dict[str, Any] = {"U32": _U32, "NA": _numeric_array,
-                                       "NS": _numeric_sequence}
-        self.run: list[tuple[int, str, str]] = []  # pending fields: (align, code, target)
-        self.depth = 1
-        self.names = 0
-
-    def emit(self, line: str) -> None:
-        self.lines.append("    " * self.depth + line)
-
-    def const(self, value: Any) -> str:
-        name = f"K{len(self.consts)}"
-        self.consts[name] = value
-        return name
-
-    def fresh(self, prefix: str) -> str:
-        self.names += 1
-        return f"{prefix}{self.names}"
+        super().__init__({"U32": struct.Struct("<I"), "NA": _numeric_array,
+                          "NS": _numeric_sequence})
 
     def align(self, size: int) -> None:
         if size > 1:
@@ -101,8 +79,7 @@ class _Reader:
         """Unpack the pending fixed-size fields with the format of the current residue."""
         if not self.run:
             return
-        formats = self.const(tuple(struct.Struct(_run_format(self.run, residue))
-                                   for residue in range(8)))
+        formats = self.run_formats()
         targets = ", ".join(target for _, _, target in self.run)
         self.emit(f"s = {formats}[(p - 4) & 7]")
         self.emit(f"{targets}, = s.unpack_from(b, p)")
@@ -126,14 +103,14 @@ class _Reader:
 
     def field(self, slot: Any, target: str) -> None:
         if isinstance(slot, d.BasicType):
-            self.run.append((min(_size(slot), 8), _code(slot), target))
+            self.run.append((min(size_of(slot), 8), code_of(slot), target))
         elif isinstance(slot, d.AbstractWString):
-            raise _Unsupported("wstring")
+            raise Unsupported("wstring")
         elif isinstance(slot, d.AbstractString):
             self.flush()
             self.string(target)
         elif isinstance(slot, d.NamespacedType):
-            cls = _class_of(slot)
+            cls = class_of(slot)
             var = self.new_message(cls)
             self.emit(f"{target} = {var}")
             self.message(cls, var)
@@ -142,7 +119,7 @@ class _Reader:
         elif isinstance(slot, d.AbstractSequence):
             self.sequence(slot, target)
         else:
-            raise _Unsupported(repr(slot))
+            raise Unsupported(repr(slot))
 
     def string(self, target: str) -> None:
         self.align(4)
@@ -154,12 +131,12 @@ class _Reader:
         self.flush()
         element = slot.value_type
         if isinstance(element, d.BasicType):
-            if _code(element) in "?c":
-                raise _Unsupported("bool or octet array")
-            dtype = self.const(np.dtype("<" + _code(element)))
-            self.align(min(_size(element), 8))
+            if code_of(element) in "?c":
+                raise Unsupported("bool or octet array")
+            dtype = self.const(np.dtype("<" + code_of(element)))
+            self.align(min(size_of(element), 8))
             self.emit(f"{target} = NA(b, {dtype}, {slot.size}, p)")
-            self.emit(f"p += {slot.size * _size(element)}")
+            self.emit(f"p += {slot.size * size_of(element)}")
         else:
             self.each(element, target, str(slot.size))
 
@@ -173,9 +150,9 @@ class _Reader:
         if not isinstance(element, d.BasicType):
             self.each(element, target, count)
             return
-        code, size = _code(element), _size(element)
+        code, size = code_of(element), size_of(element)
         if code == "?":
-            raise _Unsupported("bool sequence")
+            raise Unsupported("bool sequence")
         if code == "c":
             self.emit(f"{target} = [b[i:i + 1] for i in range(p, p + {count})]")
             self.emit(f"p += {count}")
@@ -200,25 +177,7 @@ class _Reader:
         self.emit(f"{target} = {items}")
 
     def compile(self, name: str, root: str) -> Decoder:
+        """The decoder function."""
         self.flush()
-        body = "\n".join(self.lines)
-        source = f"def decode_{name}(b):\n    p = 4\n{body}\n    return {root}\n"
-        namespace = dict(self.consts)
-        exec(compile(source, f"<cdr decoder of {name}>", "exec"), namespace)  # noqa: S102
-        decoder = namespace[f"decode_{name}"]
-        decoder.source = source
-        return decoder
-
-
-def _code(slot: d.BasicType) -> str:
-    if slot.typename not in _CODES:
-        raise _Unsupported(slot.typename)
-    return _CODES[slot.typename]
-
-
-def _size(slot: d.BasicType) -> int:
-    return struct.calcsize("<" + _code(slot))
-
-
-def _class_of(slot: d.NamespacedType) -> type:
-    return getattr(importlib.import_module(".".join(slot.namespaces)), slot.name)
+        return self.function(f"def decode_{name}(b):\n    p = 4", f"    return {root}",
+                             f"decode_{name}", "decoder")

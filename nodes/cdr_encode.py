@@ -15,7 +15,6 @@ rclpy way.
 from __future__ import annotations
 
 import array
-import importlib
 import struct
 import sys
 from collections.abc import Callable
@@ -27,19 +26,12 @@ from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 
 from nodes.cdr import canonical_cdr
+from nodes.cdr_codegen import SourceWriter, Unsupported, class_of, code_of, size_of
 
 _HEADER = b"\x00\x01\x00\x00"  # CDR little endian, no options
-_CODES = {"boolean": "?", "octet": "c", "uint8": "B", "int8": "b", "int16": "h",
-          "uint16": "H", "int32": "i", "uint32": "I", "float": "f", "int64": "q",
-          "uint64": "Q", "double": "d"}
-_U32 = struct.Struct("<I")
 _ZEROS = tuple(bytes(n) for n in range(8))
 
 Encoder = Callable[[Any], "bytes | None"]
-
-
-class _Unsupported(Exception):
-    """A field type this generator does not write (the rclpy path handles it)."""
 
 
 def encode(msg: Any) -> bytes:
@@ -59,13 +51,9 @@ def encoder_for(msg_class: type) -> Encoder | None:
     writer = _Writer()
     try:
         writer.message(msg_class, "m")
-    except _Unsupported:
+    except Unsupported:
         return None
     return writer.compile(msg_class.__name__)
-
-
-def _size(typename: str) -> int:
-    return struct.calcsize("<" + _CODES[typename])
 
 
 def _align_code(align: int) -> str:
@@ -85,32 +73,19 @@ def _primitive_bytes(value: Any, code: str) -> bytes:
     return struct.pack(f"<{len(value)}{code}", *value)
 
 
-class _Writer:
+class _Writer(SourceWriter):
     """Generates the source of one encoder: statements appending to bytearray ``b``."""
 
     def __init__(self) -> None:
-        self.lines: list[str] = []
-        self.consts: dict[str, Any] = {"Z": _ZEROS, "U32": _U32, "P": _primitive_bytes}
-        self.run: list[tuple[int, str, str]] = []  # pending fixed-size fields: (align, code, expr)
-        self.depth = 1
-        self.loops = 0
+        super().__init__({"Z": _ZEROS, "U32": struct.Struct("<I"),
+                          "P": _primitive_bytes, "HEADER": _HEADER})
         self.plain = True  # no string or sequence anywhere: rmw sizes it rounded up to 4
-
-    def emit(self, line: str) -> None:
-        if line:
-            self.lines.append("    " * self.depth + line)
-
-    def const(self, value: Any) -> str:
-        name = f"K{len(self.consts)}"
-        self.consts[name] = value
-        return name
 
     def flush(self) -> None:
         """Pack the pending fixed-size fields with the format of the current residue."""
         if not self.run:
             return
-        formats = self.const(tuple(struct.Struct(_run_format(self.run, residue))
-                                   for residue in range(8)))
+        formats = self.run_formats()
         args = ", ".join(expr for _, _, expr in self.run)
         self.emit(f"b += {formats}[(len(b) - 4) & 7].pack({args})")
         self.run.clear()
@@ -125,27 +100,21 @@ class _Writer:
 
     def field(self, slot: Any, expr: str) -> None:
         if isinstance(slot, d.BasicType):
-            code = self.code(slot)
-            self.run.append((min(_size(slot.typename), 8), code, expr))
+            self.run.append((min(size_of(slot), 8), code_of(slot), expr))
         elif isinstance(slot, d.AbstractWString):
-            raise _Unsupported("wstring")
+            raise Unsupported("wstring")
         elif isinstance(slot, d.AbstractString):
             self.flush()
             self.plain = False
             self.string(expr)
         elif isinstance(slot, d.NamespacedType):
-            self.message(_class_of(slot), expr)
+            self.message(class_of(slot), expr)
         elif isinstance(slot, d.Array):
             self.array(slot, expr)
         elif isinstance(slot, d.AbstractSequence):
             self.sequence(slot, expr)
         else:
-            raise _Unsupported(repr(slot))
-
-    def code(self, slot: d.BasicType) -> str:
-        if slot.typename not in _CODES:
-            raise _Unsupported(slot.typename)
-        return _CODES[slot.typename]
+            raise Unsupported(repr(slot))
 
     def string(self, expr: str) -> None:
         self.emit(f"s = {expr}.encode()")
@@ -155,8 +124,8 @@ class _Writer:
     def array(self, slot: d.Array, expr: str) -> None:
         self.flush()
         if isinstance(slot.value_type, d.BasicType):
-            code = self.code(slot.value_type)
-            self.emit(_align_code(min(_size(slot.value_type.typename), 8)))
+            code = code_of(slot.value_type)
+            self.emit(_align_code(min(size_of(slot.value_type), 8)))
             self.emit(f"b += P({expr}, {code!r})")
         else:
             self.each(slot.value_type, expr)
@@ -164,24 +133,22 @@ class _Writer:
     def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
         self.flush()
         self.plain = False
-        self.loops += 1
-        seq = f"q{self.loops}"
+        seq = self.fresh("q")
         self.emit(f"{seq} = {expr}")
         self.emit(_align_code(4))
         self.emit(f"b += U32.pack(len({seq}))")
         if isinstance(slot.value_type, d.BasicType):
-            code = self.code(slot.value_type)
+            code = code_of(slot.value_type)
             self.emit(f"if not len({seq}):")
             self.emit("    return None")  # see compile(): rmw sizes it apart
-            self.emit(_align_code(min(_size(slot.value_type.typename), 8)))
+            self.emit(_align_code(min(size_of(slot.value_type), 8)))
             self.emit(f"b += P({seq}, {code!r})")
         else:
             self.each(slot.value_type, seq)
 
     def each(self, element: Any, expr: str) -> None:
         """A loop writing every element of a sequence or array of strings or messages."""
-        self.loops += 1
-        item = f"e{self.loops}"
+        item = self.fresh("e")
         self.emit(f"for {item} in {expr}:")
         self.depth += 1
         self.field(element, item)
@@ -197,27 +164,5 @@ class _Writer:
         self.flush()
         if self.plain:
             self.emit("b += Z[-len(b) & 3]")
-        body = "\n".join(self.lines)
-        source = f"def encode_{name}(m):\n    b = bytearray(HEADER)\n{body}\n    return bytes(b)\n"
-        namespace = dict(self.consts, HEADER=_HEADER)
-        exec(compile(source, f"<cdr encoder of {name}>", "exec"), namespace)  # noqa: S102
-        encoder = namespace[f"encode_{name}"]
-        encoder.source = source
-        return encoder
-
-
-def _run_format(run: list[tuple[int, str, str]], residue: int) -> str:
-    """struct format of a run of fixed-size fields starting ``residue`` bytes past an
-    8-byte boundary: the alignment padding as ``x`` (written as zeros)."""
-    pos, parts = residue, ["<"]
-    for align, code, _ in run:
-        pad = -pos % align
-        if pad:
-            parts.append(f"{pad}x")
-        parts.append(code)
-        pos += pad + struct.calcsize("<" + code)
-    return "".join(parts)
-
-
-def _class_of(slot: d.NamespacedType) -> type:
-    return getattr(importlib.import_module(".".join(slot.namespaces)), slot.name)
+        return self.function(f"def encode_{name}(m):\n    b = bytearray(HEADER)",
+                             "    return bytes(b)", f"encode_{name}", "encoder")
