@@ -76,6 +76,56 @@ class SourceWriter:
         self.names += 1
         return f"{prefix}{self.names}"
 
+    placeholder = "0"  # what an empty struct's one placeholder byte is packed from/into
+
+    def flush(self) -> None:
+        """Write the code for the pending run of fixed-size fields."""
+        raise NotImplementedError
+
+    def message(self, msg_class: type, base: str) -> None:
+        """The code for every field of ``msg_class``, the message being ``base``."""
+        fields = list(msg_class.get_fields_and_field_types())
+        if not msg_class.SLOT_TYPES:
+            self.run.append((1, "B", self.placeholder))
+        for name, slot in zip(fields, msg_class.SLOT_TYPES, strict=True):
+            self.field(slot, f"{base}._{name}")
+
+    def field(self, slot: Any, target: str) -> None:
+        """The code for one field, by its type."""
+        if isinstance(slot, d.BasicType):
+            self.run.append((min(size_of(slot), 8), code_of(slot), target))
+        elif isinstance(slot, d.AbstractWString):
+            raise Unsupported("wstring")
+        elif isinstance(slot, d.AbstractString):
+            self.flush()
+            self.string(target)
+        elif isinstance(slot, d.NamespacedType):
+            self.nested(class_of(slot), target)
+        elif isinstance(slot, d.Array):
+            self.flush()
+            self.array(slot, target)
+        elif isinstance(slot, d.AbstractSequence):
+            self.flush()
+            self.sequence(slot, target)
+        else:
+            raise Unsupported(repr(slot))
+
+    def string(self, target: str) -> None:
+        """The code for a string field (the run before it is flushed)."""
+        raise NotImplementedError
+
+    def nested(self, msg_class: type, target: str) -> None:
+        """The code for a nested message field (its fixed-size fields join the run)."""
+        raise NotImplementedError
+
+    def array(self, slot: d.Array, target: str) -> None:
+        """The code for a fixed-size array field (the run before it is flushed)."""
+        raise NotImplementedError
+
+    def sequence(self, slot: d.AbstractSequence, target: str) -> None:
+        """The code for a sequence field (the run before it is flushed)."""
+        raise NotImplementedError
+
     def run_formats(self) -> str:
         """The name of the 8 Structs of the pending run, one per alignment residue."""
         return self.const(tuple(struct.Struct(run_format(self.run, residue))

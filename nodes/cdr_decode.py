@@ -22,7 +22,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from rosidl_parser import definition as d
 
-from nodes.cdr_codegen import SourceWriter, Unsupported, class_of, code_of, size_of
+from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
 
 _HEADER = b"\x00\x01\x00\x00"
 
@@ -67,6 +67,8 @@ def _numeric_sequence(data: bytes, code: str, start: int, end: int) -> array.arr
 class _Reader(SourceWriter):
     """Generates the source of one decoder: statements reading bytes ``b`` from offset ``p``."""
 
+    placeholder = "_"
+
     def __init__(self) -> None:
         super().__init__({"U32": struct.Struct("<I"), "NA": _numeric_array,
                           "NS": _numeric_sequence})
@@ -94,32 +96,10 @@ class _Reader(SourceWriter):
         self.emit(f"{var}._check_fields = {msg_class()._check_fields!r}")
         return var
 
-    def message(self, msg_class: type, var: str) -> None:
-        fields = list(msg_class.get_fields_and_field_types())
-        if not msg_class.SLOT_TYPES:
-            self.run.append((1, "B", "_"))  # an empty struct carries one placeholder byte
-        for name, slot in zip(fields, msg_class.SLOT_TYPES, strict=True):
-            self.field(slot, f"{var}._{name}")
-
-    def field(self, slot: Any, target: str) -> None:
-        if isinstance(slot, d.BasicType):
-            self.run.append((min(size_of(slot), 8), code_of(slot), target))
-        elif isinstance(slot, d.AbstractWString):
-            raise Unsupported("wstring")
-        elif isinstance(slot, d.AbstractString):
-            self.flush()
-            self.string(target)
-        elif isinstance(slot, d.NamespacedType):
-            cls = class_of(slot)
-            var = self.new_message(cls)
-            self.emit(f"{target} = {var}")
-            self.message(cls, var)
-        elif isinstance(slot, d.Array):
-            self.array(slot, target)
-        elif isinstance(slot, d.AbstractSequence):
-            self.sequence(slot, target)
-        else:
-            raise Unsupported(repr(slot))
+    def nested(self, msg_class: type, target: str) -> None:
+        var = self.new_message(msg_class)
+        self.emit(f"{target} = {var}")
+        self.message(msg_class, var)
 
     def string(self, target: str) -> None:
         self.align(4)
@@ -128,7 +108,6 @@ class _Reader(SourceWriter):
         self.emit(f"{target} = b[p - n:p - 1].decode()")
 
     def array(self, slot: d.Array, target: str) -> None:
-        self.flush()
         element = slot.value_type
         if isinstance(element, d.BasicType):
             if code_of(element) in "?c":
@@ -141,7 +120,6 @@ class _Reader(SourceWriter):
             self.each(element, target, str(slot.size))
 
     def sequence(self, slot: d.AbstractSequence, target: str) -> None:
-        self.flush()
         element = slot.value_type
         self.align(4)
         count = self.fresh("n")

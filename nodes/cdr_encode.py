@@ -26,7 +26,7 @@ from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 
 from nodes.cdr import canonical_cdr
-from nodes.cdr_codegen import SourceWriter, Unsupported, class_of, code_of, size_of
+from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
 
 _HEADER = b"\x00\x01\x00\x00"  # CDR little endian, no options
 _ZEROS = tuple(bytes(n) for n in range(8))
@@ -90,39 +90,16 @@ class _Writer(SourceWriter):
         self.emit(f"b += {formats}[(len(b) - 4) & 7].pack({args})")
         self.run.clear()
 
-    def message(self, msg_class: type, expr: str) -> None:
-        fields = list(msg_class.get_fields_and_field_types())
-        slots = msg_class.SLOT_TYPES
-        if not slots:  # an empty struct carries one placeholder byte
-            self.run.append((1, "B", "0"))
-        for name, slot in zip(fields, slots, strict=True):
-            self.field(slot, f"{expr}._{name}")
-
-    def field(self, slot: Any, expr: str) -> None:
-        if isinstance(slot, d.BasicType):
-            self.run.append((min(size_of(slot), 8), code_of(slot), expr))
-        elif isinstance(slot, d.AbstractWString):
-            raise Unsupported("wstring")
-        elif isinstance(slot, d.AbstractString):
-            self.flush()
-            self.plain = False
-            self.string(expr)
-        elif isinstance(slot, d.NamespacedType):
-            self.message(class_of(slot), expr)
-        elif isinstance(slot, d.Array):
-            self.array(slot, expr)
-        elif isinstance(slot, d.AbstractSequence):
-            self.sequence(slot, expr)
-        else:
-            raise Unsupported(repr(slot))
+    def nested(self, msg_class: type, expr: str) -> None:
+        self.message(msg_class, expr)
 
     def string(self, expr: str) -> None:
+        self.plain = False
         self.emit(f"s = {expr}.encode()")
         self.emit(_align_code(4))
         self.emit('b += U32.pack(len(s) + 1); b += s; b += b"\\0"')
 
     def array(self, slot: d.Array, expr: str) -> None:
-        self.flush()
         if isinstance(slot.value_type, d.BasicType):
             code = code_of(slot.value_type)
             self.emit(_align_code(min(size_of(slot.value_type), 8)))
@@ -131,7 +108,6 @@ class _Writer(SourceWriter):
             self.each(slot.value_type, expr)
 
     def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
-        self.flush()
         self.plain = False
         seq = self.fresh("q")
         self.emit(f"{seq} = {expr}")
