@@ -6,11 +6,13 @@ from bench import lockstep, messages, nav, profile, sensors
 def main() -> None:
     """Lockstep (with scaling 1..8), nav, where nav's time goes, messages, sensors."""
     print("== lockstep: ticks/s, trivial nodes at 1 kHz ==")
-    lockstep.main(["--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
+    lockstep.main(["--chain-repeats", "3", "--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
     print("\n== lockstep over zenoh: the same chain ==")
-    lockstep.main(["--transport", "zenoh", "--parallel"])
+    lockstep.main(["--transport", "zenoh", "--chain-repeats", "3", "--parallel"])
     print("\n== nav: multi-process over in-process ==")
-    nav.main([])
+    nav.main(["--repeats", "3"])
+    print("\n== nav over zenoh: multi-process over in-process ==")
+    nav.main(["--transport", "zenoh", "--repeats", "3"])
     print("\n== nav: where each process spends its time (py-spy) ==")
     profile.main([])
     print("\n== message cost ==")

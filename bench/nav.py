@@ -1,13 +1,14 @@
 """The nav scenario: multi-process wall time over --in-process wall time, camera on and off;
 real-time factor, start-up time and where the time goes, all from the runs' manifests.
 
-    python -m bench.nav [--transport ros2]
+    python -m bench.nav [--transport ros2] [--repeats 3]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 from pathlib import Path
 
 import yaml
@@ -55,20 +56,33 @@ def report(label: str, runs: dict[str, dict]) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run nav with and without the camera."""
+    """Run nav with and without the camera, ``--repeats`` times interleaved; then the
+    median ratio of each case (this machine's speed drifts between minutes)."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--transport", default="ros2")
+    p.add_argument("--repeats", type=int, default=1)
     args = p.parse_args(argv)
-    report("nav, camera on ", case(NAV, args.transport))
-    fresh = run_manifest(NAV, "--transport", args.transport, env={"COSIM_SPAWN": "exec"})
-    print(f"  start-up with fresh interpreters (COSIM_SPAWN=exec) instead of forks: command "
-          f"to first tick {fresh.get('startup', {}).get('command_to_first_tick_s', '-')} s, "
-          f"run start to first tick {fresh['start_s']:.2f} s")
     nocam = without_camera()
+    ratios: dict[str, list[float]] = {"camera on": [], "camera off": []}
     try:
-        report("nav, camera off", case(nocam, args.transport))
+        for repeat in range(args.repeats):
+            for label, path in (("camera on", NAV), ("camera off", nocam)):
+                runs = case(path, args.transport)
+                report(f"nav, {label:10s}", runs)
+                ratios[label].append(loop_s(runs["multi"]) / loop_s(runs["inproc"]))
+            if repeat == 0:
+                fresh = run_manifest(NAV, "--transport", args.transport,
+                                     env={"COSIM_SPAWN": "exec"})
+                print(f"  start-up with fresh interpreters (COSIM_SPAWN=exec) instead of "
+                      f"forks: command to first tick "
+                      f"{fresh.get('startup', {}).get('command_to_first_tick_s', '-')} s, "
+                      f"run start to first tick {fresh['start_s']:.2f} s")
     finally:
         nocam.unlink()
+    if args.repeats > 1:
+        print(f"median multi / in-process loop over {args.repeats} repeats ({args.transport}): "
+              + ", ".join(f"{label} {statistics.median(r):.2f}x (range {min(r):.2f}-"
+                          f"{max(r):.2f}x)" for label, r in ratios.items()))
 
 
 if __name__ == "__main__":
