@@ -50,6 +50,13 @@ def report(label: str, runs: dict[str, dict]) -> None:
     print(f"  start-up: command to first tick {startup.get('command_to_first_tick_s', '-')} s, "
           f"run start to first tick {multi['start_s']:.2f} s; ready per node: " +
           ", ".join(f"{n} {v.get('ready_s', '-')} s" for n, v in multi["nodes"].items()))
+    for name, node in multi["nodes"].items():
+        split = node.get("time_s")
+        if split:
+            parts = ", ".join(f"{part} {split[part]:.2f}" for part in
+                              ("wait", "step", "serialise", "deserialise", "publish", "report",
+                               "record", "digest", "other"))
+            print(f"  {name} run loop {split['run']:.2f} s: {parts}")
     print("  per node (multi-process): " + "; ".join(
         f"{n} step {v.get('step_ms_mean', 0):.2f} ms x {v.get('ticks', 0)}, CPU "
         f"{v.get('cpu_s', '-')} s" for n, v in multi["nodes"].items()))

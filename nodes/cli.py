@@ -147,9 +147,19 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
             traceback.print_exception(exc.__cause__, file=sys.stderr)
         return EXIT_FAILED
     finally:
+        _write_timing(runtime, run_dir, name)  # also when stopped in the middle of a step
         if recorder:
             recorder.close()
         transport.close()
+
+
+def _write_timing(runtime, run_dir: Path | None, name: str) -> None:
+    """Leave the run loop's time split next to the node's log, for the manifest."""
+    if run_dir is not None and runtime.timing.started is not None:
+        try:
+            runtime.timing.write(run_dir / "logs" / f"{name}.timing.json")
+        except OSError:
+            pass  # the run directory is gone: nothing to add to
 
 
 def _run_maybe_profiled(runtime, run_dir: Path | None, name: str) -> None:

@@ -37,6 +37,7 @@ from nodes.protocol import (
     encode_status,
 )
 from nodes.recording import PartWriter
+from nodes.timing import TimeSplit
 from nodes.transport import Received, Transport
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
@@ -104,6 +105,7 @@ class LockstepRuntime:
         self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
+        self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
         self._wire()
 
     def _wire(self) -> None:
@@ -168,7 +170,10 @@ class LockstepRuntime:
 
     def receive(self, timeout_ns: int) -> None:
         """Take everything the transport has within the timeout and file it."""
-        for rec in self.transport.wait(timeout_ns):
+        waited = time.perf_counter_ns()
+        received = self.transport.wait(timeout_ns)
+        self.timing.add("wait", waited)
+        for rec in received:
             if rec.topic == CLOCK_TOPIC:
                 self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
                 continue
@@ -183,6 +188,14 @@ class LockstepRuntime:
     def run(self) -> None:
         """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""
         self.wait_for_start()
+        self.timing.start()
+        try:
+            self._serve()
+        finally:
+            self.timing.stop()
+
+    def _serve(self) -> None:
+        """The run loop: serve the announced ticks, report, wait for more."""
         while not self.stop_requested:
             while self.clocks and self.try_tick(self.clocks[0]):
                 self.clocks.popleft()
@@ -235,7 +248,9 @@ class LockstepRuntime:
                 if not self.inputs[inp.graph_topic].history.has(r):
                     return False
                 wanted[inp.topic] = (inp.graph_topic, r)
+        taken = time.perf_counter_ns()
         inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
+        self.timing.add("deserialise", taken)
         self.activate(Tick(k, self.sched.time_ns(k)), inputs)
         return True
 
@@ -250,6 +265,7 @@ class LockstepRuntime:
         self.in_step = True
         try:
             outputs = self.node.step(tick, inputs)
+            stepped = self.timing.add("step", start)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
                                     self.plan.output_names, tick, outputs)
         except Exception as exc:
@@ -259,14 +275,18 @@ class LockstepRuntime:
             self.in_step = False
             if armed:
                 signal.setitimer(signal.ITIMER_REAL, 0)
-        step_ns = time.perf_counter_ns() - start
+        now = self.timing.add("serialise", stepped)
+        step_ns = now - start
         for topic, data in items:
             self.publishers[topic].publish(data)
             self.sent[topic] += 1
+        now = self.timing.add("publish", now)
         if self.recorder:
             self.recorder.write(tick.index, items)
-        self.unreported.append(Done(self.name, tick.index, output_digest(tick.index, items).hex(),
-                                    step_ns,
+            now = self.timing.add("record", now)
+        digest = output_digest(tick.index, items).hex()
+        self.timing.add("digest", now)
+        self.unreported.append(Done(self.name, tick.index, digest, step_ns,
                                     {k: float(v) for k, v in self.node.metrics().items()}))
         if len(self.unreported) >= MAX_BATCH:
             self.report_done()
@@ -280,7 +300,8 @@ class LockstepRuntime:
 
     def report(self, status: Status) -> None:
         """Publish a status message."""
-        self.status_pub.publish(encode_status(status))
+        with self.timing.timed("report"):
+            self.status_pub.publish(encode_status(status))
 
     def report_error(self, tick: int, exc: BaseException) -> None:
         """Report an exception with a traceback excerpt, and make sure it is delivered

@@ -10,6 +10,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from nodes.timing import read_summary
+
 
 def software_versions() -> dict[str, str]:
     """Versions of python and the packages a result depends on."""
@@ -35,7 +37,8 @@ def startup_entry(outcome) -> dict[str, Any]:
 
 
 def node_entry(stats, proc) -> dict[str, Any]:
-    """Per-node cost: CPU, peak memory, ticks served, mean and worst step time."""
+    """Per-node cost: CPU, peak memory, ticks served, mean and worst step time, and where
+    the node's run loop spent its wall time (``time_s``, written by the node at its end)."""
     entry: dict[str, Any] = {"ticks": stats.ticks}
     if stats.ticks:
         entry["step_ms_mean"] = round(stats.step_ns_total / stats.ticks / 1e6, 4)
@@ -46,6 +49,9 @@ def node_entry(stats, proc) -> dict[str, Any]:
         entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
                      cpu_s=round(proc.cpu_s, 3),
                      peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
+        split = read_summary(proc.log_path.with_suffix(".timing.json"))
+        if split is not None:
+            entry["time_s"] = split
     return entry
 
 

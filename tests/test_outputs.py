@@ -15,6 +15,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
+from nodes.timing import PARTS
 from orchestrator.picture import write_report_png
 from orchestrator.progress import REDRAW_S, Progress
 from orchestrator.report import print_outcome
@@ -159,6 +160,13 @@ def test_multi_process_manifest_has_each_nodes_cost(protocol_run):
     for entry in m["nodes"].values():
         assert entry["cpu_s"] > 0 and entry["peak_rss_mb"] > 0
         assert 0 < entry["step_ms_mean"] <= entry["step_ms_worst"]
+        split = entry["time_s"]  # where the node's run loop spent its wall time
+        parts = [split[p] for p in PARTS]
+        assert all(v >= 0 for v in parts) and split["step"] > 0 and split["publish"] > 0
+        assert sum(parts) + split["other"] == pytest.approx(split["run"], abs=1e-3)
+        # the step time the node reported covers its step and serialising
+        steps = entry["step_ms_mean"] * entry["ticks"] / 1e3
+        assert steps == pytest.approx(split["step"] + split["serialise"], rel=0.05, abs=1e-3)
 
 
 def test_nav_manifest_has_the_navigation_metrics(nav_run):
