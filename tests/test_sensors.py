@@ -158,3 +158,21 @@ def test_outputs_follow_the_configured_sensors():
     assert set(SensorsNode.outputs(cam)) == {"/camera/color/image_raw", "/camera/camera_info"}
     with pytest.raises(ValueError):
         SensorsNode.Params()
+
+
+def test_camera_made_in_its_warm_up_thread_renders_the_same_pixels(tmp_path, monkeypatch):
+    # the renderer is made (and its first frame rendered) in a thread at set-up; the first
+    # real render must give exactly what a renderer made on the spot gives
+    wall = f'<geom name="wall" type="box" pos="{2.0 + CAMERA_X + 0.05} 0 1" size="0.05 6 3"/>'
+    world = write_world(tmp_path, wall)
+    state = world_state(world, x=0.3, y=0.0, yaw=0.2)
+    warm = sensors(world, camera={"width": 160, "height": 120})
+    assert warm.camera._warming is not None
+    monkeypatch.setenv("COSIM_CAMERA_LAZY_GL", "1")
+    lazy = sensors(world, camera={"width": 160, "height": 120})
+    assert lazy.camera._warming is None
+    for node in (warm, lazy):
+        node.out = measure(node, state)
+    for topic in ("/camera/color/image_raw", "/camera/depth/image_rect"):
+        assert bytes(warm.out[topic].data) == bytes(lazy.out[topic].data)
+    assert len(set(bytes(warm.out["/camera/color/image_raw"].data))) > 1  # not a blank frame

@@ -13,6 +13,9 @@ Shadows, reflections and the skybox are switched off to keep software rendering 
 from __future__ import annotations
 
 import math
+import os
+import signal
+import threading
 
 import mujoco
 import numpy as np
@@ -56,10 +59,17 @@ class RgbdCamera:
         self.cam = named_id(model, mujoco.mjtObj.mjOBJ_CAMERA, params.camera)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, params.width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, params.height)
-        self._renderer: mujoco.Renderer | None = None  # made at the first render (below)
+        self._renderer: mujoco.Renderer | None = None  # see the renderer property
         self.option = mujoco.MjvOption()
         self.option.geomgroup[:] = group_mask(params.geom_groups)
         self.info = self._camera_info(float(model.cam_fovy[self.cam]))
+        self._warming: threading.Thread | None = None
+        self._warm_result: mujoco.Renderer | BaseException | None = None
+        # COSIM_CAMERA_LAZY_GL=1 makes the renderer at the first render instead (benchmarks)
+        if os.environ.get("MUJOCO_GL") == "egl" and not os.environ.get("COSIM_CAMERA_LAZY_GL"):
+            self._warming = threading.Thread(target=self._warm_up, name="camera-gl",
+                                             daemon=True)
+            self._warming.start()
 
     def _camera_info(self, fovy: float) -> CameraInfo:
         p = self.params
@@ -76,17 +86,49 @@ class RgbdCamera:
 
     @property
     def renderer(self) -> mujoco.Renderer:
-        """The GL renderer, made on first use: setting up an EGL context takes most of a
-        camera's start-up, and a camera first renders at its first activation, which (as a
-        leaf nothing waits for) overlaps the other nodes' first ticks instead of delaying
-        the start of the run. Same pixels either way."""
+        """The GL renderer. Setting up an EGL context and compiling the shaders (llvmpipe
+        compiles them at the first frame) takes 0.4-1 s in software; done at the first
+        activation it held the whole run up, since the other nodes may run only a window of
+        ticks ahead of a camera. So the camera starts it in a thread of its own when it is
+        built, on a world state of its own, and the first render only waits for what is
+        left of it. Same pixels either way (the warm-up frame is thrown away)."""
         if self._renderer is None:
-            p = self.params
-            self._renderer = mujoco.Renderer(self.mirror.model, p.height, p.width)
-            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
-                         mujoco.mjtRndFlag.mjRND_SKYBOX):
-                self._renderer.scene.flags[flag] = 0
+            if self._warming is not None:
+                self._warming.join()
+                self._warming, made = None, self._warm_result
+                if isinstance(made, BaseException):
+                    raise RuntimeError(f"the camera's GL renderer failed: {made}") from made
+                self._renderer = made
+            else:
+                self._renderer = self._make_renderer()
         return self._renderer
+
+    def _make_renderer(self) -> mujoco.Renderer:
+        p = self.params
+        renderer = mujoco.Renderer(self.mirror.model, p.height, p.width)
+        for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
+                     mujoco.mjtRndFlag.mjRND_SKYBOX):
+            renderer.scene.flags[flag] = 0
+        return renderer
+
+    def _warm_up(self) -> None:
+        """In the warm-up thread: make the renderer, render one frame of each kind from a
+        world state of its own, then release the EGL context for the thread that renders."""
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})  # alarms are the step's
+        try:
+            renderer = self._make_renderer()
+            data = mujoco.MjData(self.mirror.model)
+            mujoco.mj_forward(self.mirror.model, data)
+            renderer.update_scene(data, camera=self.cam, scene_option=self.option)
+            renderer.render()
+            if self.params.depth:
+                renderer.enable_depth_rendering()
+                renderer.render()
+                renderer.disable_depth_rendering()
+            _release_egl_context()
+            self._warm_result = renderer
+        except BaseException as exc:  # handed to the first render, which raises it
+            self._warm_result = exc
 
     def render(self) -> tuple[Image, Image | None, CameraInfo]:
         """(colour, depth or None, camera info) of the mirrored world now."""
@@ -114,6 +156,20 @@ class RgbdCamera:
 
     def close(self) -> None:
         """Release the GL context (if one was made)."""
+        if self._warming is not None:
+            self._warming.join()
+            self._warming, made = None, self._warm_result
+            if isinstance(made, mujoco.Renderer):
+                self._renderer = made
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def _release_egl_context() -> None:
+    """Make no EGL context current on this thread, so that another thread can take it."""
+    from mujoco import egl
+
+    egl.EGL.eglMakeCurrent(egl.EGL_DISPLAY, egl.EGL.EGL_NO_SURFACE, egl.EGL.EGL_NO_SURFACE,
+                           egl.EGL.EGL_NO_CONTEXT)
+    egl.EGL.eglReleaseThread()
