@@ -67,8 +67,9 @@ class RgbdCamera:
         self._warm_result: mujoco.Renderer | BaseException | None = None
         # COSIM_CAMERA_LAZY_GL=1 makes the renderer at the first render instead (benchmarks)
         if os.environ.get("MUJOCO_GL") == "egl" and not os.environ.get("COSIM_CAMERA_LAZY_GL"):
-            self._warming = threading.Thread(target=self._warm_up, name="camera-gl",
-                                             daemon=True)
+            # not a daemon: an exiting interpreter waits for it before its atexit handlers
+            # tear EGL down (mujoco.egl registers one), which must not run under it
+            self._warming = threading.Thread(target=self._warm_up, name="camera-gl")
             self._warming.start()
 
     def _camera_info(self, fovy: float) -> CameraInfo:
