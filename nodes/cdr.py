@@ -17,6 +17,7 @@ from functools import cache
 from rosidl_parser import definition as d
 
 _HEADER = 4  # encapsulation header; CDR alignment is relative to its end
+LE_HEADER = b"\x00\x01\x00\x00"  # the encapsulation header of little-endian plain CDR
 _SIZES = {"boolean": 1, "octet": 1, "char": 1, "uint8": 1, "int8": 1, "int16": 2,
           "uint16": 2, "int32": 4, "uint32": 4, "float": 4, "int64": 8, "uint64": 8,
           "double": 8, "long double": 16, "wchar": 2}

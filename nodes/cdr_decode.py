@@ -22,9 +22,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from rosidl_parser import definition as d
 
+from nodes.cdr import LE_HEADER
 from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
-
-_HEADER = b"\x00\x01\x00\x00"
 
 Decoder = Callable[[bytes], Any]
 
@@ -32,7 +31,7 @@ Decoder = Callable[[bytes], Any]
 def decode(data: bytes, msg_class: type) -> Any:
     """The message in ``data``: what ``deserialize_message(data, msg_class)`` gives."""
     decoder = decoder_for(msg_class)
-    if decoder is not None and data[:4] == _HEADER:
+    if decoder is not None and data[:4] == LE_HEADER:
         try:
             return decoder(data)
         except (struct.error, IndexError, ValueError, UnicodeDecodeError):

@@ -25,10 +25,9 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 
-from nodes.cdr import canonical_cdr
+from nodes.cdr import LE_HEADER, canonical_cdr
 from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
 
-_HEADER = b"\x00\x01\x00\x00"  # CDR little endian, no options
 _ZEROS = tuple(bytes(n) for n in range(8))
 
 Encoder = Callable[[Any], "bytes | None"]
@@ -78,7 +77,7 @@ class _Writer(SourceWriter):
 
     def __init__(self) -> None:
         super().__init__({"Z": _ZEROS, "U32": struct.Struct("<I"),
-                          "P": _primitive_bytes, "HEADER": _HEADER})
+                          "P": _primitive_bytes, "HEADER": LE_HEADER})
         self.plain = True  # no string or sequence anywhere: rmw sizes it rounded up to 4
 
     def flush(self) -> None:

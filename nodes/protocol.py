@@ -22,6 +22,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
+from nodes.cdr import LE_HEADER
+
 CLOCK_TOPIC = "/clock"
 STATUS_TOPIC = "/cosim/status"
 COMMAND_TOPIC = "/cosim/command"
@@ -31,19 +33,18 @@ WAITING, READY, DONE, ERROR, RESETTING = "waiting", "ready", "done", "error", "r
 _LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,
           DONE: DiagnosticStatus.OK, ERROR: DiagnosticStatus.ERROR,
           RESETTING: DiagnosticStatus.STALE}  # bytes of length 1
-_CDR_HEADER = b"\x00\x01\x00\x00"  # little-endian plain CDR
 _U32 = struct.Struct("<I")
 _PAD = (b"", b"\0", b"\0\0", b"\0\0\0")
 
 
 def encode_clock(time_ns: int) -> bytes:
     """CDR bytes of a rosgraph_msgs/Clock at ``time_ns`` (same bytes as serialize_message)."""
-    return _CDR_HEADER + struct.pack("<iI", time_ns // NS_PER_S, time_ns % NS_PER_S)
+    return LE_HEADER + struct.pack("<iI", time_ns // NS_PER_S, time_ns % NS_PER_S)
 
 
 def decode_clock(data: bytes) -> int:
     """The time in ns carried by serialised rosgraph_msgs/Clock bytes."""
-    if len(data) == 12 and data[:4] == _CDR_HEADER:
+    if len(data) == 12 and data[:4] == LE_HEADER:
         sec, nsec = struct.unpack_from("<iI", data, 4)
     else:
         msg = deserialize_message(data, Clock)
@@ -105,7 +106,7 @@ def _parse_done(status: Status) -> list[Done]:
 def encode_status(status: Status) -> bytes:
     """Serialise a Status as diagnostic_msgs/DiagnosticStatus CDR (hand-built: 10x faster)."""
     values = [("state", status.state), ("tick", str(status.tick)), *status.values.items()]
-    out = bytearray(_CDR_HEADER)
+    out = bytearray(LE_HEADER)
     out.append(_LEVEL[status.state][0])
     _put_strings(out, (status.node, status.detail, status.digest))
     out += _PAD[-len(out) & 3]
@@ -116,7 +117,7 @@ def encode_status(status: Status) -> bytes:
 
 def decode_status(data: bytes) -> Status:
     """Parse DiagnosticStatus CDR bytes back into a Status."""
-    if data[:4] != _CDR_HEADER:
+    if data[:4] != LE_HEADER:
         return _decode_status_slow(data)
     (node, detail, digest), pos = _get_strings(data, 5, 3)
     pos += -pos & 3  # the header is 4 bytes, so CDR alignment is plain alignment
