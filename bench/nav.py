@@ -14,6 +14,7 @@ from pathlib import Path
 import yaml
 
 from bench.common import ROOT, run_manifest
+from nodes.timing import PARTS
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 
@@ -53,9 +54,7 @@ def report(label: str, runs: dict[str, dict]) -> None:
     for name, node in multi["nodes"].items():
         split = node.get("time_s")
         if split:
-            parts = ", ".join(f"{part} {split[part]:.2f}" for part in
-                              ("wait", "step", "serialise", "deserialise", "publish", "report",
-                               "record", "digest", "other"))
+            parts = ", ".join(f"{part} {split[part]:.2f}" for part in (*PARTS, "other"))
             print(f"  {name} run loop {split['run']:.2f} s: {parts}")
     print("  per node (multi-process): " + "; ".join(
         f"{n} step {v.get('step_ms_mean', 0):.2f} ms x {v.get('ticks', 0)}, CPU "

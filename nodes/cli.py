@@ -155,9 +155,11 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
 
 def _write_timing(runtime, run_dir: Path | None, name: str) -> None:
     """Leave the run loop's time split next to the node's log, for the manifest."""
+    from nodes.timing import summary_path
+
     if run_dir is not None and runtime.timing.started is not None:
         try:
-            runtime.timing.write(run_dir / "logs" / f"{name}.timing.json")
+            runtime.timing.write(summary_path(run_dir / "logs", name))
         except OSError:
             pass  # the run directory is gone: nothing to add to
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import time
 from collections import defaultdict
-from contextlib import contextmanager
 from pathlib import Path
 
 PARTS = ("wait", "deserialise", "step", "serialise", "publish", "record", "digest", "report")
@@ -30,15 +29,6 @@ class TimeSplit:
         now = time.perf_counter_ns()
         self.ns[part] += now - since_ns
         return now
-
-    @contextmanager
-    def timed(self, part: str):
-        """Charge the time of a ``with`` block to ``part``."""
-        start = time.perf_counter_ns()
-        try:
-            yield
-        finally:
-            self.add(part, start)
 
     def start(self) -> None:
         """The run loop begins (the first tick may come); what came before does not count."""
@@ -61,6 +51,11 @@ class TimeSplit:
     def write(self, path: Path) -> None:
         """Write the summary as JSON (what the manifest's ``time_s`` of the node shows)."""
         path.write_text(json.dumps(self.summary(), indent=1))
+
+
+def summary_path(logs: Path, node: str) -> Path:
+    """Where a node leaves its summary: beside its log, ``<logs>/<node>.timing.json``."""
+    return logs / f"{node}.timing.json"
 
 
 def read_summary(path: Path) -> dict[str, float] | None:

@@ -10,7 +10,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from nodes.timing import read_summary
+from nodes.timing import read_summary, summary_path
 
 
 def software_versions() -> dict[str, str]:
@@ -49,7 +49,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
         entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
                      cpu_s=round(proc.cpu_s, 3),
                      peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
-        split = read_summary(proc.log_path.with_suffix(".timing.json"))
+        split = read_summary(summary_path(proc.log_path.parent, proc.name))
         if split is not None:
             entry["time_s"] = split
     return entry
