@@ -94,15 +94,19 @@ class RgbdCamera:
         built, on a world state of its own, and the first render only waits for what is
         left of it. Same pixels either way (the warm-up frame is thrown away)."""
         if self._renderer is None:
-            if self._warming is not None:
-                self._warming.join()
-                self._warming, made = None, self._warm_result
-                if isinstance(made, BaseException):
-                    raise RuntimeError(f"the camera's GL renderer failed: {made}") from made
-                self._renderer = made
-            else:
-                self._renderer = self._make_renderer()
+            made = self._finish_warm_up()
+            if isinstance(made, BaseException):
+                raise RuntimeError(f"the camera's GL renderer failed: {made}") from made
+            self._renderer = made if made is not None else self._make_renderer()
         return self._renderer
+
+    def _finish_warm_up(self) -> mujoco.Renderer | BaseException | None:
+        """Wait for the warm-up thread, if one runs, and take what it made (or why not)."""
+        if self._warming is None:
+            return None
+        self._warming.join()
+        self._warming, made, self._warm_result = None, self._warm_result, None
+        return made
 
     def _make_renderer(self) -> mujoco.Renderer:
         p = self.params
@@ -157,11 +161,9 @@ class RgbdCamera:
 
     def close(self) -> None:
         """Release the GL context (if one was made)."""
-        if self._warming is not None:
-            self._warming.join()
-            self._warming, made = None, self._warm_result
-            if isinstance(made, mujoco.Renderer):
-                self._renderer = made
+        made = self._finish_warm_up()
+        if isinstance(made, mujoco.Renderer):
+            self._renderer = made
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
