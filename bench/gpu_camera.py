@@ -101,28 +101,24 @@ def measure(model: mujoco.MjModel, data: mujoco.MjData, camera: int | mujoco.Mjv
         r.update_scene(data, camera=camera, scene_option=option)
         return r.render()
 
+    def first_then_mean() -> tuple[float, float, np.ndarray]:
+        """ms of the first frame, mean ms of ``frames`` after ``warmup`` more, last image."""
+        t = time.perf_counter()
+        image = frame()
+        first = (time.perf_counter() - t) * 1e3
+        for _ in range(warmup):
+            frame()
+        t = time.perf_counter()
+        for _ in range(frames):
+            image = frame()
+        return first, (time.perf_counter() - t) / frames * 1e3, image
+
     t0 = time.perf_counter()
     r = make_renderer(model, width, height)
-    t1 = time.perf_counter()
-    rgb = frame()
-    t2 = time.perf_counter()
-    out = {"context_ms": (t1 - t0) * 1e3, "first_ms": (t2 - t1) * 1e3}
-    for _ in range(warmup):
-        frame()
-    t = time.perf_counter()
-    for _ in range(frames):
-        rgb = frame()
-    out["rgb_ms"] = (time.perf_counter() - t) / frames * 1e3
+    out = {"context_ms": (time.perf_counter() - t0) * 1e3}
+    out["first_ms"], out["rgb_ms"], rgb = first_then_mean()
     r.enable_depth_rendering()
-    t = time.perf_counter()
-    depth = frame()
-    out["first_depth_ms"] = (time.perf_counter() - t) * 1e3
-    for _ in range(warmup):
-        frame()
-    t = time.perf_counter()
-    for _ in range(frames):
-        depth = frame()
-    out["depth_ms"] = (time.perf_counter() - t) / frames * 1e3
+    out["first_depth_ms"], out["depth_ms"], depth = first_then_mean()
     r.disable_depth_rendering()
     out["rgb_mean"] = float(rgb.mean())
     out["depth_median_m"] = float(np.median(depth))
