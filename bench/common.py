@@ -11,6 +11,9 @@ from pathlib import Path
 
 import yaml
 
+ORCHESTRATE = [sys.executable, "-m", "orchestrator.cosim_orchestrate"]
+"""cosim-orchestrate, run with this interpreter."""
+
 ROOT = Path(__file__).resolve().parent.parent
 RUN_TIMEOUT_S = 300  # no benchmark run may hang the whole `make bench`
 
@@ -37,7 +40,7 @@ def run_manifest(scenario: Path, *args: str, out: Path | None = None,
                  env: dict[str, str] | None = None) -> dict:
     """Run cosim-orchestrate on a scenario (``env``: extra variables) and return its manifest."""
     out = out or Path(tempfile.mkdtemp(prefix="cosim-bench-"))
-    cmd = [sys.executable, "-m", "orchestrator.cli", str(scenario), "--quiet", "--out", str(out),
+    cmd = [*ORCHESTRATE, str(scenario), "--quiet", "--out", str(out),
            *args]
     proc = subprocess.run(cmd, env={**bench_env(), **(env or {})}, capture_output=True,
                           text=True, cwd=ROOT, timeout=RUN_TIMEOUT_S)

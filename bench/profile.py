@@ -22,7 +22,7 @@ import tempfile
 from collections import Counter, defaultdict
 from pathlib import Path
 
-from bench.common import ROOT, RUN_TIMEOUT_S, bench_env
+from bench.common import ORCHESTRATE, ROOT, RUN_TIMEOUT_S, bench_env
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 
@@ -56,7 +56,7 @@ def record(scenario: Path, rate: int, out: Path) -> tuple[Path, dict] | str:
         return "py-spy is not installed (it comes with `pip install -e '.[dev]'`)"
     raw = out / "samples.txt"
     cmd = [spy, "record", "--subprocesses", "--nonblocking", "--rate", str(rate), "--format",
-           "raw", "--output", str(raw), "--", sys.executable, "-m", "orchestrator.cli",
+           "raw", "--output", str(raw), "--", *ORCHESTRATE,
            str(scenario), "--quiet", "--out", str(out / "runs")]
     proc = subprocess.run(cmd, env=bench_env(), capture_output=True, text=True, cwd=ROOT,
                           timeout=RUN_TIMEOUT_S)

@@ -80,7 +80,7 @@ def payload_round_trips(transport: str, size: int, count: int, shm: bool = True)
     """Round trips/s of an Image of ``size`` bytes out and back between two processes."""
     from sensor_msgs.msg import Image
 
-    from nodes.transport import create_transport
+    from nodes.runtime.transport.base import create_transport
 
     if not shm:
         os.environ["COSIM_ZENOH_SHM"] = "0"
@@ -121,7 +121,7 @@ def echo(transport: str, count: int) -> None:
     """The far end of payload_round_trips: send back every message received."""
     from sensor_msgs.msg import Image
 
-    from nodes.transport import create_transport
+    from nodes.runtime.transport.base import create_transport
 
     t = create_transport(transport, "bench_pong")
     pub = t.publisher("/bench/pong", Image, 10)

@@ -2,7 +2,7 @@
 
 A step node never reads a clock, never sleeps and never touches a transport. It draws
 every random number from ``self.rng``, seeded from the scenario seed and the node name.
-The runtime (``nodes.runtime``) or the in-process driver calls it.
+The runtime (``nodes.runtime.lockstep``) or the in-process driver calls it.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ class NodeConfig:
     world: Path | None = None
     goal: dict[str, float] | None = None
     scenario_dir: Path = field(default_factory=Path.cwd)
+    render_warm_up: bool = True  # a camera builds its GL renderer in a thread at set-up
 
 
 class NoParams(BaseModel):

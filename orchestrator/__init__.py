@@ -1,5 +1,5 @@
 """cosim orchestrator: scenario checking, schedule, lockstep master, supervision, outputs."""
 
-from orchestrator.errors import ScenarioError, SimulationError
+from plan.errors import ScenarioError, SimulationError
 
 __all__ = ["ScenarioError", "SimulationError"]

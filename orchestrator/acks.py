@@ -5,7 +5,7 @@ pipeline window), and a leaf node such as a camera may still be rendering tick `
 while physics runs ``k + 1``; so acknowledgements arrive out of tick order. Two ordered
 views come out of the book whatever the arrival order:
 
-- *decided* ticks: every due node that may not lag has acknowledged, so the stop decision
+- *decided* ticks: every due node that may not trail has acknowledged, so the stop decision
   (goal reached) can be taken for that tick, exactly as the in-process run takes it;
 - *folded* ticks: every due node has acknowledged; the digest is folded tick by tick and,
   within a tick, in the schedule's order, so it cannot depend on timing.
@@ -15,17 +15,17 @@ from __future__ import annotations
 
 from collections import deque
 
-from nodes.exchange import RunDigest
-from nodes.protocol import Done
-from orchestrator.schedule import Schedule
+from nodes.runtime.exchange import RunDigest
+from nodes.runtime.protocol import Done
+from plan.schedule import Schedule
 
 
 class AckBook:
     """(tick, node) acknowledgements still owed, and what has come in, in tick order."""
 
-    def __init__(self, sched: Schedule, lagging: frozenset[str] = frozenset()):
+    def __init__(self, sched: Schedule, trailing: frozenset[str] = frozenset()):
         self.sched = sched
-        self.lagging = lagging
+        self.trailing = trailing
         self.owed: dict[str, deque[int]] = {n: deque() for n in sched.periods}
         self.deadline: dict[str, float] = {}  # of each node's oldest owed tick
         self.received: dict[int, dict[str, Done]] = {}  # from the tick's clock until both
@@ -71,27 +71,27 @@ class AckBook:
 
     def may_start(self, tick: int, window: int) -> bool:
         """Whether ``tick`` may start while acknowledgements are owed: no node would then be
-        more than ``window`` ticks behind (a lagging node: ``window`` plus its period - 1)."""
+        more than ``window`` ticks behind (a trailing node: ``window`` plus its period - 1)."""
         for name, ticks in self.owed.items():
             if ticks:
-                slack = self.sched.periods[name] if name in self.lagging else 1
+                slack = self.sched.periods[name] if name in self.trailing else 1
                 if tick - ticks[0] >= slack + window - 1:
                     return False
         return True
 
     def take_decided(self) -> tuple[int, dict[str, Done]] | None:
-        """The next tick in order whose non-lagging acknowledgements are all in, with them."""
+        """The next tick in order whose non-trailing acknowledgements are all in, with them."""
         tick = self.next_decided
         got = self.received.get(tick)
         if got is None or (self.end is not None and tick >= self.end):
             return None
         for name in self.sched.due(tick):
-            if name not in got and name not in self.lagging:
+            if name not in got and name not in self.trailing:
                 return None
         self.next_decided += 1
         if tick < self.next_fold:
             del self.received[tick]
-        return tick, {n: s for n, s in got.items() if n not in self.lagging}
+        return tick, {n: s for n, s in got.items() if n not in self.trailing}
 
     def take_folded(self) -> list[tuple[int, dict[str, Done]]]:
         """Fold every tick that is complete, in order; return them with their reports."""

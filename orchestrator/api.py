@@ -13,19 +13,20 @@ started: exit code 2) and ``SimulationError`` (a node failed: exit code 3).
 
 from __future__ import annotations
 
-import importlib
 import json
+import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from orchestrator.errors import ScenarioError, SimulationError
-from orchestrator.run import RunOptions, RunOutcome, execute
-from orchestrator.scenario import Scenario, load_scenario
+from orchestrator.execute import RunOutcome, execute
+from plan.errors import ScenarioError, ScenarioWarning, SimulationError
+from plan.options import RunOptions
+from plan.scenario import Scenario, load_scenario
 
-__all__ = ["EXIT_CODES", "Run", "ScenarioError", "SimulationError", "load", "overrides_for",
-           "run"]
+__all__ = ["EXIT_CODES", "FinishedRun", "RunOptions", "ScenarioError", "ScenarioWarning",
+           "SimulationError", "load", "overrides_for", "run"]
 
 EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
 """Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
@@ -70,19 +71,25 @@ def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
 
 
 def run(scenario: str | Path | Scenario, *, in_process: bool = False,
-        out: str | Path = "runs", check: bool = True, **overrides: Any) -> Run:
-    """Run a scenario (a file or a loaded Scenario) and return its Run.
+        out: str | Path = "runs", check: bool = True, options: RunOptions | None = None,
+        **overrides: Any) -> FinishedRun:
+    """Run a scenario (a file or a loaded Scenario) and return its FinishedRun.
 
     ``in_process=True`` steps every node in this process with no transport (the reference,
     fastest); otherwise every node is its own process in lockstep over the scenario's
     transport, in the ROS domain of ``ROS_DOMAIN_ID``. Outputs go to ``out/<name>-<time>/``.
     With ``check`` (default) a node failure raises SimulationError; a missed goal never
-    raises (look at ``Run.success``). Ctrl-C raises KeyboardInterrupt after the clean-up.
+    raises (look at ``FinishedRun.success``). Ctrl-C raises KeyboardInterrupt after the
+    clean-up. ``options`` sets how the work is done (see plan.options.RunOptions; its
+    ``out`` and ``in_process`` are replaced by the keywords). The scenario's warnings are
+    issued as ScenarioWarning.
     """
     loaded = load(scenario, **overrides)
-    _refuse_foreign_in_process(loaded, in_process)
-    outcome = execute(loaded, RunOptions(out=Path(out), in_process=in_process))
-    result = Run(loaded, outcome, in_process)
+    chosen = (options or RunOptions()).with_(out=Path(out), in_process=in_process)
+    outcome = execute(loaded, chosen)
+    for text in outcome.warnings:
+        warnings.warn(text, ScenarioWarning, stacklevel=2)
+    result = FinishedRun(loaded, outcome, in_process)
     if outcome.status == "interrupted":
         raise KeyboardInterrupt(f"run interrupted; outputs in {outcome.run_dir}")
     if check:
@@ -90,17 +97,8 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     return result
 
 
-def _refuse_foreign_in_process(scenario: Scenario, in_process: bool) -> None:
-    """The CLI's refusal of --in-process for a scenario with foreign programs."""
-    foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
-    if in_process and foreign:
-        raise ScenarioError(scenario.file, "", "in-process runs step classes only; node(s) "
-                            f"{', '.join(foreign)} are foreign programs (command:).",
-                            "in_process=False for this scenario.")
-
-
 @dataclass
-class Run:
+class FinishedRun:
     """A finished run: status, exit code, success, metrics, digest, outputs and messages."""
 
     scenario: Scenario
@@ -160,7 +158,7 @@ class Run:
     @property
     def manifest(self) -> dict[str, Any]:
         """The run's manifest.json as a dict."""
-        return json.loads((self.run_dir / "manifest.json").read_text())
+        return json.loads(self.outcome.paths.manifest.read_text())
 
     def raise_for_failure(self) -> None:
         """Raise SimulationError when a node failed (what cosim-orchestrate exits 3 for)."""
@@ -178,20 +176,12 @@ class Run:
 
         The messages are the classes nodes publish (nav_msgs.msg.Odometry for /odom, ...).
         """
-        from rosbags.highlevel import AnyReader
-
-        from nodes.cdr_decode import decode
+        from orchestrator.bag import BagReader
 
         if self.bag is None:
             return
-        with AnyReader([self.bag]) as reader:
-            connections = [c for c in reader.connections if c.topic == topic]
-            if not connections:
-                raise KeyError(f"{topic} was not recorded; topics: "
-                               f"{', '.join(sorted(c.topic for c in reader.connections))}")
-            msg_class = self.topics().get(topic) or _message_class(connections[0].msgtype)
-            for _, stamp, raw in reader.messages(connections=connections):
-                yield stamp, decode(raw, msg_class)
+        with BagReader(self.bag) as bag:
+            yield from bag.messages(topic, self.topics().get(topic))
 
     def last(self, topic: str) -> Any:
         """The last message recorded on ``topic`` (None when there is none)."""
@@ -207,9 +197,3 @@ class Run:
         error = f" error: {self.error};" if self.error else ""
         return (f"{self.status}: digest {self.digest or '-'};{error} {shown} "
                 f"-> {self.run_dir}")
-
-
-def _message_class(ros_type: str) -> type:
-    """'sensor_msgs/msg/LaserScan' -> sensor_msgs.msg.LaserScan."""
-    package, _, name = ros_type.rpartition("/")
-    return getattr(importlib.import_module(package.replace("/", ".")), name)

@@ -1,6 +1,7 @@
-"""Merge what the nodes recorded into one rosbag2 directory in MCAP storage.
+"""The run's rosbag2 (MCAP): written here from what the nodes recorded, and read back here
+for the API, the digest diff, the report picture and the USD export.
 
-Nodes write their own outputs (``nodes.recording``) so recording never sits on the
+Nodes write their own outputs (``nodes.runtime.recording``) so recording never sits on the
 lockstep path; this module runs after the run, whatever its outcome, and adds ``/clock``.
 ``rosbags`` writes the bag with full ROS 2 message definitions, so ``ros2 bag``,
 Foxglove and the ``mcap`` readers open it.
@@ -9,15 +10,16 @@ Foxglove and the ``mcap`` readers open it.
 from __future__ import annotations
 
 import heapq
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from nodes.protocol import CLOCK_TOPIC, encode_clock
-from nodes.recording import read_part
-
-BAG_DIR = "bag"
+from nodes.runtime.protocol import CLOCK_TOPIC, encode_clock
+from nodes.runtime.recording import read_part
+from plan.run_paths import RunPaths
 
 
 def ros_type_name(msg_class: type) -> str:
@@ -30,12 +32,13 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
 
     A finished run keeps ticks ``0 .. ticks_run - 1`` only: nodes may have worked ahead
     of a stop decision (the pipeline window). A failed run keeps everything recorded."""
-    parts = {name: run_dir / "parts" / f"{name}.rec" for name in scenario.schedule.order}
+    paths = RunPaths(run_dir)
+    parts = {name: paths.part(name) for name in scenario.schedule.order}
     parts = {name: path for name, path in parts.items() if path.exists()}
     if not parts and ticks_run == 0:
         return None
     typestore = get_typestore(Stores.ROS2_JAZZY)
-    bag = run_dir / BAG_DIR
+    bag = paths.bag
     rank = {name: i for i, name in enumerate(scenario.schedule.order)}
     streams = [((tick, rank[name], topic, data) for tick, topic, data in read_part(path))
                for name, path in parts.items()]
@@ -52,3 +55,73 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
             if tick <= last_tick or (topic != CLOCK_TOPIC and not finished):
                 writer.write(connections[topic], scenario.schedule.time_ns(tick), data)
     return bag
+
+
+class BagReader:
+    """Reads a run's bag: which topics it has, their raw messages in log order, and the
+    messages decoded (as rosbags objects, or as the rclpy classes the nodes published).
+
+        with BagReader(run.bag) as bag:
+            for topic, stamp_ns, raw in bag.raw(["/odom"]):
+                ...
+    """
+
+    def __init__(self, bag: Path):
+        from rosbags.highlevel import AnyReader
+
+        self.path = Path(bag)
+        self._reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
+
+    def __enter__(self) -> BagReader:
+        self._reader.open()
+        self._types = {c.topic: c.msgtype for c in self._reader.connections}
+        self._counts: dict[str, int] = {}
+        for conn in self._reader.connections:
+            self._counts[conn.topic] = self._counts.get(conn.topic, 0) + conn.msgcount
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        self._reader.close()
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages recorded per topic."""
+        return dict(self._counts)
+
+    def msgtype(self, topic: str) -> str:
+        """The ROS type of a topic, e.g. 'nav_msgs/msg/Odometry'; KeyError naming the topics."""
+        if topic not in self._types:
+            raise KeyError(f"{topic} was not recorded; topics: {', '.join(sorted(self._types))}")
+        return self._types[topic]
+
+    def raw(self, topics: Iterable[str] | None = None, exclude: Iterable[str] = ()
+            ) -> Iterator[tuple[str, int, bytes]]:
+        """(topic, log time in ns, CDR bytes) of the chosen topics (all but ``exclude`` when
+        None), in log order."""
+        chosen = None if topics is None else set(topics)
+        skipped = set(exclude)
+        conns = [c for c in self._reader.connections
+                 if (chosen is None or c.topic in chosen) and c.topic not in skipped]
+        for conn, stamp, raw in self._reader.messages(connections=conns):
+            yield conn.topic, stamp, raw
+
+    def deserialize(self, raw: bytes, topic: str) -> Any:
+        """A message of ``topic`` as a rosbags object (no rclpy needed)."""
+        return self._reader.deserialize(raw, self._types[topic])
+
+    def messages(self, topic: str, msg_class: type | None = None) -> Iterator[tuple[int, Any]]:
+        """(log time in ns, rclpy message) of ``topic``, decoded by cosim's generated code into
+        ``msg_class`` (default: the class its ROS type names)."""
+        from nodes.runtime.cdr.decode import decode
+
+        cls = msg_class or message_class(self.msgtype(topic))
+        for _, stamp, raw in self.raw([topic]):
+            yield stamp, decode(raw, cls)
+
+
+def message_class(ros_type: str) -> type:
+    """'sensor_msgs/msg/LaserScan' -> sensor_msgs.msg.LaserScan."""
+    import importlib
+
+    package, _, name = ros_type.rpartition("/")
+    return getattr(importlib.import_module(package.replace("/", ".")), name)

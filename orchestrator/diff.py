@@ -19,6 +19,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from plan.run_paths import RunPaths
+
 CLOCK_TOPIC = "/clock"
 FINGERPRINT_HASH_BYTES = 3
 """Bytes of sha256 kept per message in a fingerprint: 4 base64 characters, a chance of
@@ -48,19 +50,18 @@ class Difference:
 
 def bag_entries(bag: Path, tick_ns: int) -> list[Entry]:
     """Every message of a rosbag2 directory but /clock as (tick, topic, sha256), sorted."""
-    from rosbags.highlevel import AnyReader
+    from orchestrator.bag import BagReader
 
-    with AnyReader([Path(bag)]) as reader:
-        connections = [c for c in reader.connections if c.topic != CLOCK_TOPIC]
-        entries = [(stamp // tick_ns, conn.topic, hashlib.sha256(raw).digest())
-                   for conn, stamp, raw in reader.messages(connections=connections)]
+    with BagReader(Path(bag)) as reader:
+        entries = [(stamp // tick_ns, topic, hashlib.sha256(raw).digest())
+                   for topic, stamp, raw in reader.raw(exclude=[CLOCK_TOPIC])]
     entries.sort(key=lambda e: (e[0], e[1]))
     return entries
 
 
 def run_dir_entries(run_dir: Path) -> tuple[list[Entry], int]:
     """A run directory's messages (see ``bag_entries``) and its tick in ns, from the manifest."""
-    manifest = json.loads((Path(run_dir) / "manifest.json").read_text())
+    manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
     bag = manifest.get("outputs", {}).get("bag") or "bag"
     tick_ns = int(manifest["tick_ns"])
     return bag_entries(Path(run_dir) / bag, tick_ns), tick_ns
@@ -145,7 +146,7 @@ def expected_digest(given: str | None, against: Path | None) -> str | None:
     """The digest a run must have (--expect-digest, else --against DIR's); ValueError when
     the hex is malformed or DIR is not a recorded run with a digest and a bag."""
     if against is not None:
-        manifest = Path(against) / "manifest.json"
+        manifest = RunPaths(Path(against)).manifest
         if not manifest.is_file():
             raise ValueError(f"--against {against}: not a run directory (no manifest.json)")
         recorded = json.loads(manifest.read_text())

@@ -5,34 +5,19 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from nodes.contract import NodeConfig, StepNode, Tick
-from nodes.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
-from orchestrator.errors import SimulationError
-from orchestrator.results import RunResult, goal_reached
-from orchestrator.scenario import Scenario
+from nodes.contract import StepNode, Tick
+from nodes.runtime.build import make_node
+from nodes.runtime.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
+from orchestrator.loop_result import LoopResult, goal_reached
+from plan.errors import SimulationError
+from plan.scenario import Scenario
 
 Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 """Called after each activation with (tick, node, [(topic, bytes)])."""
 
 
-def node_config(scenario: Scenario, name: str) -> NodeConfig:
-    """The NodeConfig every driver gives node ``name`` at reset."""
-    plan = scenario.nodes[name]
-    goal = scenario.model.goal.model_dump() if scenario.model.goal else None
-    return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
-                      period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
-                      scenario_dir=scenario.file.parent.resolve())
-
-
-def make_node(scenario: Scenario, name: str) -> StepNode:
-    """Instantiate and reset node ``name``'s step class."""
-    node = scenario.nodes[name].step_class()()
-    node.reset(scenario.model.seed, node_config(scenario, name))
-    return node
-
-
 def run_in_process(scenario: Scenario, observer: Observer | None = None,
-                   on_tick: Callable[[int], None] | None = None) -> RunResult:
+                   on_tick: Callable[[int], None] | None = None) -> LoopResult:
     """Run every node in this process in schedule order; return the digest and metrics."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
@@ -50,10 +35,9 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
         for name in sched.due(k):
             plan = scenario.nodes[name]
             inputs = {}
-            for edge, inp in zip(sched.inputs_of[name], plan.inputs, strict=True):
-                wanted = sched.input_tick(edge, k)
-                if wanted is not None:
-                    inputs[inp.topic] = histories[(name, inp.topic)].take(wanted)
+            for index, wanted in sched.inputs_at(name, k):
+                own = plan.inputs[index].topic
+                inputs[own] = histories[(name, own)].take(wanted)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
                 outputs = nodes[name].step(tick, inputs)
@@ -71,9 +55,9 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 observer(k, name, items)
         if on_tick:
             on_tick(k)
-        if stop and goal_reached({n: nodes[n].metrics() for n in nodes}, scenario.pipelined):
-            return RunResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost)
-    return RunResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost)
+        if stop and goal_reached({n: nodes[n].metrics() for n in nodes}, scenario.trailing_nodes):
+            return LoopResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost)
+    return LoopResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost)
 
 
 def _account(entry: list[int], step_ns: int) -> None:

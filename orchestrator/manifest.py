@@ -10,7 +10,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from nodes.timing import read_summary, summary_path
+from nodes.runtime.timing import read_summary
+from plan.run_paths import RunPaths
 
 
 def software_versions() -> dict[str, str]:
@@ -49,7 +50,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
         entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
                      cpu_s=round(proc.cpu_s, 3),
                      peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
-        split = read_summary(summary_path(proc.log_path.parent, proc.name))
+        split = read_summary(RunPaths(proc.log_path.parent.parent).timing(proc.name))
         if split is not None:
             entry["time_s"] = split
     return entry
@@ -104,7 +105,7 @@ def scenario_entry(scenario) -> dict[str, Any]:
 def outputs_entry(outcome) -> dict[str, Any]:
     """Where the outputs are, relative to the run directory (None: not written)."""
     run_dir = outcome.run_dir
-    parts = run_dir / "parts"
+    parts = RunPaths(run_dir).parts
     return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
             "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
             "parts": "parts" if parts.exists() else None}
@@ -142,10 +143,12 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "orchestrator": own_cost(),
         "nodes": nodes,
         "outputs": outputs_entry(outcome),
+        "options": options.as_dict(),
+        "warnings": list(getattr(outcome, "warnings", [])),
     }
 
 
 def write_manifest(scenario, outcome, options) -> None:
     """Write manifest.json into the run directory."""
     manifest = build_manifest(scenario, outcome, options)
-    (outcome.run_dir / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")

@@ -7,8 +7,6 @@ the scheduler and the simulator manager).
 
 from __future__ import annotations
 
-import json
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,11 +14,10 @@ from functools import partial
 from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from nodes.protocol import (
+from nodes.runtime.protocol import (
     CLOCK_TOPIC,
     COMMAND_TOPIC,
     DONE,
@@ -28,19 +25,24 @@ from nodes.protocol import (
     READY,
     RESETTING,
     STATUS_TOPIC,
+    Command,
+    CommandMessage,
     Done,
     Status,
     decode_status,
     encode_clock,
+    encode_command,
 )
-from nodes.recording import read_part
-from nodes.transport import Transport
+from nodes.runtime.recording import read_part
+from nodes.runtime.transport.base import Transport
 from orchestrator.acks import AckBook
-from orchestrator.errors import SimulationError
-from orchestrator.results import RunResult, goal_reached
-from orchestrator.scenario import Scenario
-from orchestrator.schedule import PIPELINE_WINDOW
+from orchestrator.loop_result import LoopResult, goal_reached
+from orchestrator.participants import Participant
 from orchestrator.supervisor import Supervisor
+from plan.errors import SimulationError
+from plan.options import RunOptions
+from plan.scenario import Scenario
+from plan.schedule import PIPELINE_WINDOW
 
 LIVENESS_PERIOD_S = 0.1
 SAMPLE_PERIOD_S = 1.0
@@ -69,8 +71,8 @@ class LockstepMaster:
     """Drives a scenario's ticks over a transport, watching the supervisor's processes."""
 
     def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
-                 on_tick: Callable[[int], None] | None = None, proxies: dict | None = None,
-                 parts_dir: Path | None = None):
+                 participants: dict[str, Participant], options: RunOptions,
+                 on_tick: Callable[[int], None] | None = None, parts_dir: Path | None = None):
         self.scenario = scenario
         self.sched = scenario.schedule
         self.transport = transport
@@ -84,17 +86,17 @@ class LockstepMaster:
         self.stats = {name: NodeStats() for name in scenario.nodes}
         self.last_status: dict[str, Status] = {}
         self.tick = -1
-        self.proxies = proxies or {}
-        self.proxy_of = {t: p for p in self.proxies.values() for t in p.topics}
+        self.participants = participants
+        self.reader_of = {t: p for p in participants.values() for t in p.topics}
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
-        self.leaves = scenario.pipelined
-        # COSIM_NO_PIPELINE=1 makes every node finish each tick before the next (benchmarks);
-        # the outputs, digest and stop decision are the same either way. Foreign programs
-        # follow /clock as ROS nodes do, answering each tick: no clock runs ahead for them.
-        strict = bool(os.environ.get("COSIM_NO_PIPELINE"))
-        self.may_lag = frozenset() if strict else self.leaves
-        wanted = int(os.environ.get("COSIM_WINDOW", PIPELINE_WINDOW))  # benchmarks only
-        self.window = 1 if strict or self.proxies else max(1, min(wanted, PIPELINE_WINDOW))
+        self.trailing = scenario.trailing_nodes
+        # Without the pipeline option every node finishes each tick before the next (for
+        # benchmarks); the outputs, digest and stop decision are the same either way.
+        # Foreign programs answer tick by tick: no clock runs ahead for them.
+        strict = not options.pipeline
+        self.may_trail = frozenset() if strict else self.trailing
+        foreign = any(p.foreign for p in participants.values())
+        self.window = 1 if strict or foreign else PIPELINE_WINDOW
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
@@ -106,22 +108,18 @@ class LockstepMaster:
     def wait_ready(self, started_at: float) -> None:
         """Wait until every node is ready and matched; name who is not at the deadline."""
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
-        names = set(self.scenario.nodes)
+        names = set(self.participants)
         ready: set[str] = set()
         while True:
-            for proxy in self.proxies.values():
-                if proxy.name not in ready and proxy.ready():
-                    self.stats[proxy.name].ready_s = time.monotonic() - started_at
-                    ready.add(proxy.name)
             for status in self._statuses():
-                if status.state == READY and status.node in names:
-                    if status.node not in ready:
-                        self.stats[status.node].ready_s = time.monotonic() - started_at
-                    ready.add(status.node)
-                elif status.state == ERROR:
+                if status.state == ERROR:
                     self._raise_node_error(status, "start")
+            for name, participant in self.participants.items():
+                if name not in ready and participant.ready():
+                    self.stats[name].ready_s = time.monotonic() - started_at
+                    ready.add(name)
             self._check_processes("start")
-            cosim_nodes = len(names) - len(self.proxies)
+            cosim_nodes = sum(not p.foreign for p in self.participants.values())
             if (ready == names and self.command_pub.matched() >= cosim_nodes
                     and self.clock_pub.matched() >= len(self.sched.clock_driven())):
                 return
@@ -131,18 +129,12 @@ class LockstepMaster:
     def _start_timeout_text(self, missing: set[str]) -> str:
         parts = []
         for name in sorted(missing):
-            status = self.last_status.get(name)
             proc = self.supervisor.procs.get(name)
             if self.scenario.nodes[name].spec.external:
                 alive = "external process, started by you"
             else:
                 alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
-            what = (f"still waiting for discovery of {status.detail}" if status and status.detail
-                    else "never reported on " + STATUS_TOPIC)
-            if name in self.proxies:
-                what = (f"is a foreign program whose outputs are not advertised yet: "
-                        f"{self.proxies[name].unmatched()} (see its log)")
-            parts.append(f"node {name} ({alive}) {what}")
+            parts.append(f"node {name} ({alive}) {self.participants[name].not_ready_text()}")
         if not parts:
             parts.append(f"/clock has {self.clock_pub.matched()} of "
                          f"{len(self.sched.clock_driven())} subscriptions")
@@ -151,7 +143,7 @@ class LockstepMaster:
 
     # -- ticks -------------------------------------------------------------------------------
 
-    def run(self, control=None) -> RunResult:
+    def run(self, control=None) -> LoopResult:
         """Run every tick; stop early when the goal is reached (if the scenario says so).
 
         ``/clock`` may run up to ``window`` ticks ahead of the oldest tick a node still owes
@@ -184,17 +176,20 @@ class LockstepMaster:
         end = n if self.end is None else self.end
         book.close(end)
         self._drain(book)
-        return RunResult(book.hexdigest(), end, self.metrics(), stopped_early=self.end is not None)
+        return LoopResult(book.hexdigest(), end, self.metrics(),
+                          stopped_early=self.end is not None)
 
     def _new_book(self) -> AckBook:
         self.published, self.end = 0, None
         self.decided_metrics: dict[str, dict[str, float]] = {}
-        self.book = AckBook(self.sched, self.may_lag)
+        self.book = AckBook(self.sched, self.may_trail)
         return self.book
 
     def _publish(self, book: AckBook, k: int) -> None:
         self.tick = k
         self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
+        for participant in self.participants.values():
+            participant.start_tick(k)
         book.expect(k, time.monotonic(), self.tick_limit_s)
         self.published = k + 1
 
@@ -207,7 +202,7 @@ class LockstepMaster:
                     self.decided_metrics[name] = done.metrics
             if self.on_tick:
                 self.on_tick(tick)
-            if self.stop_on_goal and goal_reached(self.decided_metrics, self.leaves):
+            if self.stop_on_goal and goal_reached(self.decided_metrics, self.trailing):
                 self.end = tick + 1
                 book.close(self.end)
         for _, reports in book.take_folded():
@@ -227,16 +222,16 @@ class LockstepMaster:
     def _reset_nodes(self) -> None:
         """Two-phase reset: every node stops and says what it sent; then all restart at 0."""
         self.epoch += 1
-        sent = self._handshake(f"reset {self.epoch}", RESETTING)
+        sent = self._handshake(CommandMessage(Command.RESET, self.epoch), RESETTING)
         counts = {k[5:]: int(v) for values in sent.values() for k, v in values.items()
                   if k.startswith("sent:")}
-        self._handshake(f"restart {self.epoch} {json.dumps(counts)}", READY)
+        self._handshake(CommandMessage(Command.RESTART, self.epoch, counts), READY)
         self.stats = {name: NodeStats(ready_s=s.ready_s) for name, s in self.stats.items()}
         self.tick = -1
 
-    def _handshake(self, command: str, answer: str) -> dict[str, dict[str, str]]:
+    def _handshake(self, command: CommandMessage, answer: str) -> dict[str, dict[str, str]]:
         """Publish a command and wait until every node answered it with ``answer``."""
-        self.command_pub.publish(serialize_message(String(data=command)))
+        self.command_pub.publish(encode_command(command))
         pending, replies = set(self.scenario.nodes), {}
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
         while pending:
@@ -249,7 +244,7 @@ class LockstepMaster:
             self._check_processes("reset")
             if time.monotonic() > deadline:
                 raise SimulationError(f"reset: node(s) {', '.join(sorted(pending))} did not "
-                                      f"answer '{command.split()[0]}' in time")
+                                      f"answer '{command.command.value}' in time")
         return replies
 
     def metrics(self) -> dict[str, dict[str, float]]:
@@ -283,15 +278,8 @@ class LockstepMaster:
                 state = f"process alive (pid {proc.popen.pid}, {_proc_state(proc)})"
             else:
                 state = f"process gone ({proc.exit_text()})"
-            plan = self.scenario.nodes[name]
-            needs = [f"{i.graph_topic} of tick {self.sched.input_tick(e, k)}"
-                     for e, i in zip(self.sched.inputs_of[name], plan.inputs, strict=True)
-                     if self.sched.input_tick(e, k) is not None]
-            waiting = f"; it needs {', '.join(needs)}" if needs else "; it needs no input"
-            if name in self.proxies:
-                waiting = f"; {self.proxies[name].missing(k)} (foreign program)"
             parts.append(f"node {name} did not finish tick {k} within the {limit:g} s tick "
-                         f"deadline: {state}{waiting}")
+                         f"deadline: {state}; {self.participants[name].owed_text(k)}")
         return "; ".join(parts) + ". Raise deadlines.tick in the scenario if it is just slow."
 
     # -- shared ------------------------------------------------------------------------------
@@ -302,9 +290,11 @@ class LockstepMaster:
             if rec.topic == STATUS_TOPIC:
                 status = decode_status(rec.data)
                 self.last_status[status.node] = status
+                if status.node in self.participants:
+                    self.participants[status.node].see(status)
                 out.append(status)
-            elif rec.topic in self.proxy_of:
-                out += self.proxy_of[rec.topic].accept(rec, self.tick)
+            elif rec.topic in self.reader_of:
+                out += self.reader_of[rec.topic].take(rec, self.tick)
         return out
 
     def _check_processes(self, when: str) -> None:

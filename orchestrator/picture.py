@@ -27,7 +27,8 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
-REPORT_PNG = "report.png"
+from plan.run_paths import RunPaths
+
 NAV_TOPICS = ("/odom", "/plan", "/scan", "/cmd_vel")
 SNAPSHOTS = 4
 SNAPSHOT_COLOURS = ("#d62728", "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#8c564b")
@@ -79,7 +80,7 @@ def write_report_png(scenario, run_dir: Path, bag: Path | None, outcome=None) ->
         fig = nav_figure(scenario, data, outcome)
     else:
         fig = counts_figure(scenario, data, outcome)
-    path = Path(run_dir) / REPORT_PNG
+    path = RunPaths(Path(run_dir)).report
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=DPI)
     return path
@@ -87,40 +88,36 @@ def write_report_png(scenario, run_dir: Path, bag: Path | None, outcome=None) ->
 
 def read_bag(bag: Path, decode: tuple[str, ...]) -> BagData:
     """Log times of every topic, and the messages of the ``decode`` topics, from a bag."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    from orchestrator.bag import BagReader
 
     data = BagData()
-    stamps: dict[str, list[int]] = {}
-    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        for conn in reader.connections:
-            stamps.setdefault(conn.topic, [])
-            data.counts[conn.topic] = data.counts.get(conn.topic, 0) + conn.msgcount
-        conns = reader.connections
-        if data.counts.get("/odom"):  # the nav picture: skip images and the rest, count them
-            conns = [c for c in conns if c.topic in decode]
+    with BagReader(bag) as reader:
+        data.counts = reader.counts
+        stamps: dict[str, list[int]] = {topic: [] for topic in data.counts}
+        # the nav picture: skip images and the rest, count them
+        chosen = [t for t in decode if t in data.counts] if data.counts.get("/odom") else None
         last: dict[str, tuple[bytes, object]] = {}
-        for conn, stamp, raw in reader.messages(connections=conns):
-            stamps[conn.topic].append(stamp)
-            if conn.topic in decode:
-                msg = _decode(reader, conn, raw, last)
-                data.messages.setdefault(conn.topic, []).append((stamp, msg))
+        for topic, stamp, raw in reader.raw(chosen):
+            stamps[topic].append(stamp)
+            if topic in decode:
+                msg = _decode(reader, topic, raw, last)
+                data.messages.setdefault(topic, []).append((stamp, msg))
     data.stamps = {topic: np.asarray(s, dtype=np.int64) for topic, s in stamps.items()}
     return data
 
 
-def _decode(reader, conn, raw: bytes, last: dict[str, tuple[bytes, object]]):
+def _decode(reader, topic: str, raw: bytes, last: dict[str, tuple[bytes, object]]):
     """Deserialise a message, reusing the previous one of its topic when only the header
     stamp changed (a plan republished every control step costs one decode, not hundreds).
 
     Bytes 4-12 of a CDR message with a header are its stamp (after the encapsulation).
     """
-    prev = last.get(conn.topic)
+    prev = last.get(topic)
     if prev is not None and prev[0] == raw[12:]:
         return prev[1]
-    msg = reader.deserialize(raw, conn.msgtype)
+    msg = reader.deserialize(raw, topic)
     if hasattr(msg, "header"):  # a message without one differs in its first bytes too
-        last[conn.topic] = (bytes(raw[12:]), msg)
+        last[topic] = (bytes(raw[12:]), msg)
     return msg
 
 
@@ -155,93 +152,27 @@ class World:
 
 
 def load_world(path: Path | None, laser_frame: str = "laser") -> World:
-    """Static obstacles of an MJCF world (top-down) and the laser site's offset on the robot.
+    """Static obstacles of a world (top-down) and the laser site's offset on the robot.
 
-    Static means attached to the world body, able to collide, not a ground plane or height
-    field, and in a visible geom group 0-2 (robot geoms live in group 3).
+    The obstacles are ``plan.world_geometry``'s (the planner's), drawn when they sit in a
+    visible geom group 0-2 (robot geoms live in group 3).
     """
     world = World()
     if path is None or not Path(path).exists():
         return world
-    import mujoco
-
-    from nodes.worldfile import load_world_model
+    from plan.world_geometry import site_offset, static_obstacles
+    from plan.worldfile import load_world_model
 
     model = load_world_model(Path(path))
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    for g in np.flatnonzero(static_mask(model)):
-        add_geom_outline(world, model, data, int(g))
+    for o in static_obstacles(model):
+        if not o.visible:
+            continue
+        if o.is_circle:
+            world.circles.append((o.centre[0], o.centre[1], o.radius))
+        else:
+            world.polygons.append(o.polygon)
     world.laser = site_offset(model, laser_frame)
     return world
-
-
-def static_mask(model) -> np.ndarray:
-    """Boolean mask over geoms drawn as obstacles."""
-    import mujoco
-
-    welded = model.body_weldid[model.geom_bodyid] == 0
-    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-    floors = np.isin(model.geom_type, [int(mujoco.mjtGeom.mjGEOM_PLANE),
-                                       int(mujoco.mjtGeom.mjGEOM_HFIELD)])
-    visible = model.geom_group <= 2
-    return welded & collides & ~floors & visible
-
-
-def add_geom_outline(world: World, model, data, g: int) -> None:
-    """Add one geom's top-down outline: a circle for upright round shapes, else a polygon."""
-    import mujoco
-
-    kind = model.geom_type[g]
-    pos, rot, size = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3), model.geom_size[g]
-    round_kinds = (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE)
-    upright = abs(rot[2, 2]) > 0.999
-    if kind == mujoco.mjtGeom.mjGEOM_SPHERE or (kind in round_kinds and upright):
-        world.circles.append((float(pos[0]), float(pos[1]), float(size[0])))
-        return
-    if kind == mujoco.mjtGeom.mjGEOM_BOX:
-        centre, half = np.zeros(3), size
-    else:  # anything else: its bounding box in the geom frame
-        centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    points = pos + (centre + corners * half) @ rot.T
-    world.polygons.append(convex_hull(points[:, :2]))
-
-
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Convex hull of 2D points, counter-clockwise (Andrew's monotone chain)."""
-    pts = sorted({(round(float(x), 9), round(float(y), 9)) for x, y in points})
-    if len(pts) < 3:
-        return np.array(pts)
-
-    def half(seq):
-        out: list[tuple[float, float]] = []
-        for p in seq:
-            while len(out) >= 2 and _cross(out[-2], out[-1], p) <= 0:
-                out.pop()
-            out.append(p)
-        return out[:-1]
-
-    return np.array(half(pts) + half(reversed(pts)))
-
-
-def _cross(o, a, b) -> float:
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-
-def site_offset(model, name: str) -> tuple[float, float, float]:
-    """(x, y, yaw) of a site in its body's frame; zero when the world has no such site.
-
-    The body is taken to be the odometry's base frame: true for the laser on base_link.
-    """
-    import mujoco
-
-    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-    if sid < 0:
-        return 0.0, 0.0, 0.0
-    w, x, y, z = model.site_quat[sid]
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw
 
 
 def scan_points(scan, pose: tuple[float, float, float],

@@ -3,7 +3,7 @@ is enough.
 
 - ``cosim`` fixture: ``cosim.run(scenario, in_process=..., **overrides)`` runs a scenario in a
   ROS domain of the test's own (ROS_DOMAIN_ID, reserved so that no other test or session on
-  this machine uses it at the same time) and returns an ``orchestrator.api.Run``. When the
+  this machine uses it at the same time) and returns an ``orchestrator.api.FinishedRun``. When the
   test ends, pass or fail, every process the test started is stopped.
 - ``@pytest.mark.cosim_seeds(1, 2, 3)``: the test runs once per seed; ``cosim.run`` uses it.
 - Golden digests: ``pytest --cosim-update-golden`` records every run's digest (and a compact

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import psutil
 
-from nodes.parent import PR_SET_PDEATHSIG, die_with_parent, name_this_process
+from nodes.runtime.parent import PR_SET_PDEATHSIG, die_with_parent, name_this_process
+from plan.options import RunOptions
 
 SIGINT_TIMEOUT_S = 3.0
 SIGTERM_TIMEOUT_S = 2.0
@@ -113,13 +114,14 @@ class Supervisor:
         self.procs: dict[str, NodeProcess] = {}
 
     def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None,
-              cwd: Path | None = None) -> NodeProcess:
-        """Start one node, its output going to ``<log dir>/<name>.log``."""
+              cwd: Path | None = None, prefix: list[str] | None = None) -> NodeProcess:
+        """Start one node, its output going to ``<log dir>/<name>.log``; ``prefix`` wraps
+        the command (gdb, valgrind, ``ip netns exec``: it must exec the node)."""
         log_path = self._log_path(name)
         full_env = dict(os.environ if env is None else env)
         full_env["COSIM_PARENT_PID"] = str(os.getpid())
         full_env.setdefault("PYTHONUNBUFFERED", "1")
-        argv = launch_prefix(name, full_env) + list(argv)
+        argv = list(prefix or []) + list(argv)
         with open(log_path, "ab") as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, env=full_env, cwd=cwd,
@@ -208,10 +210,10 @@ class Supervisor:
 def fork_is_safe() -> bool:
     """Whether this process may fork node processes: rclpy's native library is not loaded
     (its threads would be missing in the child), no zenoh session or Python thread runs.
-    ``COSIM_SPAWN=exec`` always starts fresh interpreters instead."""
-    if os.environ.get("COSIM_SPAWN") == "exec" or not hasattr(os, "fork"):
+    (The run option ``spawn='exec'`` always starts fresh interpreters instead.)"""
+    if not hasattr(os, "fork"):
         return False
-    zenoh_open = "nodes.transport_zenoh" in sys.modules  # imported only to open a session
+    zenoh_open = "nodes.runtime.transport.zenoh" in sys.modules  # imported only to open a session
     return (threading.active_count() == 1 and not zenoh_open
             and "rclpy._rclpy_pybind11" not in sys.modules)
 
@@ -281,29 +283,17 @@ def _alive(ps: psutil.Process) -> bool:
         return False
 
 
-def launch_prefix(name: str, env: dict[str, str]) -> list[str]:
-    """The command that wraps node ``name``'s process, from ``COSIM_LAUNCH_PREFIX``.
-
-    A JSON object mapping node names to a command line, e.g.
-    ``{"lidar": "ip netns exec cosim_b"}``: how tests place a node in another network
-    namespace (a stand-in for another host). The command must exec the node (keep its pid).
-    """
-    import json
-    import shlex
-
-    prefixes = json.loads(env.get("COSIM_LAUNCH_PREFIX") or "{}")
-    return shlex.split(prefixes.get(name, ""))
-
-
 def node_argv(scenario_file: Path, kind: str, name: str, run_dir: Path | None,
-              overrides: dict) -> list[str]:
+              overrides: dict, options: RunOptions | None = None) -> list[str]:
     """The command line that runs node ``name`` under this orchestrator."""
     import json
 
-    argv = [sys.executable, "-m", "nodes.cli", kind, "--scenario", str(scenario_file),
-            "--node", name]
+    argv = [sys.executable, "-m", "nodes.runtime.cosim_node", kind,
+            "--scenario", str(scenario_file), "--node", name]
     if run_dir is not None:
         argv += ["--run-dir", str(run_dir)]
+    if options is not None and options.node_json() != RunOptions().node_json():
+        argv += ["--run-options", options.node_json()]
     for key, value in overrides.items():
         argv += ["--set", f"{key}={json.dumps(value)}"]
     return argv

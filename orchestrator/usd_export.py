@@ -20,11 +20,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from nodes.worldfile import compile_world, is_usd, load_world_spec, open_stage
+from plan.worldfile import compile_world, is_usd, load_world_spec, open_stage
 
 WORLD_STATE = "/cosim/world_state"
 NS_PER_S = 1_000_000_000
-USD_NAME = "run.usda"
 
 
 def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path) -> Path:
@@ -86,12 +85,11 @@ def _set_timing(stage, samples, tick_ns: int, ticks: list[int]) -> None:
 
 def world_states(bag: Path, tick_ns: int, nq: int) -> Iterator[tuple[int, np.ndarray]]:
     """(tick, qpos) of every /cosim/world_state message in the bag, in order."""
-    from rosbags.highlevel import AnyReader
+    from orchestrator.bag import BagReader
 
-    with AnyReader([Path(bag)]) as reader:
-        conns = [c for c in reader.connections if c.topic == WORLD_STATE]
-        for conn, stamp, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+    with BagReader(Path(bag)) as reader:
+        for _, stamp, raw in reader.raw([WORLD_STATE]):
+            msg = reader.deserialize(raw, WORLD_STATE)
             dims = msg.layout.dim
             if not dims or dims[0].label != "qpos" or dims[0].size != nq:
                 raise ValueError(f"{bag}: {WORLD_STATE} at {stamp} ns does not carry the "

@@ -20,7 +20,8 @@ def run_processes() -> list[psutil.Process]:
     found = {p.pid: p for p in me.children(recursive=True)}
     for proc in psutil.process_iter(["cmdline"]):
         cmdline = " ".join(proc.info["cmdline"] or [])
-        if "nodes.cli" in cmdline or "cosim-node" in cmdline or "orchestrator.cli" in cmdline:
+        if any(mark in cmdline for mark in ("nodes.runtime.cosim_node", "cosim-node",
+                                            "orchestrator.cosim_orchestrate")):
             try:
                 if proc.environ().get("ROS_DOMAIN_ID") == DOMAIN and proc.pid != me.pid:
                     found[proc.pid] = proc

@@ -8,6 +8,10 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+ORCHESTRATE = [sys.executable, "-m", "orchestrator.cosim_orchestrate"]
+"""The cosim-orchestrate command, run with this interpreter."""
+COSIM_NODE = [sys.executable, "-m", "nodes.runtime.cosim_node"]
+"""The cosim-node command, run with this interpreter."""
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 
@@ -33,8 +37,7 @@ def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240,
     import os
 
     before = set(out.glob("*")) if out.exists() else set()
-    proc = subprocess.run([sys.executable, "-m", "orchestrator.cli", str(scenario),
-                           "--out", str(out), *args], capture_output=True, text=True,
+    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), *args], capture_output=True, text=True,
                           timeout=timeout, cwd=ROOT, env={**os.environ, **(env or {})})
     new = sorted(set(out.glob("*")) - before) if out.exists() else []
     return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
@@ -45,7 +48,7 @@ def node_process(orchestrator_pid: int, name: str):
     name every node gives itself, whether forked or started as a fresh interpreter)."""
     import psutil
 
-    from nodes.parent import process_name
+    from nodes.runtime.parent import process_name
 
     for child in psutil.Process(orchestrator_pid).children():
         if child.name() == process_name(name):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import random
 
-from nodes.exchange import RunDigest
-from nodes.protocol import Done
+from nodes.runtime.exchange import RunDigest
+from nodes.runtime.protocol import Done
 from orchestrator.acks import AckBook
-from orchestrator.schedule import SAME_TICK, Edge, Schedule
+from plan.schedule import SAME_TICK, Edge, Schedule
 
 
 def schedule() -> Schedule:

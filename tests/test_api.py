@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from std_msgs.msg import Float64, Int64
 
-from orchestrator.api import EXIT_CODES, Run, load, overrides_for, run
-from orchestrator.cli import main
+from orchestrator.api import EXIT_CODES, FinishedRun, load, overrides_for, run
+from orchestrator.cosim_orchestrate import main
 from orchestrator.diff import (
     _expand,
     _runs,
@@ -15,14 +15,14 @@ from orchestrator.diff import (
     first_difference,
     run_dir_entries,
 )
-from orchestrator.errors import ScenarioError, SimulationError
+from plan.errors import ScenarioError, SimulationError
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory) -> Run:
+def reference(tmp_path_factory) -> FinishedRun:
     """One in-process run of the protocol scenario with seed 3."""
     return run(PROTOCOL, in_process=True, seed=3, out=tmp_path_factory.mktemp("ref"))
 
@@ -48,7 +48,7 @@ def test_load_applies_overrides_without_touching_the_file():
 
 
 def test_run_result_has_status_digest_metrics_and_typed_messages(reference):
-    """A Run: status, exit code, success, digest (= manifest's), metrics, rclpy messages."""
+    """A FinishedRun: status, exit code, success, digest (= manifest's), metrics, rclpy messages."""
     assert (reference.status, reference.exit_code, reference.success) == ("success", 0, True)
     assert reference.digest == reference.manifest["digest"] and len(reference.digest) == 64
     assert reference.metrics_by_node["sink"]["activations"] == 101

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from nodes.protocol import DONE, Done, decode_status, done_status, encode_status
+from nodes.runtime.protocol import DONE, Done, decode_status, done_status, encode_status
 from tests.helpers import SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
@@ -27,8 +27,8 @@ def test_status_bytes_are_what_rclpy_writes_and_read_back_from_rclpy_bytes():
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     from rclpy.serialization import serialize_message
 
-    from nodes.cdr import canonical_cdr
-    from nodes.protocol import ERROR, Status
+    from nodes.runtime.cdr.canonical import canonical_cdr
+    from nodes.runtime.protocol import ERROR, Status
 
     status = Status("cam\u00e9ra", ERROR, 7, "d1", "d\u00e9tail \u20ac", {"k": "v\u00e9", "ab": ""})
     msg = DiagnosticStatus(level=DiagnosticStatus.ERROR, name=status.node, message=status.detail,
@@ -47,16 +47,19 @@ def test_a_malformed_done_report_is_refused():
         decode_status(encode_status(status))
 
 
-@pytest.mark.parametrize("variant", [{"COSIM_NO_PIPELINE": "1"}, {"COSIM_SPAWN": "exec"}])
+@pytest.mark.parametrize("variant", [["--no-pipeline"], ["--spawn", "exec"]])
 def test_plain_lockstep_and_fresh_interpreters_give_the_same_run(tmp_path, variant):
     fast = orchestrate(PROTOCOL, tmp_path / "fast")
-    plain = orchestrate(PROTOCOL, tmp_path / "plain", env=variant)
+    plain = orchestrate(PROTOCOL, tmp_path / "plain", *variant)
     assert fast.code == plain.code == 0, (fast.stderr, plain.stderr)
     assert fast.manifest["digest"] == plain.manifest["digest"]
     assert fast.manifest["ticks"] == plain.manifest["ticks"]
     ticks = {n: v["ticks"] for n, v in fast.manifest["nodes"].items()}
     assert ticks == {n: v["ticks"] for n, v in plain.manifest["nodes"].items()}
     started = {v["started"] for v in plain.manifest["nodes"].values()}
-    assert started == ({"exec"} if "COSIM_SPAWN" in variant else {"fork"})
+    assert started == ({"exec"} if "--spawn" in variant else {"fork"})
+    options = plain.manifest["options"]
+    assert (options["pipeline"], options["spawn"]) == (
+        ("--no-pipeline" not in variant), "exec" if "--spawn" in variant else "fork")
     assert {v["started"] for v in fast.manifest["nodes"].values()} == {"fork"}
     assert fast.manifest["startup"]["command_to_first_tick_s"] > 0

@@ -6,8 +6,8 @@ import pytest
 import yaml
 
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
-from tests.helpers import SCENARIOS, orchestrate
+from plan.scenario import load_scenario
+from tests.helpers import ORCHESTRATE, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
 
@@ -114,9 +114,8 @@ def test_bad_scenario_exits_2_and_writes_nothing(tmp_path):
 
 def test_help_explains_exit_codes():
     import subprocess
-    import sys
 
-    out = subprocess.run([sys.executable, "-m", "orchestrator.cli", "--help"],
+    out = subprocess.run([*ORCHESTRATE, "--help"],
                          capture_output=True, text=True, check=True).stdout
     for needle in ("--in-process", "exit codes", "130", "bad input"):
         assert needle in out

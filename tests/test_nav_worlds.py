@@ -12,7 +12,7 @@ import yaml
 from rclpy.serialization import deserialize_message
 
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
+from plan.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

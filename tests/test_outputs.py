@@ -15,11 +15,11 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from nodes.timing import PARTS
+from nodes.runtime.timing import PARTS
 from orchestrator.picture import write_report_png
 from orchestrator.progress import REDRAW_S, Progress
 from orchestrator.report import print_outcome
-from orchestrator.scenario import load_scenario
+from plan.scenario import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import pytest
@@ -15,8 +14,8 @@ from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
-from tests.helpers import ROOT, SCENARIOS, orchestrate
+from plan.scenario import load_scenario
+from tests.helpers import COSIM_NODE, ORCHESTRATE, ROOT, SCENARIOS, orchestrate
 from tests.test_supervision import bag_counts
 
 ECHO = SCENARIOS / "foreign_echo.yaml"
@@ -27,7 +26,7 @@ def test_realtime_physics_is_driven_by_a_plain_rclpy_publisher(ros_node):
     odoms: list[Odometry] = []
     node.create_subscription(Odometry, "/odom", odoms.append, 10)
     cmd = node.create_publisher(Twist, "/cmd_vel", 10)
-    physics = subprocess.Popen([sys.executable, "-m", "nodes.cli", "physics", "--scenario",
+    physics = subprocess.Popen([*COSIM_NODE, "physics", "--scenario",
                                 str(ROOT / "scenarios" / "nav.yaml"), "--realtime", "--rtf", "2"],
                                cwd=ROOT, stderr=subprocess.PIPE, text=True)
     try:
@@ -94,11 +93,11 @@ def test_external_lockstep_node_joins_the_run(tmp_path):
     doc["nodes"][1]["external"] = True
     path = tmp_path / "external.yaml"
     path.write_text(yaml.safe_dump(doc))
-    orchestrator = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(path),
+    orchestrator = subprocess.Popen([*ORCHESTRATE, str(path),
                                      "--out", str(tmp_path / "runs"), "--quiet"], cwd=ROOT,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(1.0)  # the orchestrator waits for it, however late it comes
-    node = subprocess.run([sys.executable, "-m", "nodes.cli", "counter", "--scenario", str(path),
+    node = subprocess.run([*COSIM_NODE, "counter", "--scenario", str(path),
                            "--node", "middle", "--lockstep"], cwd=ROOT, capture_output=True,
                           text=True, timeout=60)
     out, err = orchestrator.communicate(timeout=60)

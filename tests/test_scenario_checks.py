@@ -9,8 +9,8 @@ import textwrap
 
 import pytest
 
-from orchestrator.errors import ScenarioError
-from orchestrator.scenario import load_scenario
+from plan.errors import ScenarioError
+from plan.scenario import load_scenario
 
 VALID = """
 name: pair
@@ -126,7 +126,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
-     "name, kind, module, rate, params, inputs, remap, debug, command, external"),
+     "name, kind, module, rate, params, inputs, remap, debug, command, external, prefix"),
     (VALID.replace("mode: same_tick}", "mode: same_tick, qos: 3}"),
      "nodes[1] (b).inputs[0].qos", "topic, mode"),
     (VALID + "goal: {x: 1, y: 2, z: 3}\n", "goal.z",
@@ -455,7 +455,7 @@ def test_override_on_the_nodes_list_itself(tmp_path):
 
 
 def test_kind_whose_code_cannot_load_is_an_error_not_a_traceback(tmp_path, monkeypatch):
-    from nodes import registry
+    from plan import registry
     monkeypatch.setitem(registry.KINDS, "broken", "nodes.not_installed:Thing")
     err = refused(tmp_path, VALID.replace("kind: integrator", "kind: broken"))
     check(err, "nodes[1] (b).kind", "'broken' cannot be loaded", "nodes.not_installed",

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from orchestrator.schedule import (
+from plan.schedule import (
     DELAYED,
     PIPELINE_WINDOW,
     SAME_TICK,

@@ -28,10 +28,11 @@ def world_state(world, **start):
     return deserialize_message(serialize_message(msg), Float64MultiArray)
 
 
-def sensors(world, seed=0, **params) -> SensorsNode:
+def sensors(world, seed=0, warm_up=True, **params) -> SensorsNode:
     """A reset sensors node running the given sensors."""
     node = SensorsNode()
-    node.reset(seed, NodeConfig("lidar", SensorsNode.Params(**params), TICK, 5 * TICK, world))
+    node.reset(seed, NodeConfig("lidar", SensorsNode.Params(**params), TICK, 5 * TICK, world,
+                                render_warm_up=warm_up))
     return node
 
 
@@ -160,7 +161,7 @@ def test_outputs_follow_the_configured_sensors():
         SensorsNode.Params()
 
 
-def test_camera_made_in_its_warm_up_thread_renders_the_same_pixels(tmp_path, monkeypatch):
+def test_camera_made_in_its_warm_up_thread_renders_the_same_pixels(tmp_path):
     # the renderer is made (and its first frame rendered) in a thread at set-up; the first
     # real render must give exactly what a renderer made on the spot gives
     wall = f'<geom name="wall" type="box" pos="{2.0 + CAMERA_X + 0.05} 0 1" size="0.05 6 3"/>'
@@ -168,8 +169,7 @@ def test_camera_made_in_its_warm_up_thread_renders_the_same_pixels(tmp_path, mon
     state = world_state(world, x=0.3, y=0.0, yaw=0.2)
     warm = sensors(world, camera={"width": 160, "height": 120})
     assert warm.camera._warming is not None
-    monkeypatch.setenv("COSIM_CAMERA_LAZY_GL", "1")
-    lazy = sensors(world, camera={"width": 160, "height": 120})
+    lazy = sensors(world, warm_up=False, camera={"width": 160, "height": 120})
     assert lazy.camera._warming is None
     for node in (warm, lazy):
         node.out = measure(node, state)

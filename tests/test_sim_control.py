@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 import time
 
 from std_srvs.srv import SetBool, Trigger
 
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
-from tests.helpers import ROOT, SCENARIOS
+from plan.scenario import load_scenario
+from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
 
@@ -39,7 +38,7 @@ def wait_paused_at(ros, tick: int, timeout: float = 20.0) -> str:
 
 
 def test_pause_step_reset_resume(tmp_path, ros_node):
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(PROTOCOL), "--paused",
+    run = subprocess.Popen([*ORCHESTRATE, str(PROTOCOL), "--paused",
                             "--quiet", "--out", str(tmp_path)], cwd=ROOT,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -65,7 +64,7 @@ def test_pause_step_reset_resume(tmp_path, ros_node):
 
 def test_step_while_running_is_refused(tmp_path, ros_node):
     long_run = SCENARIOS / "long_chain.yaml"
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(long_run), "--quiet",
+    run = subprocess.Popen([*ORCHESTRATE, str(long_run), "--quiet",
                             "--out", str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     try:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import random
 import signal
 import subprocess
-import sys
 import time
 
 import psutil
@@ -13,7 +12,7 @@ import pytest
 import yaml
 from rosbags.highlevel import AnyReader
 
-from tests.helpers import ROOT, SCENARIOS, node_process, orchestrate
+from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
 
@@ -23,7 +22,7 @@ class LiveRun:
 
     def __init__(self, scenario, out):
         self.out = out
-        self.proc = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(scenario),
+        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario),
                                       "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True)
         self.ps = psutil.Process(self.proc.pid)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from orchestrator.timeutil import format_ns, parse_duration_ns, rate_to_period_ns
+from plan.timeutil import format_ns, parse_duration_ns, rate_to_period_ns
 
 
 @pytest.mark.parametrize(("value", "ns"), [

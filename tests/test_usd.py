@@ -1,4 +1,4 @@
-"""USD worlds in (MuJoCo's importer via nodes.worldfile), runs out as USD (--export-usd)."""
+"""USD worlds in (MuJoCo's importer via plan.worldfile), runs out as USD (--export-usd)."""
 
 from __future__ import annotations
 
@@ -14,11 +14,11 @@ from std_msgs.msg import Float64MultiArray
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
 from nodes.sensors.node import SensorsNode
-from nodes.worldfile import WorldError, load_world_model
-from orchestrator.errors import ScenarioError
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
 from orchestrator.usd_export import world_states
+from plan.errors import ScenarioError
+from plan.scenario import load_scenario
+from plan.worldfile import WorldError, load_world_model
 from tests.helpers import ROOT, orchestrate
 
 pxr = pytest.importorskip("pxr")

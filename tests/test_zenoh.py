@@ -7,17 +7,16 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 import yaml
 
-from nodes.transport_zenoh import liveliness_key, topic_key, type_hash
+from nodes.runtime.transport.zenoh import liveliness_key, topic_key, type_hash
 from orchestrator.inprocess import run_in_process
-from orchestrator.scenario import load_scenario
-from tests.helpers import ROOT, SCENARIOS, node_process, orchestrate
+from plan.scenario import load_scenario
+from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
 SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison: run shorter
@@ -65,7 +64,7 @@ def test_protocol_digest_is_the_same_over_zenoh_ros2_and_in_process(tmp_path):
 
 
 def test_sigkill_mid_run_over_zenoh_exits_3_naming_node_and_tick(tmp_path):
-    proc = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", str(LONG), "--out",
+    proc = subprocess.Popen([*ORCHESTRATE, str(LONG), "--out",
                              str(tmp_path), "--transport", "zenoh"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -142,19 +141,22 @@ def test_nodes_in_another_network_namespace_over_tcp_give_the_same_digest(tmp_pa
     path = SCENARIOS / "protocol.yaml" if name == "protocol" else ROOT / "scenarios/nav.yaml"
     scenario = load_scenario(path)
     moved = list(scenario.nodes)[1::2]  # every other node runs in namespace B
-    env = dict(os.environ, COSIM_LAUNCH_PREFIX=json.dumps(
-        {node: f"ip netns exec {ns_b}" for node in moved}))
+    # each moved node's launch prefix (a scenario key) enters namespace B and says so
+    prefixes = [f"nodes.{node}.prefix=ip netns exec {ns_b} sh -c 'ip netns identify "
+                f"> {tmp_path}/{node}.netns; exec \"$@\"' sh" for node in moved]
     endpoint = f"tcp/{address}:7447"
     proc = subprocess.run(
-        ["ip", "netns", "exec", ns_a, sys.executable, "-m", "orchestrator.cli", str(path),
+        ["ip", "netns", "exec", ns_a, *ORCHESTRATE, str(path),
          "--out", str(tmp_path), "--transport", "zenoh", "--quiet",
-         "--set", f"zenoh.listen={json.dumps([endpoint])}"],
-        cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+         "--set", f"zenoh.listen={json.dumps([endpoint])}",
+         *[arg for prefix in prefixes for arg in ("--set", prefix)]],
+        cwd=ROOT, capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr
     manifest = json.loads(next(tmp_path.glob("*/manifest.json")).read_text())
     assert manifest["digest"] == run_in_process(scenario).digest
     logs = next(tmp_path.glob("*/logs"))
     assert all((logs / f"{node}.log").exists() for node in moved)
+    assert {(tmp_path / f"{node}.netns").read_text().strip() for node in moved} == {ns_b}
 
 
 def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
@@ -163,7 +165,7 @@ def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Int64
 
-    from nodes.transport_ros2 import use_cosim_dds_profile
+    from nodes.runtime.transport.ros2 import use_cosim_dds_profile
 
     use_cosim_dds_profile()
     context = rclpy.Context()
@@ -174,7 +176,7 @@ def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
     seen: list[int] = []
     node.create_subscription(Int64, "/source", lambda m: seen.append(m.data),
                              QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-    proc = subprocess.Popen([sys.executable, "-m", "orchestrator.cli",
+    proc = subprocess.Popen([*ORCHESTRATE,
                              str(SCENARIOS / "protocol.yaml"), "--out", str(tmp_path),
                              "--transport", "zenoh", "--duration", "5s", "--quiet",
                              "--set", 'zenoh.mirror_to_dds=["/source"]'],

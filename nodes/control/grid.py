@@ -1,22 +1,23 @@
 """An occupancy grid of the world's static geometry, its obstacle distance field, and A*.
 
-The grid is built once from the MJCF (the same file physics loads): every static, colliding
-geom that is not the floor and overlaps the robot's height band is rasterised by its exact
-footprint (boxes and vertical cylinders/capsules; other shapes by their bounding circle).
+The grid is built once from the world (the same file physics loads): every static
+obstacle (``plan.world_geometry``) that overlaps the robot's height band is rasterised by
+its footprint: the true circle of an upright cylinder, capsule or sphere, the rectangle of
+a box, the convex hull of anything else.
 The distance field holds, per cell, the distance to the nearest occupied cell up to a cap.
 """
 
 from __future__ import annotations
 
 import heapq
+from dataclasses import replace
 import math
 
 import mujoco
 import numpy as np
 
-from nodes.physics.world import static_geoms
+from plan.world_geometry import ROUND, Obstacle, polygon_edge_distances, static_obstacles
 
-GEOM = mujoco.mjtGeom
 SQRT2 = math.sqrt(2.0)
 NEIGHBOURS = [(-1, -1, SQRT2), (-1, 0, 1.0), (-1, 1, SQRT2), (0, -1, 1.0),
               (0, 1, 1.0), (1, -1, SQRT2), (1, 0, 1.0), (1, 1, SQRT2)]
@@ -30,6 +31,7 @@ class Grid:
         self.res = resolution
         self.occ = np.zeros(shape, dtype=bool)
         self.dist = np.full(shape, np.inf)
+        self.obstacles: list[Obstacle] = []  # what was rasterised, for explanations
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
         """The index of the cell holding (x, y), clipped to the grid."""
@@ -67,68 +69,37 @@ class Grid:
 def world_grid(model: mujoco.MjModel, resolution: float, z_band: tuple[float, float],
                margin: float = 0.5) -> Grid:
     """Rasterise the static obstacles of ``model`` (at its default pose) into a grid."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    ids = [int(g) for g in np.flatnonzero(static_geoms(model))]
-    ids = [g for g in ids if _in_band(model, data, g, z_band)]
-    if not ids:
+    obstacles = [o for o in static_obstacles(model)
+                 if o.z_range[1] >= z_band[0] and o.z_range[0] <= z_band[1]]
+    if not obstacles:
         raise ValueError("the world has no static obstacles to build a map from")
-    ext = [np.abs(data.geom_xmat[g].reshape(3, 3)) @ _half_extents(model, g) for g in ids]
-    lo = np.min([data.geom_xpos[g, :2] - e[:2] for g, e in zip(ids, ext, strict=True)], 0)
-    hi = np.max([data.geom_xpos[g, :2] + e[:2] for g, e in zip(ids, ext, strict=True)], 0)
-    lo, hi = lo - margin, hi + margin
+    bounds = np.array([o.bounds() for o in obstacles])
+    lo = bounds[:, :2].min(axis=0) - margin
+    hi = bounds[:, 2:].max(axis=0) + margin
     shape = tuple(int(v) for v in np.ceil((hi - lo) / resolution))
     grid = Grid((float(lo[0]), float(lo[1])), shape, resolution)
+    grid.obstacles = obstacles
+    # As before this clean-up: round obstacles inflated to their bounding sphere (the
+    # numpy-integer bug of issue 19, fixed in the next commit, which changes digests).
+    obstacles = [replace(o, radius=float(model.geom_rbound[o.geom])) if o.kind in ROUND else o
+                 for o in obstacles]
     xs, ys = grid.centres()
-    for g in ids:
-        _rasterise(model, data, g, grid, xs, ys)
+    for o in obstacles:
+        rasterise(o, grid, xs, ys)
     return grid
 
 
-def _in_band(model: mujoco.MjModel, data: mujoco.MjData, g: int, band: tuple[float, float]
-             ) -> bool:
-    rot = data.geom_xmat[g].reshape(3, 3)
-    half = np.abs(rot) @ _half_extents(model, g)
-    z = data.geom_xpos[g, 2]
-    return z + half[2] >= band[0] and z - half[2] <= band[1]
-
-
-def _half_extents(model: mujoco.MjModel, g: int) -> np.ndarray:
-    s = model.geom_size[g]
-    t = model.geom_type[g]
-    if t == GEOM.mjGEOM_BOX:
-        return s.copy()
-    if t == GEOM.mjGEOM_CYLINDER:
-        return np.array([s[0], s[0], s[1]])
-    if t == GEOM.mjGEOM_CAPSULE:
-        return np.array([s[0], s[0], s[1] + s[0]])
-    r = model.geom_rbound[g]
-    return np.array([r, r, r])
-
-
-def _rasterise(model: mujoco.MjModel, data: mujoco.MjData, g: int, grid: Grid,
-               xs: np.ndarray, ys: np.ndarray) -> None:
-    rot = data.geom_xmat[g].reshape(3, 3)
-    c = data.geom_xpos[g]
-    r = model.geom_rbound[g]
-    i0, j0 = grid.cell(c[0] - r, c[1] - r)
-    i1, j1 = grid.cell(c[0] + r, c[1] + r)
-    sx, sy = xs[i0:i1 + 1, j0:j1 + 1] - c[0], ys[i0:i1 + 1, j0:j1 + 1] - c[1]
-    # Cell centres in the geom frame (at the geom's own height).
-    lx = rot[0, 0] * sx + rot[1, 0] * sy
-    ly = rot[0, 1] * sx + rot[1, 1] * sy
-    size = model.geom_size[g]
-    t = model.geom_type[g]
-    vertical = abs(rot[2, 2]) > 0.999
-    half = 0.5 * grid.res  # a cell counts when the shape covers any part of its centre area
-    if t == GEOM.mjGEOM_BOX and vertical:
-        inside = (np.abs(lx) <= size[0] + half) & (np.abs(ly) <= size[1] + half)
-    elif t in (GEOM.mjGEOM_CYLINDER, GEOM.mjGEOM_CAPSULE) and vertical:
-        inside = np.hypot(lx, ly) <= size[0] + half
-    elif t == GEOM.mjGEOM_SPHERE:
-        inside = np.hypot(lx, ly) <= size[0] + half
+def rasterise(o: Obstacle, grid: Grid, xs: np.ndarray, ys: np.ndarray) -> None:
+    """Mark the cells an obstacle's footprint covers any part of the centre area of."""
+    half = 0.5 * grid.res
+    x0, y0, x1, y1 = o.bounds()
+    i0, j0 = grid.cell(x0 - half, y0 - half)
+    i1, j1 = grid.cell(x1 + half, y1 + half)
+    wx, wy = xs[i0:i1 + 1, j0:j1 + 1], ys[i0:i1 + 1, j0:j1 + 1]
+    if o.is_circle:
+        inside = np.hypot(wx - o.centre[0], wy - o.centre[1]) <= o.radius + half
     else:
-        inside = np.hypot(sx, sy) <= r + half
+        inside = polygon_edge_distances(o.polygon, wx, wy) >= -half
     grid.occ[i0:i1 + 1, j0:j1 + 1] |= inside
 
 

@@ -22,7 +22,6 @@ from nodes.physics import messages as m
 from nodes.physics.contacts import CollisionCounter
 from nodes.physics.drive import DiffDrive
 from nodes.physics.world import (
-    floor_geoms,
     load_model,
     named_id,
     robot_geoms,
@@ -30,6 +29,7 @@ from nodes.physics.world import (
     timestep_ns,
     wheel_geometry,
 )
+from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
 ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
@@ -107,7 +107,7 @@ class PhysicsNode(StepNode):
         self.joint_q = self.model.jnt_qposadr[joints]
         self.joint_v = self.model.jnt_dofadr[joints]
         self.collisions = CollisionCounter(robot_geoms(self.model, p.base_body),
-                                           floor_geoms(self.model))
+                                           floor_mask(self.model))
         mujoco.mj_forward(self.model, self.data)
         self.collisions.update(self.data)
         self.collisions.events = 0  # touching at the start is not an event

@@ -7,13 +7,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from nodes.worldfile import load_world_model
+from plan.worldfile import load_world_model
 
 NS_PER_S = 1_000_000_000
 
 
 def load_model(world: Path | str) -> mujoco.MjModel:
-    """Compile the world file, MJCF or USD, through the one shared loader (nodes.worldfile)."""
+    """Compile the world file, MJCF or USD, through the one shared loader (plan.worldfile)."""
     return load_world_model(world)
 
 
@@ -57,19 +57,6 @@ def robot_geoms(model: mujoco.MjModel, base: str) -> np.ndarray:
     """Boolean mask over geoms: those on the robot (any body under ``base``)."""
     root = model.body_rootid[body_id(model, base)]
     return model.body_rootid[model.geom_bodyid] == root
-
-
-def floor_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Boolean mask over geoms: the ground planes and height fields."""
-    kinds = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
-    return np.isin(model.geom_type, [int(k) for k in kinds])
-
-
-def static_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Boolean mask over geoms that never move and can collide: the map's obstacles."""
-    welded = model.body_weldid[model.geom_bodyid] == 0
-    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-    return welded & collides & ~floor_geoms(model)
 
 
 def wheel_geometry(model: mujoco.MjModel, left_joint: str, right_joint: str) -> tuple[float, float]:

@@ -52,7 +52,7 @@ def intrinsics(width: int, height: int, fovy_deg: float) -> tuple[float, float, 
 class RgbdCamera:
     """Renders colour and depth images of the mirrored world and their CameraInfo."""
 
-    def __init__(self, mirror: WorldMirror, params: CameraParams):
+    def __init__(self, mirror: WorldMirror, params: CameraParams, warm_up: bool = True):
         self.mirror = mirror
         self.params = params
         model = mirror.model
@@ -65,8 +65,8 @@ class RgbdCamera:
         self.info = self._camera_info(float(model.cam_fovy[self.cam]))
         self._warming: threading.Thread | None = None
         self._warm_result: mujoco.Renderer | BaseException | None = None
-        # COSIM_CAMERA_LAZY_GL=1 makes the renderer at the first render instead (benchmarks)
-        if os.environ.get("MUJOCO_GL") == "egl" and not os.environ.get("COSIM_CAMERA_LAZY_GL"):
+        # warm_up=False (run option camera_warm_up) makes the renderer at the first render
+        if os.environ.get("MUJOCO_GL") == "egl" and warm_up:
             # not a daemon: an exiting interpreter waits for it before its atexit handlers
             # tear EGL down (mujoco.egl registers one), which must not run under it
             self._warming = threading.Thread(target=self._warm_up, name="camera-gl")

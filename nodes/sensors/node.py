@@ -67,7 +67,8 @@ class SensorsNode(StepNode):
         self.mirror = WorldMirror(self.config.world)
         self.lidar = Lidar2D(self.mirror, p.lidar, self.config.period_ns) if p.lidar else None
         self.cloud = Lidar3D(self.mirror, p.point_cloud) if p.point_cloud else None
-        self.camera = RgbdCamera(self.mirror, p.camera) if p.camera else None
+        self.camera = (RgbdCamera(self.mirror, p.camera, self.config.render_warm_up)
+                       if p.camera else None)
         self.count = 0
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:

@@ -62,16 +62,3 @@ class Transport(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the participant."""
-
-
-def create_transport(kind: str, participant: str) -> Transport:
-    """The transport named in the scenario ('ros2' or 'zenoh'), for a participant (node) name."""
-    if kind == "ros2":
-        from nodes.transport_ros2 import Ros2Transport
-
-        return Ros2Transport(participant)
-    if kind == "zenoh":
-        from nodes.transport_zenoh import ZenohTransport
-
-        return ZenohTransport(participant)
-    raise ValueError(f"transport {kind!r} is not available; use ros2 or zenoh")

@@ -1,6 +1,6 @@
 """Read CDR bytes into a ROS message without rclpy's per-field conversion.
 
-The counterpart of ``nodes.cdr_encode``: for each message class a Python function is
+The counterpart of ``nodes.runtime.cdr.encode``: for each message class a Python function is
 generated once that unpacks each run of fixed-size fields with one precompiled ``struct``
 format per alignment residue and sets the message's slots directly, building exactly the
 objects ``rclpy.serialization.deserialize_message`` builds (floats, ints, bools, ``bytes``
@@ -22,8 +22,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from rosidl_parser import definition as d
 
-from nodes.cdr import LE_HEADER
-from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
+from nodes.runtime.cdr.canonical import LE_HEADER
+from nodes.runtime.cdr.codegen import SourceWriter, Unsupported, code_of, size_of
 
 Decoder = Callable[[bytes], Any]
 

@@ -1,10 +1,11 @@
 """The lockstep protocol's own messages, in standard ROS 2 types so ROS tools can watch them.
 
 - ``/clock`` (rosgraph_msgs/Clock): the orchestrator publishes tick ``k``'s time, once per tick.
-- ``/cosim/command`` (std_msgs/String): the orchestrator's commands to every node:
-  ``reset E`` (stop, report ``resetting`` with how many messages each output has sent) and
-  ``restart E {json: topic -> messages sent}`` (start over from tick 0, ignoring older
-  messages still in flight, then report ``ready`` again).
+- ``/cosim/command`` (std_msgs/String): the orchestrator's commands to every node
+  (``Command``, ``encode_command``/``decode_command``): ``reset E`` (stop, report
+  ``resetting`` with how many messages each output has sent) and ``restart E {json: topic
+  -> messages sent}`` (start over from tick 0, ignoring older messages still in flight, then
+  report ``ready`` again).
 - ``/cosim/status`` (diagnostic_msgs/DiagnosticStatus): every node reports on it: while
   starting (``waiting`` with the unmatched topics, then ``ready``), after its activations
   (``done``: the ticks it served since its last report, space-separated and aligned: ``ticks``,
@@ -15,14 +16,17 @@
 
 from __future__ import annotations
 
+import json
 import struct
 from dataclasses import dataclass, field
+from enum import Enum
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
-from nodes.cdr import LE_HEADER
+from nodes.runtime.cdr.canonical import LE_HEADER
 
 CLOCK_TOPIC = "/clock"
 STATUS_TOPIC = "/cosim/status"
@@ -35,6 +39,43 @@ _LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,
           RESETTING: DiagnosticStatus.STALE}  # bytes of length 1
 _U32 = struct.Struct("<I")
 _PAD = (b"", b"\0", b"\0\0", b"\0\0\0")
+
+
+class Command(Enum):
+    """The orchestrator's commands on ``/cosim/command`` (the two phases of a reset)."""
+
+    RESET = "reset"  # stop serving ticks; report 'resetting' with the messages sent per output
+    RESTART = "restart"  # start over from tick 0, ignoring messages sent before the reset
+
+
+@dataclass(frozen=True)
+class CommandMessage:
+    """One command with its reset epoch and, for RESTART, every producer's sent counts."""
+
+    command: Command
+    epoch: int
+    sent: dict[str, int] = field(default_factory=dict)
+
+
+def encode_command(message: CommandMessage) -> bytes:
+    """std_msgs/String CDR bytes of a command: 'reset E' or 'restart E {topic: sent}'."""
+    text = f"{message.command.value} {message.epoch}"
+    if message.command is Command.RESTART:
+        text += " " + json.dumps(message.sent, sort_keys=True)
+    return serialize_message(String(data=text))
+
+
+def decode_command(data: bytes) -> CommandMessage:
+    """Parse ``encode_command``'s bytes; ValueError for anything else."""
+    text = deserialize_message(data, String).data
+    verb, _, rest = text.partition(" ")
+    epoch, _, payload = rest.partition(" ")
+    try:
+        command = Command(verb)
+        sent = {str(k): int(v) for k, v in json.loads(payload).items()} if payload else {}
+        return CommandMessage(command, int(epoch), sent)
+    except (ValueError, AttributeError) as exc:
+        raise ValueError(f"not a cosim command: {text!r} ({exc})") from None
 
 
 def encode_clock(time_ns: int) -> bytes:

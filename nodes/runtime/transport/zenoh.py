@@ -2,11 +2,11 @@
 
 Topology (a mesh of direct TCP links, no multicast anywhere):
 - The orchestrator's session is a zenoh peer listening on loopback only
-  (``tcp/127.0.0.1:<free port>``, or the endpoints in ``COSIM_ZENOH_LISTEN``, which the
-  scenario's ``zenoh.listen`` sets). When it opens, it exports its endpoints to the
-  environment as ``COSIM_ZENOH_CONNECT`` so the node processes it spawns inherit them (the
-  previous value is restored on close). It also connects to ``zenoh.connect`` endpoints
-  (``COSIM_ZENOH_ROUTER_CONNECT``), e.g. a zenohd on another host.
+  (``tcp/127.0.0.1:<free port>``, or the scenario's ``zenoh.listen`` endpoints). When it
+  opens, it exports its endpoints to the environment as ``COSIM_ZENOH_CONNECT`` (process
+  plumbing: the address exists only once the session is open) so the node processes it
+  spawns inherit them (the previous value is restored on close). It also connects to the
+  scenario's ``zenoh.connect`` endpoints, e.g. a zenohd on another host.
 - A node's session is a peer that connects to ``COSIM_ZENOH_CONNECT`` and listens on a free
   port of its own address on the route to that endpoint (127.0.0.1 for a loopback one, the
   host's interface address for a remote one). Gossip scouting (over those links, never
@@ -36,7 +36,8 @@ and data can flow, as DDS discovery does).
 
 Large messages: zenoh's shared-memory transport optimisation (on by default: messages over
 3 KiB between sessions of one host travel through a shared-memory pool) is kept;
-``COSIM_ZENOH_SHM=0`` turns it off (bench/zenoh_chain.py measures both).
+the run option ``zenoh_shm=False`` (``--no-zenoh-shm``) turns it off (bench/zenoh_chain.py
+measures both).
 
 Receiving: every subscriber is a direct callback (run on zenoh's network thread) that
 appends ``Received`` items to one queue per participant; ``wait()`` blocks on that queue, so
@@ -56,11 +57,10 @@ from pathlib import Path
 
 import zenoh
 
-from nodes.transport import Publisher, Received, Subscription, Transport
-from nodes.zenoh_settings import LISTEN_ENV, MIRROR_ENV, ROUTER_CONNECT_ENV
+from nodes.runtime.transport.base import Publisher, Received, Subscription, Transport
+from plan.options import TransportSettings
 
 CONNECT_ENV = "COSIM_ZENOH_CONNECT"
-SHM_ENV = "COSIM_ZENOH_SHM"
 DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 LIVELINESS_ROOT = "@cosim"
 _NO_HASH = "TypeHashNotSupported"
@@ -139,7 +139,8 @@ def _route_address(endpoint: str) -> str:
     return f"[{local}]" if family == socket.AF_INET6 else local
 
 
-def session_config(mode: str, listen: list[str], connect: list[str]) -> zenoh.Config:
+def session_config(mode: str, listen: list[str], connect: list[str], shm: bool = True
+                   ) -> zenoh.Config:
     """A zenoh config: ``mode``, explicit endpoints, gossip scouting only (no multicast)."""
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
@@ -147,7 +148,7 @@ def session_config(mode: str, listen: list[str], connect: list[str]) -> zenoh.Co
     config.insert_json5("connect/endpoints", json.dumps(connect))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "true")  # learn peers from the root
-    if os.environ.get(SHM_ENV) == "0":  # large messages go through shared memory by default
+    if not shm:  # large messages go through shared memory by default
         config.insert_json5("transport/shared_memory/enabled", "false")
     if connect:
         config.insert_json5("connect/timeout_ms", "30000")
@@ -209,7 +210,8 @@ class ZenohSubscription(Subscription):
 class ZenohTransport(Transport):
     """One zenoh session per participant (see the module docstring for the topology)."""
 
-    def __init__(self, participant: str):
+    def __init__(self, participant: str, settings: TransportSettings | None = None):
+        settings = settings or TransportSettings(kind="zenoh")
         self.participant = participant
         self.domain = domain_id()
         connect = _endpoints(os.environ.get(CONNECT_ENV))
@@ -217,13 +219,13 @@ class ZenohTransport(Transport):
         self._exported: tuple[bool, str | None] | None = None
         if self.root:
             listen = [_with_free_port(e) for e in
-                      _endpoints(os.environ.get(LISTEN_ENV)) or [DEFAULT_LISTEN]]
-            config = session_config("peer", listen,
-                                    _endpoints(os.environ.get(ROUTER_CONNECT_ENV)))
+                      list(settings.zenoh_listen) or [DEFAULT_LISTEN]]
+            config = session_config("peer", listen, list(settings.zenoh_connect),
+                                    settings.zenoh_shm)
             self.endpoints = listen
         else:  # listen where the orchestrator's peers can reach us, for direct links
             listen = [_with_free_port(f"tcp/{_route_address(connect[0])}:0")]
-            config = session_config("peer", listen, connect)
+            config = session_config("peer", listen, connect, settings.zenoh_shm)
             self.endpoints = connect
         self.session = zenoh.open(config)
         if self.root:  # children (node processes) connect here
@@ -238,8 +240,6 @@ class ZenohTransport(Transport):
             prefix + "**", zenoh.handlers.Callback(self._on_token, indirect=False),
             history=True)
         self._entities: list = []
-        self._mirror = (DdsMirror(self, _endpoints(os.environ.get(MIRROR_ENV)))
-                        if self.root and os.environ.get(MIRROR_ENV) else None)
 
     def _on_token(self, sample: zenoh.Sample) -> None:
         rest = str(sample.key_expr)[self._prefix_len:]
@@ -289,8 +289,6 @@ class ZenohTransport(Transport):
         """Close the session; a root restores the environment it exported."""
         try:
             self._entities.clear()
-            if self._mirror is not None:
-                self._mirror.close()
             self.session.close()
         finally:
             if self._exported is not None:
@@ -300,50 +298,3 @@ class ZenohTransport(Transport):
                 else:
                     os.environ.pop(CONNECT_ENV, None)
                 self._exported = None
-
-
-class DdsMirror:
-    """Republishes chosen zenoh topics on ROS 2 (DDS), so ordinary ros2 tools can watch a run.
-
-    Runs in the orchestrator's process: one rclpy node, one publisher per mirrored topic
-    (created on the first sample, with the type named in the key expression), fed by zenoh
-    subscribers whose callbacks run on a Python thread of their own. Best effort: it never
-    holds the lockstep up, and what it shows is not part of the run digest.
-    """
-
-    def __init__(self, transport: ZenohTransport, topics: list[str]):
-        import rclpy
-
-        from nodes.transport_ros2 import _no_signal_handlers, reliable_qos, use_cosim_dds_profile
-
-        use_cosim_dds_profile()
-        self._qos = reliable_qos(100)
-        self._context = rclpy.Context()
-        rclpy.init(context=self._context, signal_handler_options=_no_signal_handlers())
-        self.node = rclpy.create_node("cosim_zenoh_mirror", context=self._context,
-                                      start_parameter_services=False, enable_rosout=False)
-        self._publishers: dict[str, object] = {}
-        self._subs = [transport.session.declare_subscriber(
-            f"{transport.domain}/{topic.strip('/')}/*/*",
-            zenoh.handlers.Callback(lambda sample, t=topic: self._forward(t, sample)))
-            for topic in topics]
-
-    def _forward(self, topic: str, sample: zenoh.Sample) -> None:
-        pub = self._publishers.get(topic)
-        if pub is None:
-            name = str(sample.key_expr).split("/")[-2]  # 'pkg::msg::dds_::Type_'
-            package, kind, _, type_ = name.split("::")
-            module = __import__(f"{package}.{kind}", fromlist=[type_[:-1]])
-            pub = self.node.create_publisher(getattr(module, type_[:-1]), topic, self._qos)
-            self._publishers[topic] = pub
-        pub.handle.publish_raw(sample.payload.to_bytes())
-
-    def close(self) -> None:
-        """Stop forwarding and shut the rclpy context down."""
-        import rclpy
-
-        for sub in self._subs:
-            sub.undeclare()
-        self.node.destroy_node()
-        if self._context.ok():
-            rclpy.shutdown(context=self._context)

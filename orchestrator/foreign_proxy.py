@@ -11,18 +11,21 @@ from __future__ import annotations
 
 import time
 
-from nodes.cdr import canonical_cdr
-from nodes.exchange import output_digest
-from nodes.protocol import DONE, Done, Status
-from nodes.recording import PartWriter
-from nodes.transport import Received, Transport
-from orchestrator.errors import SimulationError
+from nodes.runtime.cdr.canonical import canonical_cdr
+from nodes.runtime.exchange import output_digest
+from nodes.runtime.protocol import DONE, Done, Status
+from nodes.runtime.recording import PartWriter
+from nodes.runtime.transport.base import Received, Transport
+from orchestrator.participants import Participant
+from plan.errors import SimulationError
 
 SETTLE_S = 0.5
 
 
-class ForeignProxy:
+class ForeignProxy(Participant):
     """Counts one foreign program's outputs and turns them into status reports."""
+
+    foreign = True
 
     def __init__(self, plan, period: int, transport: Transport, recorder: PartWriter | None):
         self.name = plan.name
@@ -36,9 +39,9 @@ class ForeignProxy:
         self._matched_since: float | None = None
 
     @property
-    def topics(self) -> set[str]:
+    def topics(self) -> frozenset[str]:
         """The program's output topics."""
-        return set(self.subs)
+        return frozenset(self.subs)
 
     def ready(self) -> bool:
         """Whether the program's publishers have been matched for ``SETTLE_S`` (it has
@@ -54,12 +57,13 @@ class ForeignProxy:
             self._matched_since = now
         return now - self._matched_since >= SETTLE_S
 
-    def unmatched(self) -> str:
+    def not_ready_text(self) -> str:
         """Outputs the program has not yet advertised, for the start-deadline message."""
         missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
-        return ", ".join(f"{t} (0/1 publishers)" for t in missing)
+        return ("is a foreign program whose outputs are not advertised yet: "
+                + ", ".join(f"{t} (0/1 publishers)" for t in missing) + " (see its log)")
 
-    def accept(self, rec: Received, current_tick: int) -> list[Status]:
+    def take(self, rec: Received, current_tick: int) -> list[Status]:
         """File one output message; return DONE reports for activations now complete."""
         messages = self.received[rec.topic]
         messages.append(canonical_cdr(rec.data, self.classes[rec.topic]))
@@ -92,9 +96,9 @@ class ForeignProxy:
         done = Done(self.name, tick, output_digest(tick, items).hex())
         return Status(self.name, DONE, tick, done=[done])
 
-    def missing(self, tick: int) -> str:
+    def owed_text(self, tick: int) -> str:
         """What the program still owes for ``tick``, e.g. '0 of 1 messages on /cmd_vel'."""
         activation = tick // self.period
         parts = [f"{max(0, len(self.received[t]) - activation * n)} of {n} message(s) on {t}"
                  for t, n in sorted(self.per.items())]
-        return "it published " + ", ".join(parts)
+        return "it published " + ", ".join(parts) + " (foreign program)"

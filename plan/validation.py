@@ -25,6 +25,19 @@ def key_path(loc: tuple, raw: Any) -> str:
     return out
 
 
+def keys_of(model: type[BaseModel]) -> list[str]:
+    """The keys a model accepts as a file spells them (a field's alias where it has one)."""
+    return [info.alias or name for name, info in model.model_fields.items()]
+
+
+def field_of(model: type[BaseModel], key: str):
+    """The FieldInfo of the key ``key`` (a field name or alias), or None."""
+    for name, info in model.model_fields.items():
+        if key in (name, info.alias):
+            return info
+    return None
+
+
 def _model_at(model: type[BaseModel], loc: tuple) -> type[BaseModel] | None:
     """The pydantic model class that holds the last key of ``loc`` (for listing its fields)."""
     current: Any = model
@@ -33,7 +46,7 @@ def _model_at(model: type[BaseModel], loc: tuple) -> type[BaseModel] | None:
             continue
         if not (isinstance(current, type) and issubclass(current, BaseModel)):
             return None
-        info = current.model_fields.get(part)
+        info = field_of(current, part)
         if info is None:
             return None
         current = _inner_model(info.annotation)
@@ -55,7 +68,7 @@ def describe_validation_error(exc: ValidationError, raw: Any,
                               model: type[BaseModel] | None = None) -> tuple[str, str, str]:
     """The first error of ``exc`` as (key path, problem, accepted)."""
     if model is None:
-        from orchestrator.model import ScenarioModel
+        from plan.model import ScenarioModel
         model = ScenarioModel
     err = exc.errors()[0]
     loc = tuple(err["loc"])
@@ -65,7 +78,7 @@ def describe_validation_error(exc: ValidationError, raw: Any,
     kind = err["type"]
     if kind == "extra_forbidden":
         owner = _model_at(model, loc)
-        fields = ", ".join(owner.model_fields) if owner else ""
+        fields = ", ".join(keys_of(owner)) if owner else ""
         accepted = f"keys here are: {fields}." if fields else "no keys here."
         if owner is None:
             accepted = "see the scenario reference in the README."
@@ -101,9 +114,9 @@ def _field_at(model: type[BaseModel], loc: tuple) -> tuple[str | None, Any, Any]
             current, info, name = items, None, f"{name}[{part}]" if name else f"[{part}]"
             continue
         owner = _inner_model(current)
-        if owner is None or part not in owner.model_fields:
+        info = field_of(owner, part) if owner is not None else None
+        if info is None:
             return None, None, None
-        info = owner.model_fields[part]
         current, name = info.annotation, part
     return name, info, current
 
@@ -125,11 +138,11 @@ def describe_annotation(annotation: Any) -> str:
     if origin is typing.Annotated:
         return describe_annotation(args[0])
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return f"a mapping with keys {', '.join(annotation.model_fields)}"
+        return f"a mapping with keys {', '.join(keys_of(annotation))}"
     if origin is list:
         item = args[0] if args else None
         if isinstance(item, type) and issubclass(item, BaseModel):
-            return f"a list of mappings, each with keys {', '.join(item.model_fields)}"
+            return f"a list of mappings, each with keys {', '.join(keys_of(item))}"
         return f"a list of {describe_annotation(item) if item else 'values'}"
     if origin is dict or annotation is dict:
         return "a mapping"

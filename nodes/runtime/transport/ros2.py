@@ -15,7 +15,7 @@ import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from nodes.transport import Publisher, Received, Subscription, Transport
+from nodes.runtime.transport.base import Publisher, Received, Subscription, Transport
 
 PROFILE = Path(__file__).with_name("fastdds_profile.xml")
 
@@ -74,7 +74,7 @@ class Ros2Transport(Transport):
     def __init__(self, participant: str):
         use_cosim_dds_profile()
         self._context = rclpy.Context()
-        rclpy.init(context=self._context, signal_handler_options=_no_signal_handlers())
+        rclpy.init(context=self._context, signal_handler_options=no_signal_handlers())
         self.node = rclpy.create_node(participant, context=self._context,
                                       start_parameter_services=False, enable_rosout=False)
         self._subs: list[Ros2Subscription] = []
@@ -132,7 +132,8 @@ def _never_called(_msg) -> None:  # pragma: no cover - the wait set takes messag
     raise AssertionError("cosim subscriptions are read by the wait set, not by callbacks")
 
 
-def _no_signal_handlers():
+def no_signal_handlers():
+    """rclpy's option for installing no signal handlers (the runtime owns SIGINT/SIGTERM)."""
     from rclpy.signals import SignalHandlerOptions
 
     return SignalHandlerOptions.NO

@@ -3,10 +3,11 @@
 rclpy's ``serialize_message`` converts a message to its C struct field by field through the
 Python property of every field and a class-name check of every nested message: a 123-pose
 nav_msgs/Path takes about 1.9 ms, and the padding it leaves uninitialised must then be
-zeroed (``nodes.cdr``). This module generates, once per message class, a Python function
-that reads the message's slots directly and packs each run of fixed-size fields with one
-precompiled ``struct`` format per alignment residue, so the padding is written as zeros in
-the same pass. The bytes are exactly ``canonical_cdr(serialize_message(msg))``
+zeroed (``nodes.runtime.cdr.canonical``). This module generates, once per message class,
+a Python function that reads the message's slots directly and packs each run of
+fixed-size fields with one precompiled ``struct`` format per alignment residue, so the
+padding is written as zeros in the same pass. The bytes are exactly
+``canonical_cdr(serialize_message(msg))``
 (``tests/test_cdr_encode.py`` checks every message type of the standard packages against
 rclpy). Types it does not cover (``char``, ``wchar``, ``wstring``, ``long double``) go the
 rclpy way.
@@ -25,8 +26,8 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 
-from nodes.cdr import LE_HEADER, canonical_cdr
-from nodes.cdr_codegen import SourceWriter, Unsupported, code_of, size_of
+from nodes.runtime.cdr.canonical import LE_HEADER, canonical_cdr
+from nodes.runtime.cdr.codegen import SourceWriter, Unsupported, code_of, size_of
 
 _ZEROS = tuple(bytes(n) for n in range(8))
 

@@ -15,9 +15,9 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from nodes.contract import StepNode, Tick
-from nodes.exchange import prepare_outputs
-from nodes.protocol import CLOCK_TOPIC, decode_clock, encode_clock
-from nodes.transport import Transport
+from nodes.runtime.exchange import prepare_outputs
+from nodes.runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
+from nodes.runtime.transport.base import Transport
 
 POLL_NS = 50_000_000
 

@@ -15,41 +15,32 @@ import random
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from nodes.recording import PartWriter
-from nodes.transport import create_transport
-from orchestrator.errors import SimulationError
+from nodes.runtime.recording import PartWriter
+from nodes.runtime.transport.factory import create_transport
+from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.manifest import write_manifest
-from orchestrator.results import RunResult, goal_reached
-from orchestrator.rundir import make_run_dir
-from orchestrator.scenario import Scenario
+from orchestrator.run_rules import check_run
 from orchestrator.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
+from plan.errors import SimulationError
+from plan.options import RunOptions, TransportSettings
+from plan.run_paths import RunPaths, make_run_dir
+from plan.scenario import Scenario
 
 log = logging.getLogger("cosim")
 
 
 @dataclass
-class RunOptions:
-    """How to run: in-process or not, where outputs go, test-only start-order shuffling."""
-
-    out: Path = Path("runs")
-    in_process: bool = False
-    shuffle_start: int | None = None
-    paused: bool = False
-    on_tick: object = None
-    export_usd: bool = False
-
-
-@dataclass
 class RunOutcome:
-    """What the caller gets back: status, digest, metrics, where the outputs are."""
+    """What a run left: status, the tick loop's result, timings and where the outputs are."""
 
     status: str  # success | goal_not_met | failed | interrupted
     run_dir: Path
-    result: RunResult | None = None
+    result: LoopResult | None = None
     error: str | None = None
     wall_s: float = 0.0
     start_s: float | None = None
@@ -62,27 +53,47 @@ class RunOutcome:
     success: bool = False
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def digest(self) -> str | None:
         """The run digest, when the run finished."""
         return self.result.digest if self.result else None
 
+    @property
+    def paths(self) -> RunPaths:
+        """The paths inside the run directory."""
+        return RunPaths(self.run_dir)
 
-def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
-    """Run a checked scenario, write its run directory and manifest, return the outcome."""
-    run_dir = make_run_dir(options.out, scenario.name)
-    handler = _log_to(run_dir / "logs" / "orchestrator.log")
+
+OnTick = Callable[[int], None]
+"""Called with each tick index once the tick is decided (progress bars)."""
+
+
+def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None
+            ) -> RunOutcome:
+    """Run a checked scenario, write its run directory and manifest, return the outcome.
+
+    The run's rules (``orchestrator.run_rules``) are applied first, whoever calls: a
+    scenario this run cannot serve raises ScenarioError before anything is started or
+    written; its warnings are logged and kept in the outcome.
+    """
+    warnings = check_run(scenario, options)
+    paths = make_run_dir(options.out, scenario.name)
+    run_dir = paths.root
+    handler = _log_to(paths.log("orchestrator"))
+    for warning in warnings:
+        log.warning("%s", warning)
     started = time.monotonic()
-    outcome = RunOutcome("failed", run_dir)
+    outcome = RunOutcome("failed", run_dir, warnings=warnings)
     try:
         if options.in_process:
             outcome.start_s = time.monotonic() - started
             outcome.command_to_first_tick_s = _since_process_start()
-            outcome.result = _in_process(scenario, run_dir, options.on_tick)
+            outcome.result = _in_process(scenario, paths, on_tick)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
-            outcome.result = _multi_process(scenario, run_dir, options, outcome, started)
+            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick)
         _judge(scenario, outcome)
     except SimulationError as exc:
         outcome.status, outcome.error = "failed", str(exc)
@@ -98,7 +109,7 @@ def execute(scenario: Scenario, options: RunOptions) -> RunOutcome:
             if options.export_usd:
                 outcome.usd = _export_usd_safely(scenario, outcome)
             if outcome.bag is not None:
-                shutil.rmtree(run_dir / "parts", ignore_errors=True)  # the bag holds it all
+                shutil.rmtree(paths.parts, ignore_errors=True)  # the bag holds it all
             write_manifest(scenario, outcome, options)
             logging.getLogger().removeHandler(handler)
             handler.close()
@@ -132,23 +143,22 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     if outcome.bag is None or scenario.world is None:
         log.error("no USD export: the run has no bag or no world")
         return None
-    from orchestrator.usd_export import USD_NAME, export_run_usd
+    from orchestrator.usd_export import export_run_usd
 
     started = time.monotonic()
     try:
-        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns,
-                             outcome.run_dir / USD_NAME)
+        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the stage is lost
-        log.error("could not write %s: %s", USD_NAME, exc)
+        log.error("could not write %s: %s", outcome.paths.usd.name, exc)
         return None
     log.info("wrote %s in %.2f s", out, time.monotonic() - started)
     return out
 
 
-def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
+def _in_process(scenario: Scenario, paths: RunPaths, on_tick: OnTick | None) -> LoopResult:
     from orchestrator.inprocess import run_in_process
 
-    writers = {name: PartWriter(run_dir / "parts" / f"{name}.rec") for name in scenario.nodes}
+    writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
     try:
         return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
                               on_tick)
@@ -157,31 +167,38 @@ def _in_process(scenario: Scenario, run_dir: Path, on_tick) -> RunResult:
             writer.close()
 
 
-def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
-                   outcome: RunOutcome, started: float) -> RunResult:
-    supervisor = Supervisor(run_dir / "logs")
-    master = transport = None
-    proxies: dict = {}
+def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
+                   outcome: RunOutcome, started: float, on_tick: OnTick | None) -> LoopResult:
+    supervisor = Supervisor(paths.logs)
+    master = transport = mirror = None
+    participants: dict = {}
+    settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
     # then start as fresh interpreters: a process with a session open must not fork).
-    opens_first = scenario.model.transport == "zenoh"
+    opens_first = settings.kind == "zenoh"
     try:
         if opens_first:
-            transport = create_transport(scenario.model.transport, "cosim_orchestrator")
-        if not _start_nodes(scenario, run_dir, options, supervisor):
+            transport = create_transport(settings, "cosim_orchestrator")
+        if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
             import orchestrator.picture  # noqa: F401
-        from orchestrator.foreign import ForeignProxy
+        from orchestrator.foreign_proxy import ForeignProxy
         from orchestrator.master import LockstepMaster
+        from orchestrator.participants import CosimNode
 
         if not opens_first:
-            transport = create_transport(scenario.model.transport, "cosim_orchestrator")
-        proxies = {name: ForeignProxy(plan, plan.period_ticks, transport,
-                                      PartWriter(run_dir / "parts" / f"{name}.rec"))
-                   for name, plan in scenario.nodes.items() if plan.foreign}
-        master = LockstepMaster(scenario, transport, supervisor, options.on_tick, proxies,
-                                run_dir / "parts")
+            transport = create_transport(settings, "cosim_orchestrator")
+        if settings.kind == "zenoh" and settings.mirror_to_dds:
+            from orchestrator.dds_mirror import DdsMirror
+
+            mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
+        participants = {
+            name: ForeignProxy(plan, plan.period_ticks, transport, PartWriter(paths.part(name)))
+            if plan.foreign else CosimNode(plan, scenario.schedule)
+            for name, plan in scenario.nodes.items()}
+        master = LockstepMaster(scenario, transport, supervisor, participants, options,
+                                on_tick, paths.parts)
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()
@@ -200,21 +217,23 @@ def _multi_process(scenario: Scenario, run_dir: Path, options: RunOptions,
             outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                                   for name in scenario.nodes}
         supervisor.shutdown()
-        for proxy in proxies.values():
-            proxy.recorder.close()
+        for participant in participants.values():
+            if participant.foreign:
+                participant.recorder.close()
+        if mirror is not None:
+            mirror.close()
         if transport is not None:
             transport.close()
 
 
-def _start_nodes(scenario: Scenario, run_dir: Path, options: RunOptions,
+def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
                  supervisor: Supervisor) -> bool:
     """Start every node process: cosim nodes forked from this process when that is safe
     (and no launch prefix wraps them), fresh interpreters otherwise; foreign programs by
     their command; external nodes are announced for the user to start. True when any node
     was forked."""
-    from nodes.cli import run_lockstep
-    from orchestrator.foreign_command import foreign_argv
-    from orchestrator.supervisor import launch_prefix
+    from nodes.runtime.cosim_node import run_lockstep
+    from orchestrator.foreign_launch import foreign_argv
 
     order = list(scenario.nodes)
     if options.shuffle_start is not None:
@@ -222,17 +241,18 @@ def _start_nodes(scenario: Scenario, run_dir: Path, options: RunOptions,
     # Foreign programs first: they take longest to start and join.
     for name in sorted(order, key=lambda n: not scenario.nodes[n].foreign):
         plan = scenario.nodes[name]
-        argv = node_argv(scenario.file, plan.spec.kind or "any", name, run_dir,
-                         scenario.overrides)
+        argv = node_argv(scenario.file, plan.spec.kind or "any", name, paths.root,
+                         scenario.overrides, options)
+        prefix = plan.launch_prefix
         if plan.spec.external:
             _announce_external(name, argv)
         elif plan.foreign:
-            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
+            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent), prefix=prefix,
                              cwd=scenario.file.parent.resolve())
-        elif fork_is_safe() and not launch_prefix(name, dict(os.environ)):
-            supervisor.fork(name, partial(run_lockstep, scenario, name, run_dir))
+        elif options.spawn == "fork" and fork_is_safe() and not prefix:
+            supervisor.fork(name, partial(run_lockstep, scenario, name, paths.root, options))
         else:
-            supervisor.spawn(name, argv)
+            supervisor.spawn(name, argv, prefix=prefix)
     log.info("started %s", ", ".join(order))
     return any(p.started == "fork" for p in supervisor.procs.values())
 

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
-from orchestrator.timeutil import parse_duration_ns, rate_to_period_ns
+from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
 """A duration given as '30s', '10ms', '250us', '100ns' or seconds, held as integer ns."""
@@ -47,7 +47,7 @@ class NodeSpec(Strict):
     name: Name = Field(description="letters, digits and _, starting with a letter")
     kind: str | None = None
     module: str | None = None
-    rate: PeriodNs = Field(description=RATE_HELP)
+    period_ns: PeriodNs = Field(alias="rate", description=RATE_HELP)  # given as a rate in Hz
     params: dict[str, Any] = Field(default_factory=dict)
     inputs: list[InputSpec] = Field(default_factory=list)
     remap: dict[Topic, Topic] = Field(default_factory=dict)
@@ -57,11 +57,9 @@ class NodeSpec(Strict):
                                       "directory with use_sim_time")
     external: bool = Field(False, description="true: not spawned; you start it with "
                            "'cosim-node KIND --scenario FILE --node NAME --lockstep'")
-
-    @property
-    def period_ns(self) -> int:
-        """The node's period in nanoseconds."""
-        return self.rate
+    prefix: str | None = Field(None, description="a command that wraps the node's process, "
+                               "like ros2 launch's prefix, e.g. 'gdb -ex run --args' or "
+                               "'valgrind'; it must exec the node (keep its pid)")
 
 
 class GoalSpec(Strict):

@@ -167,6 +167,18 @@ class Schedule:
             return None
         return ((tick - 1) // p) * p
 
+    def inputs_at(self, node: str, tick: int) -> list[tuple[int, int]]:
+        """Which input samples ``node`` consumes at ``tick``: (index of the input in the
+        node's declared inputs, producer tick of the sample), for every input that has a
+        sample by then (a delayed input has none at tick 0). The one answer every driver
+        (in-process, node runtime, foreign feeder, master's messages) uses."""
+        out = []
+        for index, edge in enumerate(self.inputs_of[node]):
+            wanted = self.input_tick(edge, tick)
+            if wanted is not None:
+                out.append((index, wanted))
+        return out
+
     def activations(self, node: str) -> int:
         """How many times the node acts in the whole run."""
         return self.last_tick // self.periods[node] + 1

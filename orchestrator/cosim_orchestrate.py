@@ -56,13 +56,36 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a recorded run directory: on a digest mismatch, name the first topic\n"
                         "and tick that differ from it; its digest is expected unless\n"
                         "--expect-digest is given")
+    how = p.add_argument_group("how the work is done (never changes the digest)")
+    how.add_argument("--no-pipeline", action="store_true",
+                     help="every node finishes tick k before /clock says k+1 (strict lockstep)")
+    how.add_argument("--spawn", choices=["fork", "exec"], default="fork",
+                     help="start cosim nodes as forks of this process (default) or as fresh\n"
+                          "interpreters")
+    how.add_argument("--no-zenoh-shm", action="store_true",
+                     help="zenoh: no shared memory for large messages")
+    how.add_argument("--no-camera-warm-up", action="store_true",
+                     help="cameras build their GL renderer at the first frame, not at set-up")
+    how.add_argument("--profile", choices=["wall", "cpu"],
+                     help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
     return p
 
 
+def options_from(args: argparse.Namespace, on_tick=None):
+    """The run options the command line asks for."""
+    from plan.options import RunOptions
+
+    return RunOptions(out=args.out, in_process=args.in_process, paused=args.paused,
+                      export_usd=args.export_usd, pipeline=not args.no_pipeline,
+                      spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
+                      camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
+                      shuffle_start=args.shuffle_start)
+
+
 def overrides_from(args: argparse.Namespace) -> dict:
     """Scenario overrides collected from the options."""
-    from nodes.cli import parse_overrides
+    from plan.overrides import parse_overrides
 
     overrides = parse_overrides(args.set)
     if args.transport:
@@ -82,45 +105,29 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
     args = build_parser().parse_args(argv)
     from orchestrator.diff import digest_mismatch, expected_digest
-    from orchestrator.errors import ScenarioError
-    from orchestrator.scenario import load_scenario
+    from orchestrator.run_rules import check_run
+    from plan.errors import ScenarioError
+    from plan.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))
         expected = expected_digest(args.expect_digest, args.against)
+        options = options_from(args)
+        warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
-    if args.in_process and foreign:
-        print(f"cosim-orchestrate: error: {scenario.file}: --in-process runs step classes only; "
-              f"node(s) {', '.join(foreign)} are foreign programs (command:). Run without "
-              "--in-process.", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    if scenario.model.transport == "zenoh" and foreign and not args.in_process:
-        print(f"cosim-orchestrate: error: {scenario.file}: transport: zenoh carries cosim nodes "
-              f"only; node(s) {', '.join(foreign)} are foreign ROS 2 programs (command:) that "
-              "talk DDS. Use transport ros2.", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    for warning in scenario.warnings:
+    for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
-    if scenario.model.transport == "zenoh" and not args.in_process:
-        from nodes.zenoh_settings import export_settings
-
-        export_settings(scenario.model.zenoh)  # endpoints and mirrors, through the environment
+    from orchestrator.execute import execute
     from orchestrator.progress import Progress
     from orchestrator.report import print_outcome
-    from orchestrator.run import RunOptions, execute
 
     progress = Progress(scenario.schedule.n_ticks, scenario.tick_ns,
                         enabled=not args.quiet and sys.stderr.isatty())
     try:
-        options = RunOptions(out=args.out, in_process=args.in_process,
-                             shuffle_start=args.shuffle_start, paused=args.paused,
-                             on_tick=progress.update,
-                             export_usd=args.export_usd)
-        outcome = execute(scenario, options)
+        outcome = execute(scenario, options, on_tick=progress.update)
     except KeyboardInterrupt:
         print("cosim-orchestrate: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 from pathlib import Path
-
-import yaml
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -34,18 +31,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--run-dir", type=Path, help="where to record what this node publishes")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, as the orchestrator does (repeatable)")
+    p.add_argument("--run-options", metavar="JSON", help=argparse.SUPPRESS)  # orchestrator's
     return p.parse_args(argv)
-
-
-def parse_overrides(pairs: list[str]) -> dict:
-    """['seed=3', 'nodes.a.rate=20'] -> {'seed': 3, 'nodes.a.rate': 20} (values are YAML)."""
-    out = {}
-    for pair in pairs:
-        key, sep, value = pair.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--set {pair!r}: expected KEY=VALUE")
-        out[key] = yaml.safe_load(value)
-    return out
 
 
 def pick_node(scenario, kind: str, name: str | None) -> str:
@@ -64,38 +51,43 @@ def pick_node(scenario, kind: str, name: str | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-node."""
-    from nodes.parent import die_with_parent
+    from nodes.runtime.parent import die_with_parent
 
     die_with_parent()
     args = parse_args(argv)
-    from orchestrator.errors import ScenarioError
-    from orchestrator.scenario import load_scenario
+    from plan.errors import ScenarioError
+    from plan.options import RunOptions
+    from plan.overrides import parse_overrides
+    from plan.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, parse_overrides(args.set))
         name = pick_node(scenario, args.kind, args.node)
+        options = RunOptions.from_node_json(args.run_options)
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from nodes.parent import name_this_process
+    from nodes.runtime.parent import name_this_process
 
     name_this_process(name)
     if args.realtime:
-        return run_realtime(scenario, name, args.rtf)
-    return run_lockstep(scenario, name, args.run_dir)
+        return run_realtime(scenario, name, args.rtf, options)
+    return run_lockstep(scenario, name, args.run_dir, options)
 
 
-def run_realtime(scenario, name: str, rtf: float) -> int:
+def run_realtime(scenario, name: str, rtf: float, options=None) -> int:
     """Run node ``name`` free-running on wall time until Ctrl-C."""
     import signal
 
-    from nodes.realtime import RealtimeRuntime
-    from nodes.transport import create_transport
-    from orchestrator.inprocess import make_node
+    from nodes.runtime.build import make_node
+    from nodes.runtime.realtime import RealtimeRuntime
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import TransportSettings
 
-    transport = create_transport(scenario.model.transport, f"cosim_{name}")
+    transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
     try:
-        runtime = RealtimeRuntime(scenario, name, make_node(scenario, name), transport, rtf)
+        runtime = RealtimeRuntime(scenario, name, make_node(scenario, name, options),
+                                  transport, rtf)
         signal.signal(signal.SIGINT, runtime.request_stop)
         signal.signal(signal.SIGTERM, runtime.request_stop)
         clock = "publishing /clock" if runtime.publish_clock else "following /clock"
@@ -112,12 +104,17 @@ def run_realtime(scenario, name: str, rtf: float) -> int:
         transport.close()
 
 
-def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
+def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int:
     """Run node ``name`` under an orchestrator until told to stop."""
-    from nodes.recording import PartWriter
-    from nodes.runtime import LockstepRuntime, NodeFailure, install_stop_handlers
-    from nodes.transport import create_transport
-    from orchestrator.inprocess import make_node
+    from nodes.runtime.build import make_node
+    from nodes.runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
+    from nodes.runtime.recording import PartWriter
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import RunOptions, TransportSettings
+    from plan.run_paths import RunPaths
+
+    options = options or RunOptions()
+    paths = RunPaths(run_dir) if run_dir else None
 
     # Publishers and subscriptions first: DDS discovery then runs in the transport's own
     # threads while the node builds its model (MuJoCo compile, renderer set-up).
@@ -125,15 +122,15 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
     # so the alarm that reports before a slow step always lands on this thread.
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
     try:
-        transport = create_transport(scenario.model.transport, f"cosim_{name}")
+        transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
-    recorder = PartWriter(run_dir / "parts" / f"{name}.rec") if run_dir else None
+    recorder = PartWriter(paths.part(name)) if paths else None
     runtime = LockstepRuntime(scenario, name, None, transport, recorder)
     install_stop_handlers(runtime)
     try:
-        runtime.node = make_node(scenario, name)
-        _run_maybe_profiled(runtime, run_dir, name)
+        runtime.node = make_node(scenario, name, options)
+        _run_maybe_profiled(runtime, paths, name, options.profile)
         return EXIT_OK
     except KeyboardInterrupt:  # a step cut short by the orchestrator's stop is a clean end
         return EXIT_OK if runtime.stop_requested else EXIT_INTERRUPTED
@@ -147,29 +144,26 @@ def run_lockstep(scenario, name: str, run_dir: Path | None) -> int:
             traceback.print_exception(exc.__cause__, file=sys.stderr)
         return EXIT_FAILED
     finally:
-        _write_timing(runtime, run_dir, name)  # also when stopped in the middle of a step
+        _write_timing(runtime, paths, name)  # also when stopped in the middle of a step
         if recorder:
             recorder.close()
         transport.close()
 
 
-def _write_timing(runtime, run_dir: Path | None, name: str) -> None:
+def _write_timing(runtime, paths, name: str) -> None:
     """Leave the run loop's time split next to the node's log, for the manifest."""
-    from nodes.timing import summary_path
-
-    if run_dir is not None and runtime.timing.started is not None:
+    if paths is not None and runtime.timing.started is not None:
         try:
-            runtime.timing.write(summary_path(run_dir / "logs", name))
+            runtime.timing.write(paths.timing(name))
         except OSError:
             pass  # the run directory is gone: nothing to add to
 
 
-def _run_maybe_profiled(runtime, run_dir: Path | None, name: str) -> None:
-    """Run; with COSIM_PROFILE set and a run directory, write a cProfile of the node there
-    (COSIM_PROFILE=cpu counts the main thread's CPU time instead of wall time: on a loaded
+def _run_maybe_profiled(runtime, paths, name: str, mode: str | None) -> None:
+    """Run; with the run option ``profile`` and a run directory, write a cProfile of the
+    node there ('cpu' counts the main thread's CPU time instead of wall time: on a loaded
     machine wall time charges a call for the other processes that ran meanwhile)."""
-    mode = os.environ.get("COSIM_PROFILE")
-    if not (mode and run_dir):
+    if not (mode and paths):
         runtime.run()
         return
     import cProfile
@@ -179,7 +173,7 @@ def _run_maybe_profiled(runtime, run_dir: Path | None, name: str) -> None:
     try:
         profiler.runcall(runtime.run)
     finally:
-        profiler.dump_stats(run_dir / "logs" / f"{name}.prof")
+        profiler.dump_stats(paths.profile(name))
 
 
 if __name__ == "__main__":

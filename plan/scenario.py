@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import math
+import shlex
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -17,15 +18,14 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from nodes.contract import StepNode
-from nodes.registry import KINDS, kind_class, load_class
-from orchestrator.errors import ScenarioError
-from orchestrator.model import NodeSpec, ScenarioModel
-from orchestrator.schedule import Edge, Schedule, find_same_tick_cycle
-from orchestrator.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
-from orchestrator.validation import describe_validation_error, key_path
+from plan.errors import ScenarioError
+from plan.model import NodeSpec, ScenarioModel
+from plan.registry import KINDS, kind_class, load_class
+from plan.schedule import Edge, Schedule, find_same_tick_cycle
+from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.validation import describe_validation_error, key_path
 
-FOREIGN = "nodes.foreign:ForeignNode"
+FOREIGN = "nodes.foreign_program:ForeignNode"
 
 
 @dataclass(frozen=True)
@@ -58,13 +58,14 @@ class NodePlan:
         return {own: self.outputs[graph] for own, graph in self.output_names.items()}
 
     @property
+    def launch_prefix(self) -> list[str]:
+        """The command that wraps the node's process (scenario key ``prefix``), split."""
+        return shlex.split(self.spec.prefix) if self.spec.prefix else []
+
+    @property
     def foreign(self) -> bool:
         """Whether this node is a foreign ROS 2 program started from a command."""
         return self.spec.command is not None
-
-    def step_class(self) -> type[StepNode]:
-        """Import and return the node's step class."""
-        return load_class(self.class_ref)
 
 
 @dataclass
@@ -95,9 +96,10 @@ class Scenario:
         return out
 
     @property
-    def pipelined(self) -> frozenset[str]:
-        """Leaf nodes (nothing consumes their outputs, not foreign) that may lag one activation
-        behind the others; their metrics never decide an early stop, on any driver."""
+    def trailing_nodes(self) -> frozenset[str]:
+        """The nodes that may trail the others by up to one activation: leaves of the graph
+        (nothing consumes their outputs), not foreign. Their metrics never decide an early
+        stop, on any driver."""
         return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].foreign)
 
     def producer_of(self, topic: str) -> str:
@@ -320,7 +322,7 @@ class ScenarioContext:
                                 "a name used by one node only.")
             seen[spec.name] = i
 
-    def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type[StepNode]]:
+    def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type]:
         """The step class named by kind or module (or the stand-in of a foreign command)."""
         given = [key for key in ("kind", "module", "command") if getattr(spec, key) is not None]
         if len(given) != 1:
@@ -349,7 +351,7 @@ class ScenarioContext:
                             "'package.module:Class' importable here, a StepNode subclass."
                             ) from None
 
-    def node_params(self, i: int, spec: NodeSpec, cls: type[StepNode]) -> BaseModel:
+    def node_params(self, i: int, spec: NodeSpec, cls: type) -> BaseModel:
         """The node's parameters checked against its class's Params model."""
         try:
             return cls.Params.model_validate(spec.params)
@@ -375,7 +377,7 @@ class ScenarioContext:
 
     def check_world(self, world: Path) -> None:
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
-        from nodes.worldfile import WorldError, check_world
+        from plan.worldfile import WorldError, check_world
 
         try:
             check_world(world)
@@ -405,7 +407,7 @@ class ScenarioContext:
                             f"{format_ns((self.model.duration // tick_ns + 1) * tick_ns)}.")
         return self.model.duration // tick_ns
 
-    def node_outputs(self, i: int, spec: NodeSpec, cls: type[StepNode], params: BaseModel
+    def node_outputs(self, i: int, spec: NodeSpec, cls: type, params: BaseModel
                      ) -> tuple[dict[str, type], dict[str, str]]:
         """The node's outputs under graph names (after remap), and own -> graph names."""
         own = cls.outputs(params)
@@ -438,7 +440,7 @@ class ScenarioContext:
                 producers[topic] = (self.model.nodes[i].name, msg)
         return producers
 
-    def node_inputs(self, i: int, spec: NodeSpec, cls: type[StepNode], params: BaseModel,
+    def node_inputs(self, i: int, spec: NodeSpec, cls: type, params: BaseModel,
                     producers: dict[str, tuple]) -> list[InputPlan]:
         """The node's inputs resolved to producers; every input needs a publisher."""
         accepted = cls.accepted_inputs(params)

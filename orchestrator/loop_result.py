@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 
 @dataclass
-class RunResult:
-    """What a run produced: digest, ticks run, per-node metrics and whether it stopped early."""
+class LoopResult:
+    """What a tick loop produced: digest, ticks run, per-node metrics, early stop or not."""
 
     digest: str
     ticks: int
@@ -17,12 +17,12 @@ class RunResult:
     step_ns: dict[str, list[int]] = field(default_factory=dict)  # in-process: [n, total, worst]
 
 
-def goal_reached(metrics: dict[str, dict[str, float]], ignore: frozenset[str] = frozenset()
-                 ) -> bool:
+def goal_reached(metrics: dict[str, dict[str, float]],
+                 trailing: frozenset[str] = frozenset()) -> bool:
     """Whether the goal is reached: as a navigator reports it ('goal_reached'), or, when no
-    node reports that, as physics sees it in ground truth ('arrived'). Nodes in ``ignore``
-    (pipelined leaves, whose reports may lag) are not consulted."""
-    metrics = {n: m for n, m in metrics.items() if n not in ignore}
+    node reports that, as physics sees it in ground truth ('arrived'). ``trailing`` nodes
+    (whose reports may trail the others) are not consulted."""
+    metrics = {n: m for n, m in metrics.items() if n not in trailing}
     claimed = [m["goal_reached"] for m in metrics.values() if "goal_reached" in m]
     if claimed:
         return any(v >= 1 for v in claimed)

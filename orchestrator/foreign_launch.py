@@ -1,4 +1,4 @@
-"""The command line of a foreign program (kept apart from ``orchestrator.foreign``, which
+"""The command line of a foreign program (kept apart from ``orchestrator.foreign_proxy``, which
 loads rclpy: the orchestrator builds it before it forks its own node processes)."""
 
 from __future__ import annotations

@@ -14,9 +14,9 @@ from typing import Any
 
 from builtin_interfaces.msg import Time
 
-from nodes.cdr_decode import decode
-from nodes.cdr_encode import encode
 from nodes.contract import Tick
+from nodes.runtime.cdr.decode import decode
+from nodes.runtime.cdr.encode import encode
 
 NS_PER_S = 1_000_000_000
 

@@ -8,7 +8,6 @@ Only this module (and the transports) touch the network.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import time
@@ -16,13 +15,12 @@ import traceback
 from collections import deque
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
-from nodes.exchange import InputHistory, output_digest, prepare_outputs
-from nodes.protocol import (
+from nodes.runtime.exchange import InputHistory, output_digest, prepare_outputs
+from nodes.runtime.protocol import (
     CLOCK_TOPIC,
     COMMAND_TOPIC,
     ERROR,
@@ -30,15 +28,18 @@ from nodes.protocol import (
     RESETTING,
     STATUS_TOPIC,
     WAITING,
+    Command,
+    CommandMessage,
     Done,
     Status,
     decode_clock,
+    decode_command,
     done_status,
     encode_status,
 )
-from nodes.recording import PartWriter
-from nodes.timing import TimeSplit
-from nodes.transport import Received, Transport
+from nodes.runtime.recording import PartWriter
+from nodes.runtime.timing import TimeSplit
+from nodes.runtime.transport.base import Received, Transport
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
@@ -178,7 +179,7 @@ class LockstepRuntime:
                 self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
                 continue
             if rec.topic == COMMAND_TOPIC:
-                self.on_command(deserialize_message(rec.data, String).data)
+                self.on_command(decode_command(rec.data))
                 continue
             channel = self.inputs[rec.topic]
             tick = channel.accept(rec)
@@ -208,18 +209,16 @@ class LockstepRuntime:
             if not self.clocks and self.upstream_gone():
                 return  # the run is over (or the orchestrator died): nothing will come
 
-    def on_command(self, command: str) -> None:
-        """Handle the orchestrator's reset handshake (see nodes.protocol)."""
-        verb, _, rest = command.partition(" ")
-        epoch, _, payload = rest.partition(" ")
-        if verb == "reset":
+    def on_command(self, message: CommandMessage) -> None:
+        """Handle the orchestrator's reset handshake (see nodes.runtime.protocol)."""
+        epoch = str(message.epoch)
+        if message.command is Command.RESET:
             self.report_done()
             values = {"epoch": epoch, **{f"sent:{t}": str(n) for t, n in self.sent.items()}}
             self.report(Status(self.name, RESETTING, values=values))
-        elif verb == "restart":
-            sent = json.loads(payload)
+        elif message.command is Command.RESTART:
             for topic, channel in self.inputs.items():
-                channel.rebase(sent.get(topic, 0))
+                channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
             self.node.reset(self.scenario.model.seed, self.node.config)
             if self.recorder:
@@ -242,12 +241,11 @@ class LockstepRuntime:
         if not self.sched.is_due(self.name, k):
             return True
         wanted = {}
-        for edge, inp in zip(self.sched.inputs_of[self.name], self.plan.inputs, strict=True):
-            r = self.sched.input_tick(edge, k)
-            if r is not None:
-                if not self.inputs[inp.graph_topic].history.has(r):
-                    return False
-                wanted[inp.topic] = (inp.graph_topic, r)
+        for index, r in self.sched.inputs_at(self.name, k):
+            inp = self.plan.inputs[index]
+            if not self.inputs[inp.graph_topic].history.has(r):
+                return False
+            wanted[inp.topic] = (inp.graph_topic, r)
         taken = time.perf_counter_ns()
         inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
         self.timing.add("deserialise", taken)

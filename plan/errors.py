@@ -25,3 +25,7 @@ class SimulationError(Exception):
         self.node = node
         self.tick = tick
         super().__init__(message)
+
+
+class ScenarioWarning(UserWarning):
+    """Something in a scenario that runs but deserves a word (e.g. an output nobody reads)."""

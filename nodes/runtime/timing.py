@@ -53,11 +53,6 @@ class TimeSplit:
         path.write_text(json.dumps(self.summary(), indent=1))
 
 
-def summary_path(logs: Path, node: str) -> Path:
-    """Where a node leaves its summary: beside its log, ``<logs>/<node>.timing.json``."""
-    return logs / f"{node}.timing.json"
-
-
 def read_summary(path: Path) -> dict[str, float] | None:
     """A node's written summary, or None when the node wrote none (killed, foreign...)."""
     try:

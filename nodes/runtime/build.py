@@ -1,0 +1,27 @@
+"""Build a step node from its entry in the checked plan: the one way every driver (node
+process, realtime node, in-process reference, benchmarks) makes and resets a node."""
+
+from __future__ import annotations
+
+from nodes.contract import NodeConfig, StepNode
+from plan.options import RunOptions
+from plan.registry import load_class
+from plan.scenario import Scenario
+
+
+def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
+                ) -> NodeConfig:
+    """The NodeConfig every driver gives node ``name`` at reset."""
+    plan = scenario.nodes[name]
+    goal = scenario.model.goal.model_dump() if scenario.model.goal else None
+    warm_up = (options or RunOptions()).camera_warm_up
+    return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
+                      period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
+                      scenario_dir=scenario.file.parent.resolve(), render_warm_up=warm_up)
+
+
+def make_node(scenario: Scenario, name: str, options: RunOptions | None = None) -> StepNode:
+    """Instantiate and reset node ``name``'s step class."""
+    node = load_class(scenario.nodes[name].class_ref)()
+    node.reset(scenario.model.seed, node_config(scenario, name, options))
+    return node

@@ -1,0 +1,58 @@
+"""A mirror of a zenoh run onto ROS 2 (DDS), for ordinary ros2 tools (the scenario's
+``zenoh.mirror_to_dds``). It lives in the orchestrator, beside the zenoh transport rather
+than inside it: the transport carries the run, the mirror only watches it."""
+
+from __future__ import annotations
+
+import zenoh
+
+
+class DdsMirror:
+    """Republishes chosen zenoh topics on ROS 2 (DDS), so ordinary ros2 tools can watch a run.
+
+    Runs in the orchestrator's process: one rclpy node, one publisher per mirrored topic
+    (created on the first sample, with the type named in the key expression), fed by zenoh
+    subscribers whose callbacks run on a Python thread of their own. Best effort: it never
+    holds the lockstep up, and what it shows is not part of the run digest.
+    """
+
+    def __init__(self, session: zenoh.Session, domain: int, topics: list[str]):
+        import rclpy
+
+        from nodes.runtime.transport.ros2 import (
+            no_signal_handlers,
+            reliable_qos,
+            use_cosim_dds_profile,
+        )
+
+        use_cosim_dds_profile()
+        self._qos = reliable_qos(100)
+        self._context = rclpy.Context()
+        rclpy.init(context=self._context, signal_handler_options=no_signal_handlers())
+        self.node = rclpy.create_node("cosim_zenoh_mirror", context=self._context,
+                                      start_parameter_services=False, enable_rosout=False)
+        self._publishers: dict[str, object] = {}
+        self._subs = [session.declare_subscriber(
+            f"{domain}/{topic.strip('/')}/*/*",
+            zenoh.handlers.Callback(lambda sample, t=topic: self._forward(t, sample)))
+            for topic in topics]
+
+    def _forward(self, topic: str, sample: zenoh.Sample) -> None:
+        pub = self._publishers.get(topic)
+        if pub is None:
+            name = str(sample.key_expr).split("/")[-2]  # 'pkg::msg::dds_::Type_'
+            package, kind, _, type_ = name.split("::")
+            module = __import__(f"{package}.{kind}", fromlist=[type_[:-1]])
+            pub = self.node.create_publisher(getattr(module, type_[:-1]), topic, self._qos)
+            self._publishers[topic] = pub
+        pub.handle.publish_raw(sample.payload.to_bytes())
+
+    def close(self) -> None:
+        """Stop forwarding and shut the rclpy context down."""
+        import rclpy
+
+        for sub in self._subs:
+            sub.undeclare()
+        self.node.destroy_node()
+        if self._context.ok():
+            rclpy.shutdown(context=self._context)

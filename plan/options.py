@@ -1,0 +1,98 @@
+"""How to run a checked scenario: run options and transport settings, passed explicitly.
+
+Nothing here changes what a run computes (the digest is the same whatever the options);
+they choose how the work is done: pipelined or strictly in lockstep, forked or fresh
+node processes, zenoh shared memory, the camera's GL warm-up, profiling. The orchestrator
+hands the node-side fields to every node process on its command line (``to_json``), never
+through the environment.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Literal
+
+SPAWN_MODES = ("fork", "exec")
+PROFILE_MODES = ("wall", "cpu")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """One run's options (CLI flags, API keywords and the pytest plugin all build this)."""
+
+    out: Path = Path("runs")
+    in_process: bool = False
+    paused: bool = False
+    export_usd: bool = False
+    pipeline: bool = True  # False: every node finishes tick k before /clock says k + 1
+    spawn: Literal["fork", "exec"] = "fork"  # exec: fresh interpreters for cosim nodes
+    zenoh_shm: bool = True  # zenoh's shared-memory transport for large messages
+    camera_warm_up: bool = True  # build the camera's GL renderer in a thread at set-up
+    profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
+    shuffle_start: int | None = None  # tests: start node processes in a seeded order
+
+    def __post_init__(self) -> None:
+        if self.spawn not in SPAWN_MODES:
+            raise ValueError(f"spawn must be one of {', '.join(SPAWN_MODES)}, not {self.spawn!r}")
+        if self.profile is not None and self.profile not in PROFILE_MODES:
+            raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
+                             f"not {self.profile!r}")
+        object.__setattr__(self, "out", Path(self.out))
+
+    def with_(self, **changes) -> RunOptions:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def node_json(self) -> str:
+        """The fields a node process needs, as JSON for its command line."""
+        return json.dumps({f: getattr(self, f) for f in NODE_FIELDS})
+
+    @classmethod
+    def from_node_json(cls, text: str | None) -> RunOptions:
+        """Options rebuilt in a node process from ``node_json`` (defaults when None)."""
+        if not text:
+            return cls()
+        values = json.loads(text)
+        unknown = set(values) - set(NODE_FIELDS)
+        if unknown:
+            raise ValueError(f"unknown run option(s) {', '.join(sorted(unknown))}")
+        return cls(**values)
+
+    def as_dict(self) -> dict:
+        """JSON-ready fields, for the manifest."""
+        out = asdict(self)
+        out["out"] = str(self.out)
+        return out
+
+
+NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile")
+"""The options a node process acts on."""
+
+assert set(NODE_FIELDS) <= {f.name for f in fields(RunOptions)}
+
+
+@dataclass(frozen=True)
+class TransportSettings:
+    """Which transport a participant opens and, for zenoh, where sessions meet.
+
+    Built from the scenario (``transport:`` and its ``zenoh:`` section) and the run options,
+    by the orchestrator and by every node process alike, so both sides agree without any
+    setting passing through the environment.
+    """
+
+    kind: str = "ros2"
+    zenoh_listen: tuple[str, ...] = ()
+    zenoh_connect: tuple[str, ...] = ()
+    zenoh_shm: bool = True
+    mirror_to_dds: tuple[str, ...] = field(default=())
+
+    @classmethod
+    def of(cls, scenario, options: RunOptions | None = None) -> TransportSettings:
+        """The settings of a checked scenario run with ``options``."""
+        model = scenario.model
+        return cls(kind=model.transport, zenoh_listen=tuple(model.zenoh.listen),
+                   zenoh_connect=tuple(model.zenoh.connect),
+                   zenoh_shm=(options or RunOptions()).zenoh_shm,
+                   mirror_to_dds=tuple(model.zenoh.mirror_to_dds))

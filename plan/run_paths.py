@@ -1,0 +1,76 @@
+"""Run directories: ``runs/<scenario>-<timestamp>/``, never reused, and the one object that
+names every path inside one (the orchestrator writes them, node processes record into
+them, the API, diff and report read them)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class RunPaths:
+    """The paths of one run directory."""
+
+    root: Path
+
+    @property
+    def manifest(self) -> Path:
+        """manifest.json: what ran, the digest, the outcome and what it cost."""
+        return self.root / "manifest.json"
+
+    @property
+    def bag(self) -> Path:
+        """The rosbag2 (MCAP) directory."""
+        return self.root / "bag"
+
+    @property
+    def report(self) -> Path:
+        """report.png: the run in one picture."""
+        return self.root / "report.png"
+
+    @property
+    def usd(self) -> Path:
+        """run.usda: the run as an OpenUSD stage (--export-usd)."""
+        return self.root / "run.usda"
+
+    @property
+    def logs(self) -> Path:
+        """One log per node, and the orchestrator's."""
+        return self.root / "logs"
+
+    @property
+    def parts(self) -> Path:
+        """What each node recorded during the run (merged into the bag afterwards)."""
+        return self.root / "parts"
+
+    def log(self, node: str) -> Path:
+        """A node's log (``orchestrator`` for the orchestrator's own)."""
+        return self.logs / f"{node}.log"
+
+    def part(self, node: str) -> Path:
+        """What a node recorded: (tick, topic, bytes) records."""
+        return self.parts / f"{node}.rec"
+
+    def timing(self, node: str) -> Path:
+        """A node's run-loop time split."""
+        return self.logs / f"{node}.timing.json"
+
+    def profile(self, node: str) -> Path:
+        """A node's cProfile (run option ``profile``)."""
+        return self.logs / f"{node}.prof"
+
+
+def make_run_dir(root: Path, scenario_name: str) -> RunPaths:
+    """Create a fresh run directory under ``root``; a suffix keeps same-second runs apart."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    root.mkdir(parents=True, exist_ok=True)
+    for n in range(1000):
+        path = root / (f"{scenario_name}-{stamp}" + (f"-{n}" if n else ""))
+        try:
+            path.mkdir()
+            return RunPaths(path)
+        except FileExistsError:
+            continue
+    raise RuntimeError(f"cannot create a run directory under {root}")
