@@ -37,8 +37,9 @@ def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240,
     import os
 
     before = set(out.glob("*")) if out.exists() else set()
-    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=ROOT, env={**os.environ, **(env or {})})
+    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT,
+                          env={**os.environ, **(env or {})})
     new = sorted(set(out.glob("*")) - before) if out.exists() else []
     return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
 

@@ -10,8 +10,8 @@ The distance field holds, per cell, the distance to the nearest occupied cell up
 from __future__ import annotations
 
 import heapq
-from dataclasses import replace
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
