@@ -5,7 +5,7 @@
 Prints ticks/s for a same-tick chain of 3 nodes and for 1, 3 and 6 independent nodes,
 each over the full protocol (clock, status reports, sequence checks, digest), and the
 round trips/s of two bare rclpy processes exchanging one message each way (the floor).
-The chain also runs strictly in lockstep (COSIM_NO_PIPELINE=1: every node finishes tick k
+The chain also runs strictly in lockstep (--no-pipeline: every node finishes tick k
 before /clock says k + 1) beside the default pipelined protocol, with the CPU time all
 processes spent per tick (less sensitive to other load on the machine than ticks/s).
 """
@@ -64,10 +64,9 @@ def chain_modes(seconds: int, transport: str, tmp: Path,
     base_doc = {**doc, "name": "chain3_base", "duration": "1ms"}
     rates: dict[str, list[float]] = {"pipelined": [], "strict lockstep": []}
     for _ in range(repeats):
-        for label, env in (("pipelined", {}), ("strict lockstep", {"COSIM_NO_PIPELINE": "1"})):
-            base = run_manifest(write_scenario(base_doc, tmp), "--transport", transport,
-                                env=env)
-            m = run_manifest(write_scenario(doc, tmp), "--transport", transport, env=env)
+        for label, flags in (("pipelined", []), ("strict lockstep", ["--no-pipeline"])):
+            base = run_manifest(write_scenario(base_doc, tmp), "--transport", transport, *flags)
+            m = run_manifest(write_scenario(doc, tmp), "--transport", transport, *flags)
             per_tick = (cpu_s(m) - cpu_s(base)) / m["ticks"] * 1e6
             print(f"  chain3 {label:16s} {m['ticks_per_s']:8.0f} ticks/s  {per_tick:6.0f} us "
                   f"CPU per tick (all processes)  digest {m['digest'][:12]}")

@@ -77,9 +77,8 @@ def main(argv: list[str] | None = None) -> None:
                 report(f"nav, {label:10s}", runs)
                 ratios[label].append(loop_s(runs["multi"]) / loop_s(runs["inproc"]))
             if repeat == 0:
-                fresh = run_manifest(NAV, "--transport", args.transport,
-                                     env={"COSIM_SPAWN": "exec"})
-                print(f"  start-up with fresh interpreters (COSIM_SPAWN=exec) instead of "
+                fresh = run_manifest(NAV, "--transport", args.transport, "--spawn", "exec")
+                print(f"  start-up with fresh interpreters (--spawn exec) instead of "
                       f"forks: command to first tick "
                       f"{fresh.get('startup', {}).get('command_to_first_tick_s', '-')} s, "
                       f"run start to first tick {fresh['start_s']:.2f} s")

@@ -8,7 +8,7 @@ Prints, each measured side by side on this machine:
 - nav.yaml without its camera: wall time multi-process (zenoh, ros2) over in-process;
 - round trips/s of one sensor_msgs/Image of 1 KiB, 1 MiB and 4 MiB between two processes
   through the transport seam: ros2, zenoh with its default shared-memory optimisation,
-  and zenoh with shared memory off (COSIM_ZENOH_SHM=0).
+  and zenoh with shared memory off (the run option zenoh_shm=False).
 """
 
 from __future__ import annotations
@@ -80,31 +80,28 @@ def payload_round_trips(transport: str, size: int, count: int, shm: bool = True)
     """Round trips/s of an Image of ``size`` bytes out and back between two processes."""
     from sensor_msgs.msg import Image
 
-    from nodes.runtime.transport.base import create_transport
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import TransportSettings
 
-    if not shm:
-        os.environ["COSIM_ZENOH_SHM"] = "0"
+    settings = TransportSettings(kind=transport, zenoh_shm=shm)
+    t = create_transport(settings, "bench_ping")
+    pub = t.publisher("/bench/ping", Image, 10)
+    sub = t.subscription("/bench/pong", Image, 10)
+    echo = subprocess.Popen([sys.executable, "-m", "bench.zenoh_chain", "--echo", transport,
+                             str(count), str(int(shm))], env=dict(os.environ), cwd=ROOT)
     try:
-        t = create_transport(transport, "bench_ping")
-        pub = t.publisher("/bench/ping", Image, 10)
-        sub = t.subscription("/bench/pong", Image, 10)
-        echo = subprocess.Popen([sys.executable, "-m", "bench.zenoh_chain", "--echo", transport,
-                                 str(count)], env=dict(os.environ), cwd=ROOT)
-        try:
-            while pub.matched() < 1 or sub.matched() < 1:
-                t.wait(10_000_000)
-            data = _image_bytes(size)
-            start = time.perf_counter()
-            for _ in range(count):
-                pub.publish(data)
-                while not t.wait(1_000_000_000):
-                    pass
-            rate = count / (time.perf_counter() - start)
-        finally:
-            echo.wait(timeout=30)
-            t.close()
+        while pub.matched() < 1 or sub.matched() < 1:
+            t.wait(10_000_000)
+        data = _image_bytes(size)
+        start = time.perf_counter()
+        for _ in range(count):
+            pub.publish(data)
+            while not t.wait(1_000_000_000):
+                pass
+        rate = count / (time.perf_counter() - start)
     finally:
-        os.environ.pop("COSIM_ZENOH_SHM", None)
+        echo.wait(timeout=30)
+        t.close()
     return rate
 
 
@@ -117,13 +114,14 @@ def _image_bytes(size: int) -> bytes:
                                    data=bytes(64 * 3 * width)))
 
 
-def echo(transport: str, count: int) -> None:
+def echo(transport: str, count: int, shm: bool = True) -> None:
     """The far end of payload_round_trips: send back every message received."""
     from sensor_msgs.msg import Image
 
-    from nodes.runtime.transport.base import create_transport
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import TransportSettings
 
-    t = create_transport(transport, "bench_pong")
+    t = create_transport(TransportSettings(kind=transport, zenoh_shm=shm), "bench_pong")
     pub = t.publisher("/bench/pong", Image, 10)
     t.subscription("/bench/ping", Image, 10)
     done = 0
@@ -142,10 +140,10 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seconds", type=int, default=3, help="sim seconds of the chain at 1 kHz")
     p.add_argument("--skip-nav", action="store_true")
     p.add_argument("--skip-payload", action="store_true")
-    p.add_argument("--echo", nargs=2, help=argparse.SUPPRESS)
+    p.add_argument("--echo", nargs=3, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.echo:
-        echo(args.echo[0], int(args.echo[1]))
+        echo(args.echo[0], int(args.echo[1]), bool(int(args.echo[2])))
         return
     os.environ.setdefault("ROS_DOMAIN_ID", bench_env()["ROS_DOMAIN_ID"])
     print(f"machine: {os.cpu_count()} CPUs")

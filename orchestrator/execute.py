@@ -178,7 +178,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
     opens_first = settings.kind == "zenoh"
     try:
         if opens_first:
-            transport = create_transport(settings, "cosim_orchestrator")
+            transport = _open_transport(settings)
         if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
@@ -188,7 +188,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         from orchestrator.participants import CosimNode
 
         if not opens_first:
-            transport = create_transport(settings, "cosim_orchestrator")
+            transport = _open_transport(settings)
         if settings.kind == "zenoh" and settings.mirror_to_dds:
             from orchestrator.dds_mirror import DdsMirror
 
@@ -224,6 +224,17 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             mirror.close()
         if transport is not None:
             transport.close()
+
+
+def _open_transport(settings: TransportSettings):
+    """The orchestrator's own participant; a failure to open it fails the run, named."""
+    try:
+        return create_transport(settings, "cosim_orchestrator")
+    except Exception as exc:  # noqa: BLE001 - zenoh and rclpy raise their own types
+        where = (f" (zenoh.listen {list(settings.zenoh_listen)}, zenoh.connect "
+                 f"{list(settings.zenoh_connect)})" if settings.kind == "zenoh" else "")
+        raise SimulationError(f"the orchestrator could not open its {settings.kind} "
+                              f"transport{where}: {exc}", node="orchestrator") from exc
 
 
 def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,

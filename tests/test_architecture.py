@@ -1,0 +1,80 @@
+"""The shape of the shipped code: which package may import which, and no import cycles.
+
+Every import counts, at module level or inside a function: a lazy import is still a
+dependency of the design. ``plan`` (the checked scenario) is below both ``nodes`` and
+``orchestrator``; ``nodes`` never imports ``orchestrator``.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+from tests.helpers import ROOT
+
+PACKAGES = ("plan", "nodes", "orchestrator")
+MAY_IMPORT = {"plan": {"plan"}, "nodes": {"plan", "nodes"},
+              "orchestrator": {"plan", "nodes", "orchestrator"}}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the project modules it imports (anywhere in its code)."""
+    files = {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                base = node.module
+                for alias in node.names:
+                    full = f"{base}.{alias.name}"
+                    targets.add(full if full in files else base)
+            elif isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+        graph[name] = {t for t in targets if t in files and t != name}
+    return graph
+
+
+def test_nothing_imports_a_package_above_it():
+    wrong = sorted(f"{module} imports {target}" for module, targets in import_graph().items()
+                   for target in targets
+                   if target.split(".")[0] not in MAY_IMPORT[module.split(".")[0]])
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_import_graph_has_no_cycle():
+    graph = import_graph()
+    state: dict[str, int] = {}
+
+    def visit(module: str, stack: list[str]) -> list[str] | None:
+        state[module] = 1
+        for target in sorted(graph[module]):
+            if state.get(target) == 1:
+                return stack[stack.index(target):] + [target]
+            if target not in state and (cycle := visit(target, [*stack, target])):
+                return cycle
+        state[module] = 2
+        return None
+
+    for module in sorted(graph):
+        if module not in state:
+            cycle = visit(module, [module])
+            assert cycle is None, " -> ".join(cycle)
+
+
+def test_settings_do_not_travel_through_the_environment():
+    # the environment carries process plumbing only (README, development section)
+    plumbing = {"COSIM_PARENT_PID", "COSIM_ZENOH_CONNECT", "COSIM_PYTEST_TOKEN"}
+    read = set()
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            read |= set(re.findall(r"COSIM_[A-Z_]+", path.read_text()))
+    assert read <= plumbing, sorted(read - plumbing)

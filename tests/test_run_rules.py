@@ -1,0 +1,101 @@
+"""The run's rules hold whoever starts the run: the command line, the Python API and the
+pytest plugin refuse the same scenarios, apply the scenario's zenoh section, and show the
+scenario's warnings."""
+
+from __future__ import annotations
+
+import socket
+import warnings
+
+import pytest
+import yaml
+
+from orchestrator.api import ScenarioError, ScenarioWarning, run
+from tests.helpers import SCENARIOS, orchestrate
+
+ECHO = SCENARIOS / "foreign_echo.yaml"
+PROTOCOL = SCENARIOS / "protocol.yaml"
+
+
+def variant(tmp_path, source, **changes):
+    doc = yaml.safe_load(source.read_text())
+    doc.update(changes)
+    for node in doc["nodes"]:  # keep the foreign program's relative path working
+        if node.get("command"):
+            node["command"] = [str((source.parent / a).resolve()) if a.startswith("..") else a
+                               for a in node["command"]]
+    path = tmp_path / source.name
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def with_unread_remap(tmp_path):
+    doc = yaml.safe_load(PROTOCOL.read_text())
+    doc["duration"] = "100ms"
+    doc["nodes"][4]["remap"] = {"/slow": "/slow_unread"}  # 'slow' feeds 'middle' no more
+    doc["nodes"][1]["inputs"] = [{"topic": "/source", "mode": "same_tick"}]
+    path = tmp_path / "remapped.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.fixture
+def busy_port():
+    """A loopback port held open, so a zenoh session told to listen there cannot."""
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen()
+    yield sock.getsockname()[1]
+    sock.close()
+
+
+# -- the command line -------------------------------------------------------------------
+
+def test_cli_refuses_foreign_programs_over_zenoh_and_in_process(tmp_path):
+    zenoh = orchestrate(variant(tmp_path, ECHO, transport="zenoh"), tmp_path / "a")
+    assert zenoh.code == 2 and "foreign ROS 2 programs" in zenoh.stderr, zenoh.stderr
+    inproc = orchestrate(ECHO, tmp_path / "b", "--in-process")
+    assert inproc.code == 2 and "in-process runs step classes only" in inproc.stderr
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_cli_prints_the_scenario_warnings(tmp_path):
+    done = orchestrate(with_unread_remap(tmp_path), tmp_path / "runs", "--in-process")
+    assert done.code == 0, done.stderr
+    assert "warning:" in done.stderr and "/slow_unread" in done.stderr
+
+
+# -- the Python API ---------------------------------------------------------------------
+
+def test_api_refuses_what_the_cli_refuses(tmp_path):
+    with pytest.raises(ScenarioError, match="foreign ROS 2 programs"):
+        run(variant(tmp_path, ECHO, transport="zenoh"), out=tmp_path / "a")
+    with pytest.raises(ScenarioError, match="in-process runs step classes only"):
+        run(ECHO, in_process=True, out=tmp_path / "b")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_api_issues_the_scenario_warnings(tmp_path):
+    with pytest.warns(ScenarioWarning, match="/slow_unread"):
+        result = run(with_unread_remap(tmp_path), in_process=True, out=tmp_path / "runs")
+    assert result.manifest["warnings"] and "/slow_unread" in result.manifest["warnings"][0]
+
+
+def test_api_applies_the_scenarios_zenoh_section(tmp_path, busy_port):
+    # listening where the port is taken fails the run; a run that ignored the section would
+    # listen on a free port and succeed
+    path = variant(tmp_path, PROTOCOL, transport="zenoh", duration="100ms",
+                   zenoh={"listen": [f"tcp/127.0.0.1:{busy_port}"]})
+    result = run(path, out=tmp_path / "runs", check=False)
+    assert result.status == "failed" and str(busy_port) in (result.error or ""), result.error
+
+
+# -- the pytest plugin --------------------------------------------------------------------
+
+def test_plugin_refuses_and_warns_like_the_api(tmp_path, cosim):
+    with pytest.raises(ScenarioError, match="foreign ROS 2 programs"):
+        cosim.run(variant(tmp_path, ECHO, transport="zenoh"))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        cosim.run(with_unread_remap(tmp_path), in_process=True, golden=False)
+    assert any(issubclass(w.category, ScenarioWarning) for w in seen)
