@@ -7,6 +7,7 @@ import math
 
 import mujoco
 import numpy as np
+import pytest
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
@@ -14,6 +15,7 @@ from nodes.contract import NodeConfig, Tick
 from nodes.control.follow import arc_clearance
 from nodes.control.grid import astar, world_grid
 from nodes.control.node import ControlNode
+from nodes.control.plan import Planner
 from tests.worlds import write_world
 
 WALL = '<geom name="wall" type="box" pos="0 0 0.5" size="0.1 1.5 0.5"/>'
@@ -119,3 +121,54 @@ def test_stops_short_of_an_unmapped_obstacle(tmp_path):
                                  "/scan": empty_scan(ranges)})
     assert out["/cmd_vel"].linear.x == 0.0
     assert math.isclose(node.metrics()["min_clearance"], 0.3, rel_tol=1e-6)
+
+
+# -- the map is drawn at the obstacles' true size (issue 19) -------------------------------
+
+PILLAR_ROW = "\n".join(  # pillars of r = 0.29 m, 1.2 m high, 0.9 m apart surface to surface
+    f'<geom name="p{i}" type="cylinder" pos="0 {y:.2f} 0.6" size="0.29 0.6"/>'
+    for i, y in enumerate(np.arange(-3.54, 4.0, 1.48)))
+WALLS = ('<geom name="n" type="box" pos="0 3.9 0.3" size="4 0.05 0.3"/>'  # a closed room
+         '<geom name="s" type="box" pos="0 -3.9 0.3" size="4 0.05 0.3"/>'
+         '<geom name="e" type="box" pos="4 0 0.3" size="0.05 4 0.3"/>'
+         '<geom name="w" type="box" pos="-4 0 0.3" size="0.05 4 0.3"/>')
+
+
+def planner(world) -> Planner:
+    model = mujoco.MjModel.from_xml_path(str(world))
+    return Planner(model, ControlNode.Params())
+
+
+def test_a_path_between_pillars_exists_at_their_true_radius(tmp_path):
+    # a bounding sphere (sqrt(0.29^2 + 0.6^2) = 0.67 m) would close every gap of the row
+    plan = planner(write_world(tmp_path, PILLAR_ROW + WALLS)).plan((-2.0, 0.74), (2.0, 0.74))
+    assert plan is not None
+    assert min(abs(x) for x, _ in plan.tolist()) < 0.1  # it crosses the row
+
+
+@pytest.mark.parametrize(("geom", "inside", "outside"), [
+    ('type="box" pos="0 0 0.3" size="0.5 0.2 0.3" euler="0 0 45"',
+     [(0.3, 0.3), (-0.3, -0.3)], [(0.3, -0.3), (0.0, 0.45)]),
+    ('type="cylinder" pos="0 0 0.3" size="0.4 0.3"', [(0.36, 0.0), (0.0, -0.36)],
+     [(0.48, 0.0), (0.35, 0.35)]),
+    ('type="capsule" pos="0 0 0.5" size="0.3 0.2"', [(0.26, 0.0)], [(0.38, 0.0)]),
+    ('type="sphere" pos="0 0 0.3" size="0.35"', [(0.31, 0.0)], [(0.43, 0.0)]),
+    ('type="cylinder" pos="0 0 0.2" size="0.2 0.6" euler="0 90 0"',  # lying: its hull
+     [(0.55, 0.0), (-0.55, 0.15)], [(0.72, 0.0), (0.0, 0.3)]),
+    ('type="ellipsoid" pos="0 0 0.3" size="0.5 0.2 0.3"', [(0.45, 0.0)], [(0.6, 0.0)]),
+])
+def test_each_geom_type_covers_its_own_footprint(tmp_path, geom, inside, outside):
+    model = mujoco.MjModel.from_xml_path(str(write_world(tmp_path, f'<geom name="g" {geom}/>')))
+    grid = world_grid(model, 0.05, (0.02, 0.6))
+    for x, y in inside:
+        assert grid.occ[grid.cell(x, y)], (geom, x, y)
+    for x, y in outside:
+        assert not grid.occ[grid.cell(x, y)], (geom, x, y)
+
+
+def test_report_picture_draws_cylinders_as_circles(tmp_path):
+    from orchestrator.picture import load_world
+
+    world = load_world(write_world(tmp_path, PILLAR_ROW + WALLS))
+    assert sorted(r for _, _, r in world.circles) == [0.29] * 6
+    assert len(world.polygons) == 4

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import heapq
 import math
-from dataclasses import replace
 
 import mujoco
 import numpy as np
 
-from plan.world_geometry import ROUND, Obstacle, polygon_edge_distances, static_obstacles
+from plan.world_geometry import Obstacle, polygon_edge_distances, static_obstacles
 
 SQRT2 = math.sqrt(2.0)
 NEIGHBOURS = [(-1, -1, SQRT2), (-1, 0, 1.0), (-1, 1, SQRT2), (0, -1, 1.0),
@@ -79,10 +78,6 @@ def world_grid(model: mujoco.MjModel, resolution: float, z_band: tuple[float, fl
     shape = tuple(int(v) for v in np.ceil((hi - lo) / resolution))
     grid = Grid((float(lo[0]), float(lo[1])), shape, resolution)
     grid.obstacles = obstacles
-    # As before this clean-up: round obstacles inflated to their bounding sphere (the
-    # numpy-integer bug of issue 19, fixed in the next commit, which changes digests).
-    obstacles = [replace(o, radius=float(model.geom_rbound[o.geom])) if o.kind in ROUND else o
-                 for o in obstacles]
     xs, ys = grid.centres()
     for o in obstacles:
         rasterise(o, grid, xs, ys)
