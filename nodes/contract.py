@@ -67,6 +67,15 @@ class StepNode:
         raise NotImplementedError
 
     @classmethod
+    def world_problems(cls, params: BaseModel, model: Any, goal: dict[str, float] | None
+                       ) -> list[tuple[str, str, str]]:
+        """What makes this node unable to work in the world ``model`` (a compiled MjModel),
+        checked when the scenario loads: (key, problem, accepted) per problem, the key
+        relative to the node's entry (e.g. 'params.start') or, starting with 'goal', the
+        scenario's goal. Nothing by default."""
+        return []
+
+    @classmethod
     def accepted_inputs(cls, params: BaseModel) -> set[str] | None:
         """The input topics this node understands, or None when it takes any topic."""
         return None

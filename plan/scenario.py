@@ -262,10 +262,15 @@ def _node_index(nodes: list, part: str) -> int | None:
 
 def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
     where = ScenarioContext(path, model)
+    where.check_finite("", model.model_dump(by_alias=True, exclude={"nodes"}))
     where.check_unique_names()
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
-    world = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    for i in range(len(model.nodes)):
+        where.check_finite(where.node_key(i, "params"), params[i].model_dump())
+    world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    if world_model is not None:
+        where.check_world_fit(classes, params, world_model)
     tick_ns = where.tick_ns()
     last_tick = where.last_tick(tick_ns)
     outputs = {i: where.node_outputs(i, spec, classes[i][1], params[i])
@@ -311,6 +316,19 @@ class ScenarioContext:
         """'nodes[1] (sensors).rate'-style key path."""
         key = f"nodes[{i}] ({self.model.nodes[i].name})"
         return f"{key}.{sub}" if sub else key
+
+    def check_finite(self, key: str, value: Any) -> None:
+        """No NaN or infinity anywhere in a (dumped) section: a position, a speed or a
+        tolerance that is not a number would fail only once the run is under way."""
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.fail(key, f"{value!r} is not a finite number.",
+                            "a finite number (no .nan, .inf or -.inf).")
+        if isinstance(value, dict):
+            for sub, item in value.items():
+                self.check_finite(f"{key}.{sub}" if key else str(sub), item)
+        elif isinstance(value, list | tuple):
+            for n, item in enumerate(value):
+                self.check_finite(f"{key}[{n}]", item)
 
     def check_unique_names(self) -> None:
         """Node names must be unique."""
@@ -360,27 +378,41 @@ class ScenarioContext:
             raise self.fail(self.node_key(i, f"params.{key}" if key else "params"),
                             problem, accepted) from None
 
-    def world_path(self, needed: bool) -> Path | None:
-        """The world file, resolved relative to the scenario file, which must exist."""
+    def world_path(self, needed: bool) -> tuple[Path | None, object]:
+        """The world file, resolved relative to the scenario file, which must exist, and its
+        compiled model (None when no node needs one)."""
         if self.model.world is None:
             if needed:
                 raise self.fail("world", "a node of this scenario needs a world file, none given.",
                                 "world: path to an MJCF (.xml) or USD (.usda, .usdc, .usd) file, "
                                 "relative to this file.")
-            return None
+            return None, None
         world = (self.path.parent / self.model.world).resolve()
+        if world.is_dir():
+            raise self.fail("world", f"{self.model.world!r} is a directory ({world}), not a "
+                            "world file.", "the path of an MJCF (.xml) or USD (.usda, .usdc, "
+                            ".usd) file, relative to this file.")
         if not world.is_file():
             raise self.fail("world", f"world file {self.model.world!r} does not exist "
                             f"(looked for {world}).", "a path relative to the scenario file.")
-        self.check_world(world)
-        return world
+        return world, (self.check_world(world) if needed else None)
 
-    def check_world(self, world: Path) -> None:
+    def check_world_fit(self, classes: dict, params: dict, world_model) -> None:
+        """Each node's own check of the world (its robot there, start and goal placeable)."""
+        goal = self.model.goal.model_dump() if self.model.goal else None
+        for i, (_, cls) in classes.items():
+            if not cls.needs_world or not hasattr(cls, "world_problems"):
+                continue
+            for key, problem, accepted in cls.world_problems(params[i], world_model, goal):
+                where = key if key.startswith("goal") else self.node_key(i, key)
+                raise self.fail(where, f"{problem} (world {self.model.world})", accepted)
+
+    def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
         from plan.worldfile import WorldError, check_world
 
         try:
-            check_world(world)
+            return check_world(world)
         except WorldError as exc:
             raise self.fail("world", f"{exc}", "an MJCF (.xml) or USD (.usda, .usdc, .usd) "
                             "world that MuJoCo loads; USD colliders must be Cube, Sphere, "

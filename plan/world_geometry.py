@@ -187,3 +187,55 @@ def site_offset(model, name: str) -> tuple[float, float, float]:
     w, x, y, z = model.site_quat[sid]
     yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw
+
+
+def robot_footprint_radius(model, base_body: str) -> float:
+    """The radius of the circle around ``base_body``'s origin that holds every colliding geom
+    of the robot (the body's whole subtree), seen from above, at the default pose."""
+    import mujoco
+
+    base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base_body)
+    if base < 0:
+        raise ValueError(f"the world has no body {base_body!r}")
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    root = model.body_rootid[base]
+    centre = data.xpos[base, :2]
+    radius = 0.0
+    for g in range(model.ngeom):
+        if model.body_rootid[model.geom_bodyid[g]] != root:
+            continue
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+            continue
+        offset = math.hypot(*(data.geom_xpos[g, :2] - centre))
+        radius = max(radius, offset + float(model.geom_rbound[g]))
+    return radius
+
+
+def extent(obstacles: list[Obstacle]) -> tuple[float, float, float, float] | None:
+    """(xmin, ymin, xmax, ymax) spanned by the obstacles (the world's walls), None if none."""
+    if not obstacles:
+        return None
+    b = np.array([o.bounds() for o in obstacles])
+    return float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max())
+
+
+def place_problem(obstacles: list[Obstacle], x: float, y: float, radius: float,
+                  z_band: tuple[float, float] = (0.02, 0.6)) -> str | None:
+    """Why a robot of ``radius`` cannot stand at (x, y), or None: outside the world's extent,
+    inside an obstacle, or closer to one than its radius (naming the obstacle)."""
+    span = extent(obstacles)
+    if span is not None and not (span[0] <= x <= span[2] and span[1] <= y <= span[3]):
+        return (f"({x:g}, {y:g}) is outside the world, whose obstacles span x {span[0]:g} to "
+                f"{span[2]:g} and y {span[1]:g} to {span[3]:g}")
+    near = [(o.distance(x, y), o) for o in obstacles
+            if o.z_range[1] >= z_band[0] and o.z_range[0] <= z_band[1]]
+    if not near:
+        return None
+    gap, o = min(near, key=lambda item: item[0])
+    if gap < 0:
+        return f"({x:g}, {y:g}) is inside obstacle {o.name!r} ({o.kind})"
+    if gap < radius:
+        return (f"({x:g}, {y:g}) is {gap:.3f} m from obstacle {o.name!r} ({o.kind}), closer "
+                f"than the robot's radius of {radius:.3f} m")
+    return None

@@ -94,9 +94,9 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None) ->
     return spec
 
 
-def check_world(path: Path | str) -> None:
+def check_world(path: Path | str) -> mujoco.MjModel:
     """Load and compile the world once; raise :class:`WorldError` naming what is wrong."""
-    load_world_model(path)
+    return load_world_model(path)
 
 
 def open_stage(path: Path | str):

@@ -75,6 +75,20 @@ class ControlNode(StepNode):
         return {"/cmd_vel": Twist, "/plan": Path}
 
     @classmethod
+    def world_problems(cls, params: ControlParams, model, goal) -> list[tuple[str, str, str]]:
+        """The goal is inside the world, clear of every obstacle by the robot's radius."""
+        from plan.world_geometry import place_problem, static_obstacles
+
+        if goal is None:
+            return []
+        problem = place_problem(static_obstacles(model), goal["x"], goal["y"],
+                                params.robot_radius)
+        if problem:
+            return [("goal", f"the goal {problem}.",
+                     "a goal inside the world where the robot fits clear of obstacles.")]
+        return []
+
+    @classmethod
     def accepted_inputs(cls, params: ControlParams) -> set[str]:
         """Odometry, the scan and an optional goal."""
         return {"/odom", "/scan", "/goal_pose"}

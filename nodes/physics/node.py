@@ -75,6 +75,40 @@ class PhysicsNode(StepNode):
                 "/cosim/world_state": Float64MultiArray}
 
     @classmethod
+    def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
+        """The robot's bodies and joints exist; the start pose is inside the world, clear of
+        every obstacle by the robot's footprint radius."""
+        from plan.world_geometry import place_problem, robot_footprint_radius, static_obstacles
+
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, params.base_body)
+        if body < 0:
+            bodies = [model.body(j).name for j in range(1, model.nbody)]
+            return [("params.base_body", f"the world has no body {params.base_body!r} (the "
+                     f"robot this node drives); its bodies: {', '.join(bodies) or 'none'}.",
+                     "the name of the robot's base body in the world, or a world that "
+                     "includes the robot (e.g. <include file=\"robot.xml\"/>).")]
+        free = model.body_jntadr[body]
+        if free < 0 or model.jnt_type[free] != mujoco.mjtJoint.mjJNT_FREE:
+            return [("params.base_body", f"body {params.base_body!r} has no free joint.",
+                     "a base body with <freejoint/>.")]
+        joints = [model.joint(j).name for j in range(model.njnt)]
+        for key, names in (("wheel_joints", params.wheel_joints),
+                           ("head_joints", params.head_joints)):
+            missing = [n for n in names if n not in joints]
+            if missing:
+                return [(f"params.{key}", f"the world has no joint {missing[0]!r}; its "
+                         f"joints: {', '.join(j for j in joints if j) or 'none'}.",
+                         "joint names of the robot in the world.")]
+        if params.start is not None:
+            radius = robot_footprint_radius(model, params.base_body)
+            problem = place_problem(static_obstacles(model), params.start.x, params.start.y,
+                                    radius)
+            if problem:
+                return [("params.start", f"the start {problem}.",
+                         "a start pose inside the world with the robot clear of obstacles.")]
+        return []
+
+    @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
         """Velocity commands and pan-tilt position commands."""
         return {"/cmd_vel", "/joint_commands"}
