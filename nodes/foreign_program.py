@@ -39,6 +39,9 @@ class ForeignParams(BaseModel):
                                     "{/cmd_vel: geometry_msgs/msg/Twist}")
     per_activation: dict[str, int] = Field(default_factory=dict, description="topic -> "
                                            "messages per activation (default 1)")
+    silent_at_start: bool = Field(False, description="true: the program publishes nothing "
+                                  "at tick 0 (a sim-time timer first fires one period in); "
+                                  "then no node may consume its outputs")
 
     @field_validator("outputs")
     @classmethod
@@ -47,8 +50,10 @@ class ForeignParams(BaseModel):
             message_class(type_name)
         return value
 
-    def count(self, topic: str) -> int:
-        """Messages the program publishes on ``topic`` per activation."""
+    def count(self, topic: str, activation: int = 1) -> int:
+        """Messages the program publishes on ``topic`` at its ``activation``-th activation."""
+        if activation == 0 and self.silent_at_start:
+            return 0
         return self.per_activation.get(topic, 1)
 
 

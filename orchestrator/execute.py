@@ -194,7 +194,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
             mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
         participants = {
-            name: ForeignProxy(plan, plan.period_ticks, transport, PartWriter(paths.part(name)))
+            name: ForeignProxy(plan, scenario.schedule, transport, PartWriter(paths.part(name)))
             if plan.foreign else CosimNode(plan, scenario.schedule)
             for name, plan in scenario.nodes.items()}
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
@@ -244,7 +244,7 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
     their command; external nodes are announced for the user to start. True when any node
     was forked."""
     from nodes.runtime.cosim_node import run_lockstep
-    from orchestrator.foreign_launch import foreign_argv
+    from orchestrator.foreign_launch import foreign_argv, foreign_env
 
     order = list(scenario.nodes)
     if options.shuffle_start is not None:
@@ -259,6 +259,7 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
             _announce_external(name, argv)
         elif plan.foreign:
             supervisor.spawn(name, foreign_argv(plan, scenario.file.parent), prefix=prefix,
+                             env=foreign_env(plan, scenario.schedule),
                              cwd=scenario.file.parent.resolve())
         elif options.spawn == "fork" and fork_is_safe() and not prefix:
             supervisor.fork(name, partial(run_lockstep, scenario, name, paths.root, options))

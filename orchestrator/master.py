@@ -88,6 +88,7 @@ class LockstepMaster:
         self.tick = -1
         self.participants = participants
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
+        self.drainable = [p for p in participants.values() if p.foreign]
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
@@ -295,6 +296,8 @@ class LockstepMaster:
                 out.append(status)
             elif rec.topic in self.reader_of:
                 out += self.reader_of[rec.topic].take(rec, self.tick)
+        for participant in self.drainable:
+            out += participant.drain()
         return out
 
     def _check_processes(self, when: str) -> None:

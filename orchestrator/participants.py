@@ -39,6 +39,10 @@ class Participant(ABC):
     def start_tick(self, tick: int) -> None:  # noqa: B027 - most participants ignore it
         """The master published /clock for ``tick``."""
 
+    def drain(self) -> list[Status]:
+        """Status reports completed without a message (the master asks in every wait)."""
+        return []
+
     @abstractmethod
     def ready(self) -> bool:
         """Whether the participant has started and its discovery is complete."""

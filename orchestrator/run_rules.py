@@ -5,6 +5,7 @@ is returned as warnings."""
 
 from __future__ import annotations
 
+from orchestrator.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError
 from plan.options import RunOptions
 from plan.scenario import Scenario
@@ -21,4 +22,19 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         raise ScenarioError(scenario.file, "transport", "zenoh carries cosim nodes only; "
                             f"node(s) {', '.join(foreign)} are foreign ROS 2 programs "
                             "(command:) that talk DDS.", "transport: ros2 for this scenario.")
+    for i, (name, plan) in enumerate(scenario.nodes.items()):
+        if not plan.foreign:
+            continue
+        key = f"nodes[{i}] ({name}).command"
+        problem = missing_program(plan, scenario.file.parent.resolve())
+        if problem:
+            raise ScenarioError(scenario.file, key, f"{problem}.", "a command that exists: "
+                                "[python, path/to/program.py, ...] (paths relative to this "
+                                "file) or a program on PATH.")
+        if not is_python(plan) and len(plan.inputs) > 1:
+            raise ScenarioError(
+                scenario.file, key, f"{plan.spec.command[0]!r} is not a Python program, so "
+                "cosim cannot gate its executor, and with several inputs its callbacks would "
+                "see samples of different ticks from run to run (not deterministic).",
+                "a Python (rclpy) program, which cosim gates, or a program with one input.")
     return list(scenario.warnings)

@@ -501,6 +501,11 @@ class ScenarioContext:
             if not plan.foreign:
                 continue
             for own, graph in plan.output_names.items():
+                if graph in consumed and plan.params.silent_at_start:
+                    raise self.fail(self.node_key(i, "params.silent_at_start"),
+                                    f"{graph} is consumed by other nodes, which need the "
+                                    "program's sample of tick 0, and the program publishes "
+                                    "nothing then.", "false, or no node consuming its outputs.")
                 if graph in consumed and plan.params.count(own) != 1:
                     raise self.fail(self.node_key(i, f"params.per_activation.{own}"),
                                     f"{graph} is consumed by other nodes, which take one "

@@ -100,6 +100,16 @@ class InputHistory:
         """Whether the sample of ``tick`` (or a later one) has arrived."""
         return bool(self.samples) and self.samples[-1][0] >= tick
 
+    def take_raw(self, tick: int) -> bytes:
+        """The CDR bytes of the sample of exactly ``tick`` (it must never have been decoded),
+        dropping older ones: what a feeder forwards unchanged."""
+        while self.samples and self.samples[0][0] < tick:
+            self.samples.popleft()
+        if not self.samples or self.samples[0][0] != tick:
+            have = [t for t, _ in self.samples]
+            raise LookupError(f"{self.topic}: no sample of tick {tick} (have {have})")
+        return self.samples[0][1]
+
     def take(self, tick: int) -> Any:
         """The sample of exactly ``tick``, dropping older ones (they can never be needed again)."""
         while self.samples and self.samples[0][0] < tick:

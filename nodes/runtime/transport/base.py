@@ -52,8 +52,10 @@ class Transport(ABC):
         """A reliable publisher keeping ``depth`` samples."""
 
     @abstractmethod
-    def subscription(self, topic: str, msg_type: type, depth: int) -> Subscription:
-        """A reliable subscription keeping ``depth`` samples."""
+    def subscription(self, topic: str, msg_type: type, depth: int,
+                     latched: bool = False) -> Subscription:
+        """A reliable subscription keeping ``depth`` samples; ``latched`` also receives what a
+        transient-local (latched) publisher sent before the subscription matched."""
 
     @abstractmethod
     def wait(self, timeout_ns: int) -> list[Received]:

@@ -86,10 +86,13 @@ class Ros2Transport(Transport):
         return Ros2Publisher(topic, self.node.create_publisher(msg_type, topic,
                                                                reliable_qos(depth)))
 
-    def subscription(self, topic: str, msg_type: type, depth: int) -> Ros2Subscription:
+    def subscription(self, topic: str, msg_type: type, depth: int,
+                     latched: bool = False) -> Ros2Subscription:
         """A reliable rclpy subscription, never spun: the wait set reads it."""
-        sub = self.node.create_subscription(msg_type, topic, _never_called,
-                                            reliable_qos(depth), raw=True)
+        qos = reliable_qos(depth)
+        if latched:
+            qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+        sub = self.node.create_subscription(msg_type, topic, _never_called, qos, raw=True)
         wrapped = Ros2Subscription(topic, msg_type, sub)
         self._subs.append(wrapped)
         self._by_pointer[sub.handle.pointer] = wrapped

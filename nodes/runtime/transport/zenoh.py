@@ -264,8 +264,10 @@ class ZenohTransport(Transport):
         self._entities.append(pub)
         return pub
 
-    def subscription(self, topic: str, msg_type: type, depth: int) -> ZenohSubscription:
-        """A zenoh subscriber; its queue is unbounded, so ``depth`` is never a limit."""
+    def subscription(self, topic: str, msg_type: type, depth: int,
+                     latched: bool = False) -> ZenohSubscription:
+        """A zenoh subscriber; its queue is unbounded, so ``depth`` is never a limit (cosim
+        publishes nothing latched over zenoh)."""
         sub = ZenohSubscription(self, topic, msg_type)
         self._entities.append(sub)
         return sub

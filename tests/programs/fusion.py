@@ -1,0 +1,69 @@
+"""A plain rclpy program with several inputs, as a user would write it (no cosim import):
+it keeps the latest Int64 of each input and publishes their combination on 'out'.
+
+Parameters: inputs (2 or 3: 'a', 'b' and maybe 'c'), order ('abc' or 'cba': the order the
+subscriptions are created in), trigger ('b': publish in b's callback; 'timer': publish from
+a 10 Hz sim-time timer), executor ('single' or 'multi').
+
+The value published is a function of the latest sample of every input:
+a * 10^6 + b * 10^3 + c, or -1 while an input has not arrived yet."""
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from std_msgs.msg import Int64
+
+
+class Fusion(Node):
+    """Latest-value fusion of two or three inputs."""
+
+    def __init__(self):
+        super().__init__("fusion")
+        n = self.declare_parameter("inputs", 2).value
+        order = self.declare_parameter("order", "abc").value
+        trigger = self.declare_parameter("trigger", "b").value
+        self.latest = {name: None for name in "abc"[:n]}
+        self.pub = self.create_publisher(Int64, "out", 10)
+        for name in order:
+            if name in self.latest:
+                self.create_subscription(Int64, name, lambda m, k=name: self.on_input(k, m), 10)
+        self.trigger = trigger
+        if trigger == "timer":
+            self.create_timer(0.1, self.publish)
+
+    def on_input(self, name: str, msg: Int64) -> None:
+        """Keep the latest sample; 'b' may trigger the output."""
+        self.latest[name] = msg.data
+        if self.trigger == name:
+            self.publish()
+
+    def publish(self) -> None:
+        """Publish the combination of the latest samples."""
+        if any(v is None for v in self.latest.values()):
+            value = -1
+        else:
+            value = sum(v * 1000 ** (2 - i) for i, v in enumerate(self.latest.values()))
+        self.pub.publish(Int64(data=value))
+
+
+def main() -> None:
+    """Spin with the chosen executor until shut down."""
+    rclpy.init()
+    node = Fusion()
+    multi = node.declare_parameter("executor", "single").value == "multi"
+    try:
+        if multi:
+            executor = MultiThreadedExecutor(num_threads=4)
+            executor.add_node(node)
+            executor.spin()
+        else:
+            rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
