@@ -6,7 +6,10 @@ STAMP := $(VENV)/.installed
 
 .PHONY: install run test lint bench clean
 
+# The ROS interface packages PyPI lacks (interfaces/) are built into the venv; a no-op when
+# nothing changed, and only the changed package is rebuilt (tools/build_interfaces.py).
 install: $(STAMP)
+	@$(BIN)/python tools/build_interfaces.py
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
