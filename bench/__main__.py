@@ -1,6 +1,6 @@
 """`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import lockstep, messages, nav, profile, sensors
+from bench import foreign_nav, lockstep, messages, nav, profile, sensors
 
 
 def main() -> None:
@@ -13,6 +13,8 @@ def main() -> None:
     nav.main(["--repeats", "3"])
     print("\n== nav over zenoh: multi-process over in-process ==")
     nav.main(["--transport", "zenoh", "--repeats", "3"])
+    print("\n== nav: the controller as a foreign rclpy program over built-in ==")
+    foreign_nav.main(["--repeats", "3"])
     print("\n== nav: where each process spends its time (py-spy) ==")
     profile.main([])
     print("\n== message cost ==")

@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""cosim's built-in navigation controller as a plain rclpy node: an ordinary ROS 2 program
+(its own node, executor and callbacks) that computes exactly what the built-in control
+node computes.
+
+It subscribes to ``odom`` and ``scan`` and, in the scan callback, steps the controller with
+the latest odometry and publishes ``cmd_vel`` and ``plan`` stamped with sim time. Run in
+lockstep as a foreign program (``bench/foreign_nav.py``, ``tests/test_foreign_nav.py``),
+whose declared inputs are ``/odom`` then ``/scan`` so the odometry of a tick is taken before
+its scan, it gives the built-in controller's digest; against a live robot or simulator it
+is just a navigation node.
+
+    python examples/control_as_ros_node.py --ros-args -p use_sim_time:=true \\
+        -p scenario:=scenarios/nav.yaml
+"""
+
+import rclpy
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry, Path
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+
+from nodes.contract import Tick
+from nodes.runtime.build import make_node
+from plan.scenario import load_scenario
+
+
+class ControlAsRosNode(Node):
+    """The built-in controller behind ordinary ROS 2 subscriptions and publishers."""
+
+    def __init__(self):
+        super().__init__("control")
+        scenario = load_scenario(self.declare_parameter("scenario", "scenarios/nav.yaml").value)
+        name = self.declare_parameter("node", "control").value
+        self.controller = make_node(scenario, name)
+        self.tick_ns = scenario.tick_ns
+        self.odom: Odometry | None = None
+        self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 10)
+        self.plan_pub = self.create_publisher(Path, "plan", 10)
+        self.create_subscription(Odometry, "odom", self.on_odom, 10)
+        self.create_subscription(LaserScan, "scan", self.on_scan, 10)
+
+    def on_odom(self, msg: Odometry) -> None:
+        """Keep the latest odometry."""
+        self.odom = msg
+
+    def on_scan(self, msg: LaserScan) -> None:
+        """One control step per scan, with the latest odometry."""
+        now = self.get_clock().now()
+        tick = Tick(now.nanoseconds // self.tick_ns, now.nanoseconds)
+        out = self.controller.step(tick, {"/odom": self.odom, "/scan": msg})
+        out["/plan"].header.stamp = now.to_msg()
+        self.cmd_pub.publish(out["/cmd_vel"])
+        self.plan_pub.publish(out["/plan"])
+
+
+def main() -> None:
+    """Spin until Ctrl-C or shutdown, without a traceback."""
+    rclpy.init()
+    node = ControlAsRosNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
