@@ -22,6 +22,7 @@ from pathlib import Path
 
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.factory import create_transport
+from orchestrator.external_arrivals import Arrivals, Replay
 from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.manifest import write_manifest
 from orchestrator.run_rules import check_run
@@ -70,13 +71,15 @@ OnTick = Callable[[int], None]
 """Called with each tick index once the tick is decided (progress bars)."""
 
 
-def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None
-            ) -> RunOutcome:
+def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None,
+            external: Arrivals | Replay | None = None) -> RunOutcome:
     """Run a checked scenario, write its run directory and manifest, return the outcome.
 
     The run's rules (``orchestrator.run_rules``) are applied first, whoever calls: a
     scenario this run cannot serve raises ScenarioError before anything is started or
-    written; its warnings are logged and kept in the outcome.
+    written; its warnings are logged and kept in the outcome. ``external`` feeds the
+    scenario's external node: live arrivals (servers put messages into it while the run
+    goes) or a replay of recorded ones.
     """
     warnings = check_run(scenario, options)
     paths = make_run_dir(options.out, scenario.name)
@@ -90,10 +93,11 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         if options.in_process:
             outcome.start_s = time.monotonic() - started
             outcome.command_to_first_tick_s = _since_process_start()
-            outcome.result = _in_process(scenario, paths, on_tick)
+            outcome.result = _in_process(scenario, paths, on_tick, external)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
-            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick)
+            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick,
+                                            external)
         _judge(scenario, outcome)
     except SimulationError as exc:
         outcome.status, outcome.error = "failed", str(exc)
@@ -155,20 +159,23 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     return out
 
 
-def _in_process(scenario: Scenario, paths: RunPaths, on_tick: OnTick | None) -> LoopResult:
+def _in_process(scenario: Scenario, paths: RunPaths, on_tick: OnTick | None,
+                external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.inprocess import run_in_process
 
     writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
+    arrivals = external.take if isinstance(external, Arrivals) else external
     try:
         return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
-                              on_tick)
+                              on_tick, arrivals)
     finally:
         for writer in writers.values():
             writer.close()
 
 
 def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
-                   outcome: RunOutcome, started: float, on_tick: OnTick | None) -> LoopResult:
+                   outcome: RunOutcome, started: float, on_tick: OnTick | None,
+                   external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
     master = transport = mirror = None
     participants: dict = {}
@@ -183,6 +190,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
             import orchestrator.picture  # noqa: F401
+        from orchestrator.external import ExternalSource
         from orchestrator.foreign_proxy import ForeignProxy
         from orchestrator.master import LockstepMaster
         from orchestrator.participants import CosimNode
@@ -193,10 +201,17 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             from orchestrator.dds_mirror import DdsMirror
 
             mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
-        participants = {
-            name: ForeignProxy(plan, scenario.schedule, transport, PartWriter(paths.part(name)))
-            if plan.foreign else CosimNode(plan, scenario.schedule)
-            for name, plan in scenario.nodes.items()}
+        participants = {}
+        for name, plan in scenario.nodes.items():
+            if plan.foreign:
+                participants[name] = ForeignProxy(plan, scenario.schedule, transport,
+                                                  PartWriter(paths.part(name)))
+            elif plan.in_orchestrator:
+                participants[name] = ExternalSource(scenario, plan, transport,
+                                                    PartWriter(paths.part(name)),
+                                                    external or Arrivals(plan.outputs))
+            else:
+                participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
                                 on_tick, paths.parts)
         master.wait_ready(started)
@@ -218,7 +233,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                                   for name in scenario.nodes}
         supervisor.shutdown()
         for participant in participants.values():
-            if participant.foreign:
+            if participant.foreign or participant.in_orchestrator:
                 participant.recorder.close()
         if mirror is not None:
             mirror.close()
@@ -255,6 +270,8 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
         argv = node_argv(scenario.file, plan.spec.kind or "any", name, paths.root,
                          scenario.overrides, options)
         prefix = plan.launch_prefix
+        if plan.in_orchestrator:
+            continue  # the orchestrator steps it
         if plan.spec.external:
             _announce_external(name, argv)
         elif plan.foreign:

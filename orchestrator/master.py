@@ -88,7 +88,10 @@ class LockstepMaster:
         self.tick = -1
         self.participants = participants
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
-        self.drainable = [p for p in participants.values() if p.foreign]
+        self.drainable = [p for p in participants.values() if p.foreign or p.in_orchestrator]
+        # processes that wake for /clock (the orchestrator's own participants need not)
+        self.clock_subscribers = len([n for n in self.sched.clock_driven()
+                                      if not participants[n].in_orchestrator])
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
@@ -120,9 +123,10 @@ class LockstepMaster:
                     self.stats[name].ready_s = time.monotonic() - started_at
                     ready.add(name)
             self._check_processes("start")
-            cosim_nodes = sum(not p.foreign for p in self.participants.values())
+            cosim_nodes = sum(not (p.foreign or p.in_orchestrator)
+                              for p in self.participants.values())
             if (ready == names and self.command_pub.matched() >= cosim_nodes
-                    and self.clock_pub.matched() >= len(self.sched.clock_driven())):
+                    and self.clock_pub.matched() >= self.clock_subscribers):
                 return
             if time.monotonic() > deadline:
                 raise SimulationError(self._start_timeout_text(names - ready))
@@ -138,7 +142,7 @@ class LockstepMaster:
             parts.append(f"node {name} ({alive}) {self.participants[name].not_ready_text()}")
         if not parts:
             parts.append(f"/clock has {self.clock_pub.matched()} of "
-                         f"{len(self.sched.clock_driven())} subscriptions")
+                         f"{self.clock_subscribers} subscriptions")
         limit = self.scenario.model.deadlines.start / 1e9
         return f"start deadline of {limit:g} s expired: " + "; ".join(parts) + "."
 
@@ -226,6 +230,10 @@ class LockstepMaster:
         sent = self._handshake(CommandMessage(Command.RESET, self.epoch), RESETTING)
         counts = {k[5:]: int(v) for values in sent.values() for k, v in values.items()
                   if k.startswith("sent:")}
+        for participant in self.participants.values():
+            if participant.in_orchestrator:
+                counts.update(participant.sent)
+                participant.reset()
         self._handshake(CommandMessage(Command.RESTART, self.epoch, counts), READY)
         self.stats = {name: NodeStats(ready_s=s.ready_s) for name, s in self.stats.items()}
         self.tick = -1
@@ -233,7 +241,8 @@ class LockstepMaster:
     def _handshake(self, command: CommandMessage, answer: str) -> dict[str, dict[str, str]]:
         """Publish a command and wait until every node answered it with ``answer``."""
         self.command_pub.publish(encode_command(command))
-        pending, replies = set(self.scenario.nodes), {}
+        pending = {n for n, p in self.participants.items() if not p.in_orchestrator}
+        replies: dict[str, dict[str, str]] = {}
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
         while pending:
             for status in self._statuses():

@@ -102,6 +102,16 @@ class ZenohSpec(Strict):
         description="topics the orchestrator republishes on ROS 2 (DDS) for ros2 tools")
 
 
+class ExternalSpec(Strict):
+    """Topics that enter the run from outside (an action client, a rosbridge client, a
+    real robot) at tick boundaries, recorded so the run replays: an orchestrator-owned node
+    named ``external`` publishes, at ``rate``, the latest message received on each topic."""
+
+    period_ns: PeriodNs = Field(alias="rate", description=RATE_HELP)  # given as a rate in Hz
+    topics: dict[Topic, str] = Field(min_length=1, description="topic -> message type, e.g. "
+                                     "{/goal_pose: geometry_msgs/msg/PoseStamped}")
+
+
 class ScenarioModel(Strict):
     """A whole scenario file."""
 
@@ -115,4 +125,5 @@ class ScenarioModel(Strict):
     goal: GoalSpec | None = None
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
+    external: ExternalSpec | None = None
     nodes: list[NodeSpec] = Field(min_length=1)
