@@ -124,7 +124,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
 
 @pytest.mark.parametrize(("text", "key", "accepted"), [
     (VALID + "colour: red\n", "colour",
-     "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, nodes"),
+     "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, external, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
      "name, kind, module, rate, params, inputs, remap, debug, command, external, prefix"),
     (VALID.replace("mode: same_tick}", "mode: same_tick, qos: 3}"),
