@@ -105,11 +105,12 @@ class LockstepMaster:
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
         # benchmarks); the outputs, digest and stop decision are the same either way.
-        # Foreign programs answer tick by tick: no clock runs ahead for them.
+        # A program that reads the run's /clock itself (an ungated foreign program) answers
+        # tick by tick: no clock runs ahead for it. A gated one sees only its fed clock.
         strict = not options.pipeline
         self.may_trail = frozenset() if strict else self.trailing
-        foreign = any(p.foreign for p in participants.values())
-        self.window = 1 if strict or foreign else PIPELINE_WINDOW
+        follows = any(p.follows_clock for p in participants.values())
+        self.window = 1 if strict or follows else PIPELINE_WINDOW
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
