@@ -107,6 +107,7 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.first = True  # the next activation is the first since the start or a reset
         self._wire()
 
     def _wire(self) -> None:
@@ -118,7 +119,9 @@ class LockstepRuntime:
                 consumers[edge.topic] += 1
                 depth[edge.topic] = max(depth[edge.topic], sched.history_depth(edge))
         self.expected_subscribers = consumers
-        self.publishers = {t: self.transport.publisher(t, msg, depth[t])
+        latched = plan.latched_topics
+        self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
+                                                       latched=t in latched)
                            for t, msg in plan.outputs.items()}
         self.inputs: dict[str, InputChannel] = {}
         self.input_subs = {}
@@ -220,6 +223,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
+            self.first = True
             self.node.reset(self.scenario.model.seed, self.node.config)
             if self.recorder:
                 self.recorder.truncate()
@@ -265,7 +269,9 @@ class LockstepRuntime:
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
-                                    self.plan.output_names, tick, outputs)
+                                    self.plan.output_names, tick, outputs,
+                                    self.plan.latched, self.first)
+            self.first = False
         except Exception as exc:
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
