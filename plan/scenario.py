@@ -547,13 +547,13 @@ class ScenarioContext:
             return
         own_key = cls.type_keys.get(topic)
         key = self.node_key(i, own_key) if own_key else self.node_key(i, "inputs")
-        theirs = (f"node {source.name!r}'s {source.type_key}" if source.type_key
-                  else f"the type node {source.name!r} publishes it as")
+        producer = self.node_key(source.index)
+        theirs = (f"{producer}.{source.type_key}" if source.type_key
+                  else f"the type {producer} publishes it as")
         ours = f"this node's {own_key}" if own_key else "this node's input"
         raise self.fail(key, f"this node takes {topic} as {ros_type(wanted)}, but node "
                         f"{source.name!r} publishes {graph} as {ros_type(source.msg)}.",
-                        f"the same message type at both ends: change {ours} or {theirs} "
-                        f"({self.node_key(source.index)}).")
+                        f"the same message type at both ends: change {ours} or {theirs}.")
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
         """A foreign output that cosim nodes consume must carry one message per activation."""
