@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import subprocess
 import time
 from dataclasses import dataclass, field
@@ -338,3 +339,60 @@ def test_a_reset_latches_tf_static_again_and_equals_a_fresh_run(tmp_path, ros_no
     assert reference.digest in out
     assert len(raw_messages(run_dir, "/tf_static")) == 1
     assert raw_messages(run_dir, "/tf_static") == raw_messages(reference.run_dir, "/tf_static")
+
+
+@pytest.mark.parametrize("kind", ["ros2", "zenoh"])
+def test_a_latched_publisher_serves_subscriptions_made_after_it_published(kind):
+    from std_msgs.msg import Int64
+
+    from nodes.runtime.cdr.encode import encode
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import TransportSettings
+
+    settings = TransportSettings(kind=kind)
+    publisher_side = create_transport(settings, f"latch_pub_{kind}")
+    reader_side = create_transport(settings, f"latch_sub_{kind}")
+    try:
+        pub = publisher_side.publisher("/cosim_test/latched", Int64, 1, latched=True)
+        pub.publish(encode(Int64(data=42)))
+        late = reader_side.subscription("/cosim_test/latched", Int64, 1, latched=True)
+        volatile = reader_side.subscription("/cosim_test/latched", Int64, 1)
+        end = time.monotonic() + 20
+        got = []
+        while time.monotonic() < end and not got:
+            got += reader_side.wait(50_000_000)
+        end = time.monotonic() + 0.5  # and nothing for the volatile one
+        while time.monotonic() < end:
+            got += reader_side.wait(50_000_000)
+        assert late.matched() == volatile.matched() == 1
+        assert [r.data for r in got] == [encode(Int64(data=42))]
+    finally:
+        reader_side.close()
+        publisher_side.close()
+
+
+def test_realtime_physics_latches_tf_static_for_a_late_subscriber(ros_node):
+    from nav_msgs.msg import Odometry
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from tf2_msgs.msg import TFMessage
+
+    from tests.helpers import COSIM_NODE
+
+    node, executor = ros_node
+    odoms, static = [], []
+    node.create_subscription(Odometry, "/odom", odoms.append, 10)
+    physics = subprocess.Popen([*COSIM_NODE, "physics", "--scenario", str(NAV), "--realtime",
+                                "--rtf", "2"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    try:
+        spin_until(executor, lambda: len(odoms) > 5, 30)
+        assert odoms, "no /odom from the standalone physics node"
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        node.create_subscription(TFMessage, "/tf_static", static.append, latched)
+        spin_until(executor, lambda: static, 20)
+    finally:
+        physics.send_signal(signal.SIGINT)
+        _, err = physics.communicate(timeout=10)
+    assert physics.returncode == 0, err
+    assert len(static) == 1
+    assert {t.child_frame_id: t.header.frame_id for t in static[0].transforms} == STATIC_FRAMES
