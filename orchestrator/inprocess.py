@@ -17,8 +17,10 @@ Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 
 
 def run_in_process(scenario: Scenario, observer: Observer | None = None,
-                   on_tick: Callable[[int], None] | None = None) -> LoopResult:
-    """Run every node in this process in schedule order; return the digest and metrics."""
+                   on_tick: Callable[[int], None] | None = None,
+                   external: Callable[[int], dict] | None = None) -> LoopResult:
+    """Run every node in this process in schedule order; return the digest and metrics.
+    ``external(tick)`` gives what enters from outside at a tick of the external node."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
     histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
@@ -39,6 +41,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             for index, wanted in sched.inputs_at(name, k):
                 own = plan.inputs[index].topic
                 inputs[own] = histories[(name, own)].take(wanted)
+            if plan.in_orchestrator and external is not None:
+                inputs = external(k)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
                 outputs = nodes[name].step(tick, inputs)

@@ -26,6 +26,8 @@ from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.validation import describe_validation_error, key_path
 
 FOREIGN = "nodes.foreign_program:ForeignNode"
+EXTERNAL = "nodes.external_inputs:ExternalInputs"
+EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,11 @@ class NodePlan:
     def launch_prefix(self) -> list[str]:
         """The command that wraps the node's process (scenario key ``prefix``), split."""
         return shlex.split(self.spec.prefix) if self.spec.prefix else []
+
+    @property
+    def in_orchestrator(self) -> bool:
+        """Whether the orchestrator steps this node itself (the external node): no process."""
+        return self.class_ref == EXTERNAL
 
     @property
     def foreign(self) -> bool:
@@ -291,6 +298,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     where = ScenarioContext(path, model)
     where.check_finite("", model.model_dump(by_alias=True, exclude={"nodes"}))
     where.check_unique_names()
+    model = where.with_external_node()
+    where = ScenarioContext(path, model)
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
     for i in range(len(model.nodes)):
@@ -356,6 +365,23 @@ class ScenarioContext:
         elif isinstance(value, list | tuple):
             for n, item in enumerate(value):
                 self.check_finite(f"{key}[{n}]", item)
+
+    def with_external_node(self) -> ScenarioModel:
+        """The model with its ``external:`` section as a node named 'external' (last)."""
+        spec = self.model.external
+        if spec is None:
+            return self.model
+        for i, node in enumerate(self.model.nodes):
+            if node.name == EXTERNAL_NAME:
+                raise self.fail(self.node_key(i, "name"), f"the name {EXTERNAL_NAME!r} is "
+                                "reserved for the node of the scenario's external: section.",
+                                "another name.")
+        node = NodeSpec.model_construct(
+            name=EXTERNAL_NAME, kind=None, module=EXTERNAL, period_ns=spec.period_ns,
+            params={"topics": dict(spec.topics)}, inputs=[], remap={},
+            debug=NodeSpec.model_fields["debug"].default_factory(), command=None,
+            external=False, prefix=None)
+        return self.model.model_copy(update={"nodes": [*self.model.nodes, node]})
 
     def check_unique_names(self) -> None:
         """Node names must be unique."""

@@ -160,7 +160,8 @@ class ControlNode(StepNode):
                                     scan.range_min, self.laser, pose)
 
     def _maybe_new_goal(self, msg: Any, pose: tuple[float, float, float]) -> None:
-        if msg is None or self.reached_ns is not None:
+        # an external source holds a default message (no frame) until a goal arrives
+        if msg is None or self.reached_ns is not None or not msg.header.frame_id:
             return
         new = _pose_of(msg.pose)
         if max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) > 1e-9:
