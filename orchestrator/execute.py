@@ -190,7 +190,8 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 from orchestrator.dds_mirror import DdsMirror
 
                 mirror = DdsMirror(transport.session, transport.domain,
-                                   list(settings.mirror_to_dds), scenario.topics)
+                                   list(settings.mirror_to_dds), scenario.topics,
+                                   scenario.latched_topics)
         if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.

@@ -109,6 +109,7 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.first = True  # the next activation is the first since the start or a reset
         self._last_start_report = -STATUS_PERIOD_S
         self._wire()
 
@@ -119,7 +120,9 @@ class LockstepRuntime:
             if edge.producer == self.name:
                 depth[edge.topic] = max(depth[edge.topic], sched.history_depth(edge))
         self.expected_subscribers = subscribers(self.scenario, self.pack, self.name)
-        self.publishers = {t: self.transport.publisher(t, msg, depth[t])
+        latched = plan.latched_topics
+        self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
+                                                       latched=t in latched)
                            for t, msg in plan.outputs.items()}
         self.inputs: dict[str, InputChannel] = {}
         self.input_subs = {}
@@ -236,6 +239,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
+            self.first = True
             self.node.reset(self.scenario.model.seed, self.node.config)
             if self.recorder:
                 self.recorder.truncate()
@@ -281,7 +285,9 @@ class LockstepRuntime:
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
-                                    self.plan.output_names, tick, outputs)
+                                    self.plan.output_names, tick, outputs,
+                                    self.plan.latched, self.first)
+            self.first = False
         except Exception as exc:
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc

@@ -54,9 +54,10 @@ class TransportView(Transport):
         self.shared = shared
         self.inbox: list[Received] = []
 
-    def publisher(self, topic: str, msg_type: type, depth: int) -> Publisher:
+    def publisher(self, topic: str, msg_type: type, depth: int,
+                  latched: bool = False) -> Publisher:
         """A publisher of the shared session."""
-        return self.shared.base.publisher(topic, msg_type, depth)
+        return self.shared.base.publisher(topic, msg_type, depth, latched)
 
     def subscription(self, topic: str, msg_type: type, depth: int,
                      latched: bool = False) -> Subscription:
