@@ -36,6 +36,7 @@ from orchestrator.sweep.plan import RunSpec
 OnRecord = Callable[[dict[str, Any]], None]
 POLL_S = 0.1
 STOP_GRACE_S = 10.0  # a stopped run's time to stop its nodes and write its manifest
+RESIGNAL_S = 1.0
 
 
 @dataclass
@@ -106,7 +107,9 @@ class LocalPool:
         sys.stdout.flush()
         sys.stderr.flush()
         ours, theirs = self._context.Pipe()
-        process = self._context.Process(target=_worker_main, args=(theirs, os.getpid()),
+        others = [w.conn.fileno() for w in self._workers if not w.conn.closed]
+        process = self._context.Process(target=_worker_main,
+                                        args=(theirs, os.getpid(), others),
                                         name="cosim-sweep-worker")
         process.start()
         theirs.close()
@@ -157,6 +160,7 @@ class LocalPool:
             _signal(worker.process.pid, signal.SIGTERM)
         records = []
         deadline = time.monotonic() + STOP_GRACE_S
+        signalled = time.monotonic()
         waiting = list(workers)
         while waiting and time.monotonic() < deadline:
             wait([w.conn for w in waiting] + [w.process.sentinel for w in waiting],
@@ -170,6 +174,11 @@ class LocalPool:
                     waiting.remove(worker)
             for worker in waiting:  # children started during the grace period count too
                 trees.update(_tree(worker.process.pid))
+            if time.monotonic() - signalled > RESIGNAL_S:
+                # a run ignores signals while it saves its results: one sent then is lost
+                for worker in waiting:
+                    _signal(worker.process.pid, signal.SIGTERM)
+                signalled = time.monotonic()
         for worker in workers:
             worker.process.join(max(0.0, deadline - time.monotonic()))
         _, alive = psutil.wait_procs(list(trees.values()), timeout=0.5)
@@ -203,8 +212,13 @@ class LocalPool:
             self._workers.remove(worker)
 
 
-def _worker_main(conn: Connection, parent: int) -> None:
-    """A worker: take a spec, run it with its output in its run.log, send the record."""
+def _worker_main(conn: Connection, parent: int, others: list[int]) -> None:
+    """A worker: take a spec, run it with its output in its run.log, send the record.
+
+    ``others``: the sweep's ends of the other workers' pipes, inherited through the fork;
+    closed, so that a worker whose pipe the sweep closes sees the end of it."""
+    for fd in others:
+        os.close(fd)
     os.setpgid(0, 0)  # the terminal's Ctrl-C goes to the sweep, which stops us in order
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupt)
