@@ -166,6 +166,7 @@ def test_table_columns_keep_numbers_and_write_other_values_as_json():
     (["--seeds", "1-2", "--set", "nodes.nope.rate=10,20"], "nope"),
     (["--seeds", "1-2", "--set", "nodes.source.rate=100,30"], "rate"),
     (["--seeds", "1", "--retry-failed"], "--resume"),
+    (["--seeds", "1", "--ray", "nowhere"], "host:port"),
 ])
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, expected):
     out = tmp_path / "sweep"

@@ -17,6 +17,7 @@ same paths on every node of the cluster, and ``--out`` on storage they share.
 from __future__ import annotations
 
 import logging
+import socket
 import time
 from collections import deque
 from collections.abc import Callable
@@ -30,6 +31,7 @@ OnRecord = Callable[[dict[str, Any]], None]
 POLL_S = 0.1
 STOP_GRACE_S = 10.0
 CAPACITY_REFRESH_S = 5.0
+CONNECT_TIMEOUT_S = 5.0
 
 
 class RayPool:
@@ -52,8 +54,10 @@ class RayPool:
         if self.address == "local":
             ray.init(num_cpus=self.jobs, include_dashboard=False, log_to_driver=False,
                      logging_level=logging.WARNING)
-        else:
-            ray.init(address=self.address, log_to_driver=False, logging_level=logging.WARNING)
+            return
+        if self.address != "auto":
+            _check_reachable(self.address)  # else Ray retries for minutes
+        ray.init(address=self.address, log_to_driver=False, logging_level=logging.WARNING)
 
     def close(self) -> None:
         """Leave the cluster (a 'local' one stops with it)."""
@@ -164,6 +168,18 @@ class RayPool:
             ray.cancel(ref, force=True)
         if refs:
             ray.wait(refs, num_returns=len(refs), timeout=5)
+
+
+def _check_reachable(address: str) -> None:
+    """ConnectionError unless something listens at ``host:port`` (ray://host:port too)."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"{address!r} is not host:port, auto or local")
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise ConnectionError(f"nothing answers at {address} ({exc}); is the Ray head "
+                              "running there (ray start --head)?") from None
 
 
 def _first_line(exc: BaseException) -> str:
