@@ -23,6 +23,7 @@ import psutil
 import pytest
 
 from orchestrator.sweep.cli import main
+from orchestrator.sweep.one_run import flat_metrics
 from orchestrator.sweep.plan import parse_seeds, parse_sweep_sets, plan_runs, run_id
 from orchestrator.sweep.results import _column, to_skip
 from tests.helpers import ROOT, SCENARIOS
@@ -108,7 +109,7 @@ def check_eight_runs(out: Path, proc: subprocess.CompletedProcess, alone: dict[i
     for row in rows:
         if row["nodes.source.params.fail_at"] == -1:
             assert row["status"] == "success" and row["success"] and row["wall_s"] > 0, row
-            assert row["activations"] > 0  # metrics are columns
+            assert row["sink.activations"] == 11  # metrics are columns, by node when shared
         else:
             assert row["status"] == "crashed" and crash_error in row["error"], row
             assert not row["success"] and row["digest"] is None
@@ -152,6 +153,13 @@ def test_resume_skips_finished_runs_and_retries_failed_ones_on_request(tmp_path)
     found = {specs[0].run_id: {"status": "success"}, specs[1].run_id: {"status": "crashed"}}
     assert to_skip(specs, found, retry_failed=False) == {specs[0].run_id, specs[1].run_id}
     assert to_skip(specs, found, retry_failed=True) == {specs[0].run_id}
+
+
+def test_metrics_named_by_several_nodes_are_named_by_node():
+    by_node = {"physics": {"collisions": 0, "x": 1.5}, "a": {"activations": 3},
+               "b": {"activations": 5, "label": "text"}}
+    assert flat_metrics(by_node) == {"collisions": 0.0, "x": 1.5, "a.activations": 3.0,
+                                     "b.activations": 5.0}
 
 
 def test_table_columns_keep_numbers_and_write_other_values_as_json():

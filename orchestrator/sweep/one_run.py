@@ -77,10 +77,21 @@ def execute_run(spec: RunSpec) -> dict[str, Any]:
     else:
         record.update(status=result.status, success=result.success, digest=result.digest,
                       run_dir=str(result.run_dir), error=result.error,
-                      metrics={k: float(v) for k, v in result.metrics.items()
-                               if isinstance(v, int | float)})
+                      metrics=flat_metrics(result.metrics_by_node))
     record["wall_s"] = time.monotonic() - started
     return record
+
+
+def flat_metrics(by_node: dict[str, dict[str, Any]]) -> dict[str, float]:
+    """One mapping of every node's numeric metrics: a name only one node reports as it is
+    ('time_to_goal'), a name several report as '<node>.<name>' for each."""
+    owners: dict[str, int] = {}
+    for metrics in by_node.values():
+        for name in metrics:
+            owners[name] = owners.get(name, 0) + 1
+    return {(name if owners[name] == 1 else f"{node}.{name}"): float(value)
+            for node, metrics in sorted(by_node.items()) for name, value in metrics.items()
+            if isinstance(value, int | float)}
 
 
 def find_run_dir(spec: RunSpec) -> Path | None:
