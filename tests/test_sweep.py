@@ -299,11 +299,14 @@ def ray_cluster():
                  f"--ray-client-server-port={_free_port()}", *common],
                 [ray, "start", f"--address=127.0.0.1:{port}", "--node-ip-address=127.0.0.1",
                  *common]]
+    # Ray's own setting, explicit: since 2.5x a ray.init() cluster leaves ~/.ray/auth_token
+    # behind, which turns token auth on for a later `ray start --head` but not its workers.
+    env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
     sessions: set[int] = set()
     try:
         for command in commands:
             start = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
+                                     stderr=subprocess.STDOUT, text=True, env=env)
             sessions.add(start.pid)
             output, _ = start.communicate(timeout=180)
             assert start.returncode == 0, output

@@ -60,14 +60,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a scenario key and its values (YAML, comma-separated); repeat for\n"
                         "more keys: the sweep is the product. A single value just sets it.\n"
                         "e.g. --set nodes.control.params.max_speed=0.3,0.5")
-    p.add_argument("--out", type=Path, required=True, help="the sweep's directory")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+                   help="the sweep's directory")
     p.add_argument("--jobs", type=int, metavar="N",
                    help="runs at once (default: local, the cores / the processes of a run;\n"
                         "Ray, as many as the cluster's CPUs hold)")
     p.add_argument("--ray", metavar="ADDRESS",
                    help="run every run as a Ray task on the cluster at ADDRESS (host:port),\n"
                         "'auto' (the cluster this machine belongs to) or 'local' (a Ray\n"
-                        "started for this sweep); a task asks for one CPU per process")
+                        "started for this sweep); a task asks for one CPU per process.\n"
+                        "Needs pip install 'cosim[ray]'")
     p.add_argument("--multi-process", action="store_true",
                    help="every run with each node its own process, in lockstep over the\n"
                         "scenario's transport (default: in-process runs, the reference)")
@@ -106,6 +108,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-sweep: error: --ray {args.ray}: {exc}", file=sys.stderr)
         _close(backend)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # before any run started
+        _close(backend)
+        print("cosim-sweep: interrupted before any run started", file=sys.stderr)
+        return EXIT_INTERRUPTED
     try:
         return _sweep(args, checked, backend)
     finally:

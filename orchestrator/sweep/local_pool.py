@@ -9,8 +9,11 @@ cleans up, then SIGKILL for its whole process tree) and replaced. The standard l
 pools cannot do either: a dead worker breaks a ProcessPoolExecutor for every later task,
 and neither pool can stop one task.
 
-Workers have their own process group (Ctrl-C in the terminal reaches only the sweep,
-which stops them in order) and die with the sweep (parent-death signal).
+Each worker is a session of its own, as the orchestrator's node processes are: Ctrl-C in
+the terminal reaches only the sweep, which stops the workers in order, and where the
+kernel schedules by session (autogroup, the Linux default) every worker gets the CPU share
+a run started alone would get, instead of the whole sweep sharing one. Workers die with
+the sweep (parent-death signal).
 """
 
 from __future__ import annotations
@@ -100,7 +103,13 @@ class LocalPool:
         """Give a run to an idle worker, starting one when none is idle."""
         idle = [w for w in self._workers if w.spec is None]
         worker = idle[0] if idle else self._start_worker()
-        worker.conn.send(spec.as_dict())
+        try:
+            worker.conn.send(spec.as_dict())
+        except OSError:  # an idle worker that died: replace it
+            worker.process.join(1)
+            self._forget(worker)
+            worker = self._start_worker()
+            worker.conn.send(spec.as_dict())
         worker.spec, worker.started = spec, time.monotonic()
 
     def _start_worker(self) -> _Worker:
@@ -219,7 +228,7 @@ def _worker_main(conn: Connection, parent: int, others: list[int]) -> None:
     closed, so that a worker whose pipe the sweep closes sees the end of it."""
     for fd in others:
         os.close(fd)
-    os.setpgid(0, 0)  # the terminal's Ctrl-C goes to the sweep, which stops us in order
+    os.setsid()  # the terminal's Ctrl-C goes to the sweep, which stops us in order
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupt)
     die_with_parent(signal.SIGTERM)

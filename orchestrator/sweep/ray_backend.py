@@ -93,6 +93,8 @@ class RayPool:
                         num_cpus=spec.processes, name=f"cosim:{spec.run_id}").remote(
                         spec.as_dict())
                     flight[ref] = (spec, time.monotonic())
+                if not flight:
+                    continue
                 ready, _ = ray.wait(list(flight), num_returns=len(flight), timeout=POLL_S)
                 for ref in ready:
                     spec, submitted = flight.pop(ref)
