@@ -108,6 +108,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     """Run node ``name`` under an orchestrator until told to stop."""
     from nodes.runtime.build import make_node
     from nodes.runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
+    from nodes.runtime.notes import NoteWriter
     from nodes.runtime.recording import PartWriter
     from nodes.runtime.transport.factory import create_transport
     from plan.options import RunOptions, TransportSettings
@@ -126,7 +127,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     recorder = PartWriter(paths.part(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder)
+    notes = NoteWriter(paths.notes(name)) if paths else None
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes)
     install_stop_handlers(runtime)
     try:
         runtime.node = make_node(scenario, name, options)
@@ -147,6 +149,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         _write_timing(runtime, paths, name)  # also when stopped in the middle of a step
         if recorder:
             recorder.close()
+        if notes:
+            notes.close()
         transport.close()
 
 
