@@ -8,6 +8,7 @@ import json
 import math
 
 import mujoco
+import numpy as np
 import pytest
 
 from nodes.contract import NodeConfig, Tick
@@ -57,6 +58,17 @@ def test_a_start_in_an_inflated_zone_names_the_obstacles(tmp_path):
     why = explain_no_path(plan, (0.0, 0.0), (3.0, 3.0))
     assert why.startswith("no path: the start (0.00, 0.00) is inside the inflated zone of "
                           "obstacles 'left', 'right' (the plan keeps 0.27 m from obstacles")
+
+
+def test_a_way_closed_by_what_the_scan_saw_says_so(tmp_path):
+    mid = '<geom name="mid" type="box" pos="-0.5 0 0.5" size="3.5 0.05 0.5"/>'  # 1 m gap east
+    plan = planner(write_world(tmp_path, ARENA + mid))
+    assert plan.plan((0.0, -2.0), (0.0, 2.0)) is not None
+    plan.mark(np.column_stack([np.arange(3.0, 4.0, 0.02), np.zeros(50)]))  # across the gap
+    assert plan.plan((0.0, -2.0), (0.0, 2.0)) is None
+    why = explain_no_path(plan, (0.0, -2.0), (0.0, 2.0))
+    assert why.endswith("closing the way: obstacles 'wall_e', 'wall_w', 'mid', points the "
+                        "scan saw (marked on the map by a recovery)."), why
 
 
 def test_the_node_notes_why_once_and_stands_still(tmp_path):

@@ -66,7 +66,7 @@ def border(region: np.ndarray, passable: np.ndarray) -> np.ndarray:
 
 def blockers(planner, cells: np.ndarray) -> list[str]:
     """The obstacles nearest to ``cells`` (grid indices): names in the world's order, with
-    the scan's marked points last when they are nearer than any obstacle to some cell."""
+    the scan's marked points last when some cell is blocked only because of them."""
     if len(cells) == 0:
         return []
     grid = planner.grid
@@ -74,7 +74,7 @@ def blockers(planner, cells: np.ndarray) -> list[str]:
     ys = grid.origin[1] + (cells[:, 1] + 0.5) * grid.res
     dist = np.array([o.distances(xs, ys) for o in grid.obstacles])
     nearest = dist.argmin(axis=0)
-    marked = mark_distances(planner, xs, ys) < dist.min(axis=0)
+    marked = planner.static_dist[cells[:, 0], cells[:, 1]] >= planner.narrow_distance
     names = [f"'{grid.obstacles[k].name}'" for k in sorted(set(nearest[~marked].tolist()))]
     return names + ([SCAN] if marked.any() else [])
 

@@ -62,11 +62,16 @@ class Planner:
         return self._narrow_cost
 
     def mark(self, points: np.ndarray) -> None:
-        """Add scan points (odom frame) to the map as obstacles and rebuild the costmap."""
+        """Add the scan points (odom frame) the static map does not explain (farther than
+        two cells from its obstacles) to the map as obstacles, replacing the last ones, and
+        rebuild the costmap. A point on a known obstacle would only add its cell's rounding
+        and narrow passages the plan may take."""
         occ = self.static.copy()
         marked = np.zeros_like(self.static)
         for x, y in points:
-            marked[self.grid.cell(float(x), float(y))] = True
+            cell = self.grid.cell(float(x), float(y))
+            if self.static_dist[cell] > 2 * self.p.resolution:
+                marked[cell] = True
         self.marked = marked
         self.grid.occ = occ | marked
         self._update_cost()
