@@ -44,6 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse a scenario that has warnings (a goal the controller's map\n"
+                        "cannot reach, an output nobody reads, ...): exit 2, nothing started")
     p.add_argument("--paused", action="store_true",
                    help="start paused: resume or step with the /cosim/pause and /cosim/step "
                         "ROS 2 services")
@@ -84,8 +87,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
-                      pack=args.pack,
-                      shuffle_start=args.shuffle_start)
+                      pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict)
 
 
 def overrides_from(args: argparse.Namespace) -> dict:

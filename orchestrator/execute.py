@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
+from nodes.runtime.notes import Note, read_notes
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.factory import create_transport
 from orchestrator.external_arrivals import Arrivals, Replay
@@ -55,6 +56,7 @@ class RunOutcome:
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)  # what nodes told people, in tick order
 
     @property
     def digest(self) -> str | None:
@@ -108,6 +110,7 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     finally:
         with signals_ignored():
             outcome.wall_s = time.monotonic() - started
+            outcome.notes = _collect_notes(scenario, paths, outcome)
             outcome.bag = _write_bag_safely(scenario, outcome)
             outcome.report = _write_picture_safely(scenario, outcome)
             if options.export_usd:
@@ -118,6 +121,22 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             logging.getLogger().removeHandler(handler)
             handler.close()
     return outcome
+
+
+def _collect_notes(scenario: Scenario, paths: RunPaths, outcome: RunOutcome) -> list[Note]:
+    """The nodes' notes of the run's ticks (in-process: from the loop; multi-process: from
+    each node's notes file, without what a node ran ahead past the stop), logged here."""
+    if outcome.result is not None and outcome.result.notes:
+        notes = list(outcome.result.notes)
+    else:
+        notes = [n for name in scenario.nodes for n in read_notes(paths.notes(name))]
+    if outcome.result is not None:
+        notes = [n for n in notes if n.tick < outcome.result.ticks]
+    order = {name: i for i, name in enumerate(scenario.schedule.order)}
+    notes.sort(key=lambda n: (n.tick, order.get(n.node, len(order))))
+    for note in notes:
+        log.info("note: %s", note.line())
+    return notes
 
 
 def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:

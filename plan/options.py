@@ -2,7 +2,8 @@
 
 Nothing here changes what a run computes (the digest is the same whatever the options);
 they choose how the work is done: pipelined or strictly in lockstep, forked or fresh
-node processes, zenoh shared memory, the camera's GL warm-up, profiling. The orchestrator
+node processes, zenoh shared memory, the camera's GL warm-up, profiling; and whether a
+scenario's warnings refuse the run (strict). The orchestrator
 hands the node-side fields to every node process on its command line (``to_json``), never
 through the environment.
 """
@@ -34,6 +35,7 @@ class RunOptions:
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
     pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
     shuffle_start: int | None = None  # tests: start node processes in a seeded order
+    strict: bool = False  # refuse a scenario with warnings (ScenarioError: exit 2)
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:

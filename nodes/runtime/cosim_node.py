@@ -114,6 +114,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     """Run node ``name`` under an orchestrator until told to stop."""
     from nodes.runtime.build import make_node
     from nodes.runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
+    from nodes.runtime.notes import NoteWriter
     from nodes.runtime.recording import PartWriter
     from nodes.runtime.transport.factory import create_transport
     from plan.options import RunOptions, TransportSettings
@@ -132,7 +133,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     recorder = PartWriter(paths.part(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder, options.pack)
+    notes = NoteWriter(paths.notes(name)) if paths else None
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
     install_stop_handlers(runtime)
     try:
         runtime.node = make_node(scenario, name, options)
@@ -153,6 +155,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         _write_timing(runtime, paths, name)  # also when stopped in the middle of a step
         if recorder:
             recorder.close()
+        if notes:
+            notes.close()
         transport.close()
 
 
@@ -160,6 +164,7 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     """Run several nodes in this process, on one transport session with one wait."""
     from nodes.runtime.build import make_node
     from nodes.runtime.lockstep import LockstepRuntime, NodeFailure
+    from nodes.runtime.notes import NoteWriter
     from nodes.runtime.packed import PackedRuntimes, install_packed_stop_handlers
     from nodes.runtime.recording import PartWriter
     from nodes.runtime.shared_transport import SharedTransport
@@ -177,8 +182,9 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     shared = SharedTransport(base)
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
-    runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], options.pack)
-                for n in names]
+    notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
+    runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], notes[n],
+                                options.pack) for n in names]
     packed = PackedRuntimes(runtimes, shared)
     install_packed_stop_handlers(packed)
     failed = None
@@ -204,9 +210,9 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     finally:
         for rt in runtimes:
             _write_timing(rt, paths, rt.name)
-        for recorder in recorders.values():
-            if recorder:
-                recorder.close()
+        for writer in [*recorders.values(), *notes.values()]:
+            if writer:
+                writer.close()
         shared.close()
 
 

@@ -9,6 +9,7 @@ classes are the same as in lockstep; only the results are no longer reproducible
 
 from __future__ import annotations
 
+import sys
 import time
 
 from rclpy.serialization import deserialize_message
@@ -16,6 +17,7 @@ from rosgraph_msgs.msg import Clock
 
 from nodes.contract import StepNode, Tick
 from nodes.runtime.exchange import prepare_outputs
+from nodes.runtime.notes import Note
 from nodes.runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
 from nodes.runtime.transport.base import Transport
 
@@ -100,6 +102,9 @@ class RealtimeRuntime:
     def _step(self, k: int) -> None:
         tick = Tick(k, k * self.tick_ns)
         outputs = self.node.step(tick, dict(self.latest))
+        for text in self.node.take_notes():
+            print(f"note: {Note(self.plan.name, k, tick.time_ns, text).line()}", file=sys.stderr,
+                  flush=True)
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
                                 self.plan.output_names, tick, outputs, self.plan.latched,
                                 first=self.served < 0)
