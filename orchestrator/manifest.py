@@ -145,6 +145,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "outputs": outputs_entry(outcome),
         "options": options.as_dict(),
         "warnings": list(getattr(outcome, "warnings", [])),
+        "live": getattr(outcome, "live", None) or None,
     }
 
 

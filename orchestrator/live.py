@@ -1,0 +1,115 @@
+"""The run's live endpoints (``--live``, ``--rosbridge``), wired to the orchestrator.
+
+- What clients see: every topic of the run and /clock. A multi-process run subscribes the
+  orchestrator's own transport to the topics once every node is ready (earlier, an extra
+  subscription could make a node believe its consumers had matched) and the master hands
+  each message it takes to ``offer``; an in-process run offers what its observer sees.
+  ``offer`` never blocks: the endpoints keep bounded queues and serve from their own threads.
+- What clients drive: messages enter through the run's ``Arrivals`` (the scenario's
+  ``external:`` topics), at the external node's next tick, recorded and hashed; services
+  reach the run's SimControl (``/cosim/pause``, ``/cosim/step``, ``/cosim/reset`` and any
+  other service on its node), each call served on the master's thread by SimControl's own
+  executor, between ticks, exactly as a ROS 2 client's call is.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+from rosgraph_msgs.msg import Clock
+
+from nodes.runtime.live.endpoints import Catalog, ServiceUnavailable
+from nodes.runtime.live.session import LiveEndpoints
+from nodes.runtime.protocol import CLOCK_TOPIC, encode_clock
+from plan.options import RunOptions
+from plan.scenario import Scenario
+
+POLL_S = 0.005
+TAP_DEPTH = 100
+
+
+class SimControlServices:
+    """The services of a SimControl's node, callable from any thread."""
+
+    def __init__(self, control):
+        self.control = control
+        self._services = {srv.srv_name: srv for srv in control.node.services}
+
+    def types(self) -> dict[str, type]:
+        """Service name -> service class."""
+        return {name: srv.srv_type for name, srv in self._services.items()}
+
+    def call(self, name: str, request: Any, timeout_s: float) -> Any:
+        """Run the service's callback on the master's thread (SimControl's executor spins
+        there between ticks, and while paused) and wait for its response."""
+        service = self._services.get(name)
+        if service is None:
+            raise ServiceUnavailable(f"no service {name}")
+        try:
+            task = self.control.executor.create_task(service.callback, request,
+                                                     service.srv_type.Response())
+        except Exception as exc:  # noqa: BLE001 - the executor is shut down: the run is over
+            raise ServiceUnavailable(f"the run takes no more calls ({exc})") from None
+        deadline = time.monotonic() + timeout_s
+        while not task.done():
+            if time.monotonic() > deadline:
+                task.cancel()
+                raise ServiceUnavailable(f"{name}: the run did not take the call within "
+                                         f"{timeout_s:g} s (it may be over)")
+            time.sleep(POLL_S)
+        if task.exception() is not None:
+            raise ServiceUnavailable(f"{name} failed: {task.exception()}")
+        return task.result()
+
+
+def catalog_for(scenario: Scenario, arrivals, control=None) -> Catalog:
+    """What the endpoints of this run offer: its topics and /clock, its external topics
+    (when ``arrivals`` is live), the SimControl's services (multi-process ros2 runs)."""
+    topics = {CLOCK_TOPIC: Clock, **dict(sorted(scenario.topics.items()))}
+    if arrivals is None:
+        why = ("this run takes no messages from outside: give the scenario an external: "
+               "section, e.g. external: {rate: 10, topics: {/cmd_vel: geometry_msgs/msg/Twist}}")
+    else:
+        why = "this run replays recorded inputs and takes none from outside"
+    inbox = arrivals if hasattr(arrivals, "put") else None
+    services = SimControlServices(control) if control is not None else None
+    return Catalog(topics, inbox=inbox, services=services, no_inbox_text=why)
+
+
+def start_endpoints(scenario: Scenario, options: RunOptions, arrivals, control=None
+                    ) -> LiveEndpoints | None:
+    """Start what the options ask for (None when neither); LiveError when one cannot listen."""
+    if not (options.live or options.rosbridge):
+        return None
+    end_ns = scenario.schedule.time_ns(max(scenario.schedule.n_ticks - 1, 0))
+    endpoints = LiveEndpoints(catalog_for(scenario, arrivals, control),
+                              options.live_address, options.rosbridge_address,
+                              f"cosim {scenario.name}", end_ns)
+    for line in endpoints.start():
+        print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
+    return endpoints
+
+
+def tap_topics(scenario: Scenario, transport, already: set[str]) -> None:
+    """Subscribe the orchestrator's transport to every topic of the run it does not read yet
+    (call once every node is ready)."""
+    for topic, cls in sorted(scenario.topics.items()):
+        if topic not in already:
+            transport.subscription(topic, cls, TAP_DEPTH)
+
+
+def in_process_observer(endpoints: LiveEndpoints, scenario: Scenario):
+    """(observer, on_tick) for ``run_in_process``: offer each activation's outputs, and
+    /clock once a tick is done (an in-process run has no /clock of its own)."""
+    sched = scenario.schedule
+
+    def observe(_tick: int, _name: str, items: list[tuple[str, bytes]]) -> None:
+        for topic, data in items:
+            endpoints.offer(topic, data)
+
+    def on_tick(tick: int) -> None:
+        endpoints.offer(CLOCK_TOPIC, encode_clock(sched.time_ns(tick)))
+
+    return observe, on_tick
