@@ -35,7 +35,9 @@ class SimControlServices:
 
     def __init__(self, control):
         self.control = control
-        self._services = {srv.srv_name: srv for srv in control.node.services}
+        # rclpy's own type-description service is no simulation control
+        self._services = {srv.srv_name: srv for srv in control.node.services
+                          if not srv.srv_type.__module__.startswith("type_description")}
 
     def types(self) -> dict[str, type]:
         """Service name -> service class."""

@@ -100,7 +100,7 @@ def service_schemas(typename: str) -> tuple[str, str]:
     """(request, response) ``ros2msg`` schemas of service 'pkg/srv/Name'."""
     package, _, name = typename.split("/")
     text = _definition_file(package, "srv", name).read_text()
-    request, _, response = text.partition("\n---")
+    request, response = re.split(r"^---[ \t]*$", text, maxsplit=1, flags=re.MULTILINE)
     out = []
     for part, body in (("Request", request), ("Response", response)):
         # rosbags names only 'msg' types; the part's own name never appears in its schema
