@@ -44,6 +44,7 @@ class Catalog:
     inbox: Inbox | None = None
     services: Services | None = None
     no_inbox_text: str = "this run takes no messages from outside"
+    inbox_what: str = "a topic this run takes from outside"
     header_types: set[type] = field(default_factory=set)
 
     def __post_init__(self) -> None:

@@ -241,7 +241,7 @@ class ClientSession:
         if inbox is None:
             raise ClientError(f"{op}: {self.server.catalog.no_inbox_text}")
         if topic not in inbox.topics:
-            raise ClientError(f"{op}: {topic} is not a topic this run takes from outside; it "
+            raise ClientError(f"{op}: {topic} is not {self.server.catalog.inbox_what}; it "
                               f"takes {', '.join(sorted(inbox.topics)) or 'none'}")
         return inbox.topics[topic]
 
