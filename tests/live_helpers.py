@@ -95,7 +95,8 @@ def finish(proc: subprocess.Popen, timeout: float = 120) -> tuple[int, str, str]
     except subprocess.TimeoutExpired:
         proc.kill()
         out, err = proc.communicate()
-        raise AssertionError(f"{proc.args[:3]} did not end in {timeout} s:\n{err[-3000:]}")
+        raise AssertionError(f"{proc.args[:3]} did not end in {timeout} s:\n"
+                             f"{err[-3000:]}") from None
     return proc.returncode, out, err
 
 

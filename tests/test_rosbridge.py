@@ -6,8 +6,8 @@ digest; bad frames get an error status and the connection stays open."""
 from __future__ import annotations
 
 import json
-import socket
 import signal
+import socket
 import time
 
 import pytest

@@ -5,6 +5,7 @@
 // when the server goes away (or after --seconds).
 //
 //   node foxglove_client.mjs ws://127.0.0.1:8765 --topics /odom,/camera/color/image_raw
+//   (--drive no: no service calls; --stall: stop reading once subscribed, a stuck client)
 import wsProtocol from "@foxglove/ws-protocol";
 import rosmsg from "@foxglove/rosmsg";
 import serialization from "@foxglove/rosmsg2-serialization";
@@ -21,6 +22,7 @@ const arg = (name, fallback) => {
 const wanted = new Set(arg("--topics", "/odom").split(","));
 const seconds = Number(arg("--seconds", "60"));
 const drive = arg("--drive", "yes") === "yes";
+const stall = process.argv.includes("--stall"); // stop reading once subscribed (a stuck client)
 
 const summary = { topics: {}, times: 0, first_time: null, last_time: null, services: [],
                   step: null, resume: null, schemas: {}, errors: [] };
@@ -49,6 +51,7 @@ function connect(triesLeft) {
       const reader = new MessageReader(parse(channel.schema, { ros2: true }));
       readers.set(client.subscribe(channel.id), [channel.topic, reader]);
     }
+    if (stall) setTimeout(() => ws._socket.pause(), 200);
   });
   client.on("message", ({ subscriptionId, timestamp, data }) => {
     const [topic, reader] = readers.get(subscriptionId);

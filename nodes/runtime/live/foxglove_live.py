@@ -39,6 +39,7 @@ CLIENT_BACKLOG = 256  # messages the SDK keeps per client before dropping its ol
 STATE_PERIOD_S = 0.25
 PAUSE_SERVICE = "/cosim/pause"
 SERVICE_TIMEOUT_S = 10.0
+STOP_WAIT_S = 2.0
 
 
 class FoxgloveLive:
@@ -93,14 +94,21 @@ class FoxgloveLive:
         return self.port
 
     def close(self) -> None:
-        """Stop forwarding and stop the server."""
+        """Stop forwarding and stop the server, waiting at most ``STOP_WAIT_S`` for it: the
+        SDK's stop waits for every client to take its close frame, which a stuck client never
+        does; the stop then finishes in the background (or with the process)."""
         self._queue.close()
         if self._thread.is_alive():
             self._thread.join(timeout=5)
-        if self._server is not None:
-            self._server.stop()
         for channel in self.channels.values():
             channel.close()
+        if self._server is not None:
+            stopping = threading.Thread(target=self._server.stop, name="cosim-foxglove-stop",
+                                        daemon=True)
+            stopping.start()
+            stopping.join(STOP_WAIT_S)
+            if stopping.is_alive():
+                log.warning("live view: a client does not read; stopped without waiting for it")
 
     def stats(self) -> dict[str, Any]:
         """For the manifest: where it listened, clients, messages dropped per topic."""

@@ -33,6 +33,7 @@ log = logging.getLogger("cosim")
 MAX_FRAME = 8 * 2**20  # a larger frame from a client gets an error status
 HARD_FRAME = 64 * 2**20  # a larger one closes the connection (websockets' own limit)
 QUEUE_DEPTH = 64  # per topic, between the run and the server's thread
+CLOSE_WAIT_S = 1.0
 ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type")
 
 
@@ -120,9 +121,20 @@ class RosbridgeServer:
         self._stop_loop()
 
     async def _shutdown(self) -> None:
+        """Say goodbye to every client (a client that does not read is cut off), stop
+        listening, and end every task of the loop."""
         if self._server is not None:
-            self._server.close()
-            await asyncio.wait_for(self._server.wait_closed(), 3)
+            self._server.close(close_connections=False)
+        await asyncio.gather(*(_close_client(s.ws) for s in list(self.clients)))
+        if self._server is not None:
+            try:
+                await asyncio.wait_for(self._server.wait_closed(), CLOSE_WAIT_S)
+            except TimeoutError:
+                pass
+        tasks = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
 
     def _stop_loop(self) -> None:
         if self._thread.is_alive():
@@ -230,6 +242,14 @@ class RosbridgeServer:
             return {"type": ros_type_name(cls) if cls else ""}
         srv = services.get(args.get("service", ""))
         return {"type": ros_type_name(srv) if srv else ""}
+
+
+async def _close_client(websocket) -> None:
+    """Close one connection; a client that does not take the close frame is cut off."""
+    try:
+        await asyncio.wait_for(websocket.close(1001, "the run is over"), CLOSE_WAIT_S)
+    except Exception:  # noqa: BLE001 - whatever the state, the connection goes
+        websocket.transport.abort()
 
 
 __all__ = ["RosbridgeServer", "ServiceUnavailable"]
