@@ -203,13 +203,14 @@ def _both(first: Callable, second: Callable) -> Callable:
     return both
 
 
-def _start_live(scenario: Scenario, options: RunOptions, external, control=None):
+def _start_live(scenario: Scenario, options: RunOptions, external,
+                control_later: bool = False):
     """The live endpoints the options ask for, started; a failure to listen fails the run."""
     from nodes.runtime.live.session import LiveError
     from orchestrator.live import start_endpoints
 
     try:
-        return start_endpoints(scenario, options, external, control)
+        return start_endpoints(scenario, options, external, control_later)
     except LiveError as exc:
         raise SimulationError(str(exc), node="orchestrator") from exc
 
@@ -238,6 +239,9 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
         if not opens_first:
             transport = _open_transport(settings)
+        # Clients may connect while the nodes start; they see the run once it is ready.
+        endpoints = _start_live(scenario, options, external,
+                                control_later=settings.kind == "ros2")
         if settings.kind == "zenoh" and settings.mirror_to_dds:
             from orchestrator.dds_mirror import DdsMirror
 
@@ -261,22 +265,24 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         log.info("all nodes ready after %.3f s", outcome.start_s)
         control = _sim_control(scenario, options)
         try:
-            endpoints = _start_live(scenario, options, external, control)
             if endpoints is not None:
-                from orchestrator.live import tap_topics
+                from orchestrator.live import attach_control, tap_topics
 
+                attach_control(endpoints, control)
                 tap_topics(scenario, transport, set(master.reader_of))
                 master.observe = endpoints.offer
             result = master.run(control)
         finally:
             if endpoints is not None:
                 master.observe = None
-                outcome.live = endpoints.close()
+                outcome.live, endpoints = endpoints.close(), None
             if control:
                 control.close()
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
+        if endpoints is not None:  # the run failed before its loop
+            outcome.live = endpoints.close()
         if master is not None:
             outcome.ticks_done = max(master.tick, 0)
             outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))

@@ -66,9 +66,9 @@ class SimControlServices:
         return task.result()
 
 
-def catalog_for(scenario: Scenario, arrivals, control=None) -> Catalog:
+def catalog_for(scenario: Scenario, arrivals) -> Catalog:
     """What the endpoints of this run offer: its topics and /clock, its external topics
-    (when ``arrivals`` is live), the SimControl's services (multi-process ros2 runs)."""
+    (when ``arrivals`` is live); services come with ``attach_control``."""
     topics = {CLOCK_TOPIC: Clock, **dict(sorted(scenario.topics.items()))}
     if arrivals is None:
         why = ("this run takes no messages from outside: give the scenario an external: "
@@ -76,22 +76,29 @@ def catalog_for(scenario: Scenario, arrivals, control=None) -> Catalog:
     else:
         why = "this run replays recorded inputs and takes none from outside"
     inbox = arrivals if hasattr(arrivals, "put") else None
-    services = SimControlServices(control) if control is not None else None
-    return Catalog(topics, inbox=inbox, services=services, no_inbox_text=why)
+    return Catalog(topics, inbox=inbox, no_inbox_text=why)
 
 
-def start_endpoints(scenario: Scenario, options: RunOptions, arrivals, control=None
-                    ) -> LiveEndpoints | None:
-    """Start what the options ask for (None when neither); LiveError when one cannot listen."""
+def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
+                    control_later: bool = False) -> LiveEndpoints | None:
+    """Start what the options ask for (None when neither); LiveError when one cannot listen.
+    ``control_later``: the run's SimControl comes once the nodes are ready
+    (``attach_control``); clients may connect before."""
     if not (options.live or options.rosbridge):
         return None
     end_ns = scenario.schedule.time_ns(max(scenario.schedule.n_ticks - 1, 0))
-    endpoints = LiveEndpoints(catalog_for(scenario, arrivals, control),
-                              options.live_address, options.rosbridge_address,
-                              f"cosim {scenario.name}", end_ns)
+    endpoints = LiveEndpoints(catalog_for(scenario, arrivals), options.live_address,
+                              options.rosbridge_address, f"cosim {scenario.name}", end_ns,
+                              control_later)
     for line in endpoints.start():
         print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
     return endpoints
+
+
+def attach_control(endpoints: LiveEndpoints, control) -> None:
+    """Offer the SimControl's services to the endpoints' clients."""
+    if control is not None:
+        endpoints.attach_services(SimControlServices(control))
 
 
 def tap_topics(scenario: Scenario, transport, already: set[str]) -> None:

@@ -115,6 +115,8 @@ let done = false;
 function finish() {
   if (done) return;
   done = true;
+  const cpu = process.cpuUsage();
+  summary.cpu_s = (cpu.user + cpu.system) / 1e6;
   process.stdout.write(JSON.stringify(summary) + "\n");
   process.exit(0);
 }

@@ -45,7 +45,8 @@ class BoundedChannels:
             queue.append(item)
             self.offered += 1
             first = self._pending == 1
-            self._ready.notify()
+            if first:  # the consumer takes everything at once: wake it once per batch
+                self._ready.notify()
         if first and self._on_first is not None:
             self._on_first()
 

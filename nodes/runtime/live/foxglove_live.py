@@ -37,6 +37,7 @@ log = logging.getLogger("cosim")
 QUEUE_DEPTH = 32  # per topic, between the run and the server's thread
 CLIENT_BACKLOG = 256  # messages the SDK keeps per client before dropping its oldest
 STATE_PERIOD_S = 0.25
+TIME_PERIOD_S = 0.02  # the server's time goes to clients at most this often (wall clock)
 PAUSE_SERVICE = "/cosim/pause"
 SERVICE_TIMEOUT_S = 10.0
 STOP_WAIT_S = 2.0
@@ -46,11 +47,12 @@ class FoxgloveLive:
     """A Foxglove WebSocket server fed from the run."""
 
     def __init__(self, address: ListenAddress, catalog: Catalog, name: str,
-                 end_ns: int | None = None):
+                 end_ns: int | None = None, control_later: bool = False):
         self.address = address
         self.catalog = catalog
         self.name = name
         self.end_ns = end_ns
+        self.control_later = control_later  # services come with attach_services
         self.port: int | None = None
         self.context = foxglove.Context()
         self.channels = {topic: self._channel(topic, cls) for topic, cls in catalog.topics.items()}
@@ -79,9 +81,10 @@ class FoxgloveLive:
         """Listen (RuntimeError from the SDK when the address cannot be had); the port."""
         services = self.catalog.services.types() if self.catalog.services else {}
         capabilities = [Capability.Time]
-        if services:
+        if services or self.control_later:
             capabilities.append(Capability.Services)
-        playback = (0, self.end_ns) if self.end_ns and PAUSE_SERVICE in services else None
+        has_pause = PAUSE_SERVICE in services or self.control_later
+        playback = (0, self.end_ns) if self.end_ns and has_pause else None
         self._server = foxglove.start_server(
             name=self.name, host=self.address.host, port=self.address.port,
             capabilities=capabilities, server_listener=_Listener(self),
@@ -110,6 +113,12 @@ class FoxgloveLive:
             if stopping.is_alive():
                 log.warning("live view: a client does not read; stopped without waiting for it")
 
+    def attach_services(self) -> None:
+        """Offer the catalog's services, which came after the server started."""
+        services = self.catalog.services.types() if self.catalog.services else {}
+        if services:
+            self._server.add_services([self._service(n, s) for n, s in services.items()])
+
     def stats(self) -> dict[str, Any]:
         """For the manifest: where it listened, clients, messages dropped per topic."""
         return {"address": f"{self.address.host}:{self.port}", "clients": self.clients_total,
@@ -127,20 +136,25 @@ class FoxgloveLive:
     # -- the forwarding thread ----------------------------------------------------------------
 
     def _forward(self) -> None:
-        next_state = 0.0
+        next_state = next_time = 0.0
+        sent_ns = -1
         while not self._queue.closed:
             items = self._queue.take(timeout_s=0.1)
             for topic, data in items:
                 if topic == CLOCK_TOPIC:
                     self._clock_ns = decode_clock(data)
-                    self._server.broadcast_time(self._clock_ns)
                 if topic in self._wanted:
                     stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
                     self.channels[topic].log(data, log_time=stamp)
             now = time.monotonic()
+            if self._clock_ns != sent_ns and now >= next_time:
+                next_time, sent_ns = now + TIME_PERIOD_S, self._clock_ns
+                self._server.broadcast_time(self._clock_ns)
             if self.end_ns and now >= next_state:
                 next_state = now + STATE_PERIOD_S
                 self._server.broadcast_playback_state(self._state(None))
+        if self._clock_ns != sent_ns:  # the run's last time
+            self._server.broadcast_time(self._clock_ns)
 
     def _state(self, request_id: str | None) -> PlaybackState:
         status = PlaybackStatus.Playing if self._playing else PlaybackStatus.Paused
@@ -181,7 +195,7 @@ class FoxgloveLive:
         pause = command == PlaybackCommand.Pause
         self._playing = not pause
         services = self.catalog.services
-        if services is not None:
+        if services is not None and PAUSE_SERVICE in services.types():
             request = services.types()[PAUSE_SERVICE].Request(data=pause)
             threading.Thread(target=_call_quietly, args=(services, request),
                              name="cosim-foxglove-playback", daemon=True).start()

@@ -83,7 +83,7 @@ class RosbridgeServer:
         self.errors = 0
         self.dropped_by_clients: dict[str, int] = {}
         self._wanted: frozenset[str] = frozenset()
-        self._clock_ns = 0
+        self._clock = b""
         self._loop = asyncio.new_event_loop()
         self._queue = BoundedChannels(QUEUE_DEPTH, on_first=self._wake)
         self._thread = threading.Thread(target=self._loop.run_forever, name="cosim-rosbridge",
@@ -161,7 +161,7 @@ class RosbridgeServer:
     def offer(self, topic: str, data: bytes) -> None:
         """A message of the run; queued only when a client subscribed to ``topic``."""
         if topic == CLOCK_TOPIC:
-            self._clock_ns = decode_clock(data)  # stamps messages without a header
+            self._clock = data  # stamps messages without a header (decoded when used)
         if topic in self._wanted:
             self._queue.put(topic, data)
 
@@ -174,10 +174,11 @@ class RosbridgeServer:
     # -- on the server's thread ---------------------------------------------------------------
 
     def _dispatch(self) -> None:
+        clock_ns = decode_clock(self._clock) if self._clock else 0
         for topic, data in self._queue.take():
             cls = self.catalog.topics[topic]
             message = OutgoingMessage(topic, cls, data,
-                                      self.catalog.stamp_of(topic, data, self._clock_ns))
+                                      self.catalog.stamp_of(topic, data, clock_ns))
             for session in self.clients:
                 sub = session.subs.get(topic)
                 if sub is not None:

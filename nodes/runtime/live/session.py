@@ -20,8 +20,10 @@ class LiveEndpoints:
     """The endpoints a run asked for; ``offer`` feeds both and never blocks."""
 
     def __init__(self, catalog: Catalog, live: ListenAddress | None,
-                 rosbridge: ListenAddress | None, name: str, end_ns: int | None = None):
+                 rosbridge: ListenAddress | None, name: str, end_ns: int | None = None,
+                 control_later: bool = False):
         self.catalog = catalog
+        self.control_later = control_later  # services come later (attach_services)
         self.live_address = live
         self.rosbridge_address = rosbridge
         self.name = name
@@ -38,7 +40,7 @@ class LiveEndpoints:
                 from nodes.runtime.live.foxglove_live import FoxgloveLive
 
                 self.foxglove = FoxgloveLive(self.live_address, self.catalog, self.name,
-                                             self.end_ns)
+                                             self.end_ns, self.control_later)
                 port = _listen(self.foxglove, "the live view (--live)", self.live_address)
                 lines.append(f"live view (Foxglove): ws://{_host(self.live_address)}:{port}")
             if self.rosbridge_address is not None:
@@ -54,6 +56,12 @@ class LiveEndpoints:
         for line in lines:
             log.info("%s", line)
         return lines
+
+    def attach_services(self, services) -> None:
+        """The services clients may call, once they exist (the run's simulation control)."""
+        self.catalog.services = services
+        if self.foxglove is not None and services is not None:
+            self.foxglove.attach_services()
 
     def offer(self, topic: str, data: bytes) -> None:
         """A message of the run (CDR bytes), for whichever client wants it."""
