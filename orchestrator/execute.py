@@ -219,7 +219,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                    outcome: RunOutcome, started: float, on_tick: OnTick | None,
                    external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    master = transport = mirror = endpoints = None
+    master = transport = mirror = endpoints = tail = None
     participants: dict = {}
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
@@ -266,15 +266,15 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         control = _sim_control(scenario, options)
         try:
             if endpoints is not None:
-                from orchestrator.live import attach_control, tap_topics
+                from orchestrator.live import attach_control, follow_parts
 
                 attach_control(endpoints, control)
-                tap_topics(scenario, transport, set(master.reader_of))
-                master.observe = endpoints.offer
+                tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
         finally:
+            if tail is not None:
+                tail.stop()
             if endpoints is not None:
-                master.observe = None
                 outcome.live, endpoints = endpoints.close(), None
             if control:
                 control.close()

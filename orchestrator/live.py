@@ -1,10 +1,10 @@
 """The run's live endpoints (``--live``, ``--rosbridge``), wired to the orchestrator.
 
-- What clients see: every topic of the run and /clock. A multi-process run subscribes the
-  orchestrator's own transport to the topics once every node is ready (earlier, an extra
-  subscription could make a node believe its consumers had matched) and the master hands
-  each message it takes to ``offer``; an in-process run offers what its observer sees.
-  ``offer`` never blocks: the endpoints keep bounded queues and serve from their own threads.
+- What clients see: every topic of the run and /clock. In a multi-process run a thread
+  reads what the nodes record as they record it (``orchestrator.live_tail``): nothing is
+  added to the transport or to the master's loop; an in-process run offers what its
+  observer sees. ``offer`` never blocks: the endpoints keep bounded queues and serve from
+  their own threads.
 - What clients drive: messages enter through the run's ``Arrivals`` (the scenario's
   ``external:`` topics), at the external node's next tick, recorded and hashed; services
   reach the run's SimControl (``/cosim/pause``, ``/cosim/step``, ``/cosim/reset`` and any
@@ -27,7 +27,6 @@ from plan.options import RunOptions
 from plan.scenario import Scenario
 
 POLL_S = 0.005
-TAP_DEPTH = 100
 
 
 class SimControlServices:
@@ -101,12 +100,14 @@ def attach_control(endpoints: LiveEndpoints, control) -> None:
         endpoints.attach_services(SimControlServices(control))
 
 
-def tap_topics(scenario: Scenario, transport, already: set[str]) -> None:
-    """Subscribe the orchestrator's transport to every topic of the run it does not read yet
-    (call once every node is ready)."""
-    for topic, cls in sorted(scenario.topics.items()):
-        if topic not in already:
-            transport.subscription(topic, cls, TAP_DEPTH)
+def follow_parts(endpoints: LiveEndpoints, scenario: Scenario, paths):
+    """Start offering what the run's nodes record (a multi-process run); the follower."""
+    from orchestrator.live_tail import PartsTail
+
+    tail = PartsTail({name: paths.part(name) for name in scenario.nodes},
+                     set(scenario.topics), scenario.tick_ns, endpoints.offer)
+    tail.start()
+    return tail
 
 
 def in_process_observer(endpoints: LiveEndpoints, scenario: Scenario):

@@ -106,8 +106,6 @@ class LockstepMaster:
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
         self._next_liveness = 0.0
         self._next_sample = 0.0
-        # (topic, bytes) of every run message taken, and /clock: the live endpoints' offer
-        self.observe: Callable[[str, bytes], None] | None = None
 
     # -- start ---------------------------------------------------------------------------
 
@@ -194,10 +192,7 @@ class LockstepMaster:
 
     def _publish(self, book: AckBook, k: int) -> None:
         self.tick = k
-        clock = encode_clock(self.sched.time_ns(k))
-        self.clock_pub.publish(clock)
-        if self.observe is not None:
-            self.observe(CLOCK_TOPIC, clock)
+        self.clock_pub.publish(encode_clock(self.sched.time_ns(k)))
         for participant in self.participants.values():
             participant.start_tick(k)
         book.expect(k, time.monotonic(), self.tick_limit_s)
@@ -310,8 +305,6 @@ class LockstepMaster:
                 out.append(status)
             elif rec.topic in self.reader_of:
                 out += self.reader_of[rec.topic].take(rec, self.tick)
-            if self.observe is not None and rec.topic != STATUS_TOPIC:
-                self.observe(rec.topic, rec.data)
         for participant in self.drainable:
             out += participant.drain()
         return out

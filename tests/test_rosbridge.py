@@ -71,8 +71,9 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     assert odom["last"]["stamp"] == 4_000_000_000
     assert odom["last"]["x"] > -3.0 + 0.5  # it drove: /cmd_vel entered the run
     assert scan["count"] > 20 and scan["last"]["ranges"] == 360  # these came as CBOR
-    gaps = [b - a for a, b in zip(throttled, throttled[1:], strict=False)]
-    assert len(throttled) >= 2 and min(gaps) > 0.4  # at most one scan per 500 ms
+    # at most one scan per 500 ms of wall time (a fast run may give only one)
+    assert 1 <= len(throttled) < scan["count"]
+    assert all(b - a > 0.4 for a, b in zip(throttled, throttled[1:], strict=False))
     live = manifest(tmp_path / "runs")["live"]["rosbridge"]
     assert live["clients"] == 2 and live["clients_at_once"] == 2
     assert live["published_by_clients"] >= 1 and live["errors"] == 0
