@@ -9,6 +9,7 @@ from orchestrator.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError
 from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
+from plan.packing import packable
 from plan.scenario import Scenario
 
 
@@ -25,6 +26,7 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         raise ScenarioError(scenario.file, "transport", "zenoh carries cosim nodes only; "
                             f"node(s) {', '.join(foreign)} are foreign ROS 2 programs "
                             "(command:) that talk DDS.", "transport: ros2 for this scenario.")
+    _check_processes(scenario)
     for i, (name, plan) in enumerate(scenario.nodes.items()):
         if not plan.foreign:
             continue
@@ -45,3 +47,23 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         raise ValueError("; ".join(problems))
     return [*scenario.warnings, *exposure_warnings(options.live_address,
                                                    options.rosbridge_address)]
+
+
+def _check_processes(scenario: Scenario) -> None:
+    """A ``process:`` name groups cosim nodes the orchestrator starts, with one prefix."""
+    prefixes: dict[str, tuple[str, str | None]] = {}
+    for i, (name, plan) in enumerate(scenario.nodes.items()):
+        group = plan.spec.process
+        if group is None:
+            continue
+        key = f"nodes[{i}] ({name}).process"
+        if not packable(plan):
+            raise ScenarioError(scenario.file, key, f"{name} is "
+                                f"{'a foreign program' if plan.foreign else 'started by you'}"
+                                "; only cosim nodes the orchestrator starts share a process.",
+                                "leave process out for this node.")
+        first = prefixes.setdefault(group, (name, plan.spec.prefix))
+        if first[1] != plan.spec.prefix:
+            raise ScenarioError(scenario.file, key, f"{name} and {first[0]} share process "
+                                f"{group!r} but not their launch prefix.",
+                                "the same prefix for every node of a process, or none.")
