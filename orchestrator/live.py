@@ -75,7 +75,8 @@ def catalog_for(scenario: Scenario, arrivals) -> Catalog:
     else:
         why = "this run replays recorded inputs and takes none from outside"
     inbox = arrivals if hasattr(arrivals, "put") else None
-    return Catalog(topics, inbox=inbox, no_inbox_text=why)
+    return Catalog(topics, inbox=inbox, no_inbox_text=why,
+                   latched=frozenset(scenario.latched_topics))
 
 
 def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,

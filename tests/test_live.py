@@ -40,7 +40,7 @@ DEPTH = "/camera/depth/image_rect"
 
 def test_foxglove_client_follows_nav_and_the_digest_is_unchanged(tmp_path):
     scenario = write(tmp_path, nav_doc("3s"), "nav3")
-    topics = ["/odom", CAMERA, "/clock"] + (["/tf"] if "/tf" in load(scenario).topics else [])
+    topics = ["/odom", CAMERA, "/clock", "/tf", "/tf_static"]
     port = free_port()
     orch = orchestrate(scenario, tmp_path / "runs", "--paused", "--live", f"127.0.0.1:{port}")
     wait_listening(port, orch)
@@ -58,8 +58,9 @@ def test_foxglove_client_follows_nav_and_the_digest_is_unchanged(tmp_path):
     assert image["last"] == {"log_time": 3_000_000_000, "frame_id": image["last"]["frame_id"],
                              "stamp": 3_000_000_000, "width": 160, "height": 120,
                              "encoding": "rgb8", "bytes": 160 * 120 * 3}
-    if "/tf" in got["topics"]:
-        assert got["topics"]["/tf"]["last"]["transforms"]
+    assert "base_link" in got["topics"]["/tf"]["last"]["transforms"]
+    assert got["topics"]["/tf_static"]["count"] >= 1
+    assert got["topics"]["/tf_static"]["first"]["transforms"]
     # sim time is the server's time; the services stepped once, then resumed the run
     assert got["times"] > 2 and got["first_time"] < got["last_time"] == 3_000_000_000
     assert {"/cosim/pause", "/cosim/step", "/cosim/reset"} <= {n for n, _ in got["services"]}

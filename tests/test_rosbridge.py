@@ -9,6 +9,7 @@ import json
 import signal
 import socket
 import time
+from types import SimpleNamespace
 
 import pytest
 import roslibpy
@@ -97,7 +98,8 @@ def realtime_physics():
                       f"127.0.0.1:{port}", "--live", f"127.0.0.1:{live}")
     try:
         wait_listening(port, proc)
-        yield port
+        wait_listening(live, proc)
+        yield SimpleNamespace(rosbridge=port, live=live)
     finally:
         proc.send_signal(signal.SIGINT)
         code, _, err = finish(proc, timeout=30)
@@ -105,7 +107,7 @@ def realtime_physics():
 
 
 def test_roslibpy_drives_pauses_and_steps_a_realtime_physics_node(realtime_physics):
-    ros = roslibpy_client(realtime_physics)
+    ros = roslibpy_client(realtime_physics.rosbridge)
     try:
         odoms = []
         roslibpy.Topic(ros, "/odom", "nav_msgs/Odometry").subscribe(odoms.append)
@@ -136,9 +138,26 @@ def test_roslibpy_drives_pauses_and_steps_a_realtime_physics_node(realtime_physi
         time.sleep(0.3)
         assert len(odoms) > held + 5
         topics = ros.get_topics()
-        assert {"/odom", "/cmd_vel", "/clock"} <= set(topics)
+        assert {"/odom", "/cmd_vel", "/clock", "/tf_static"} <= set(topics)
+        # /tf_static went out once, seconds ago: a late subscriber still gets it (latched)
+        static = []
+        roslibpy.Topic(ros, "/tf_static", "tf2_msgs/msg/TFMessage").subscribe(static.append)
+        time.sleep(0.5)
+        assert len(static) == 1 and static[0]["transforms"]
     finally:
         ros.close()
+
+
+def test_a_late_foxglove_client_of_a_realtime_node_gets_tf_static(realtime_physics):
+    """/tf_static went out at the node's first step; Foxglove's client, subscribing a second
+    later, still gets it (and /odom as it comes)."""
+    time.sleep(1.0)
+    got = summary(node_client("foxglove_client.mjs", f"ws://127.0.0.1:{realtime_physics.live}",
+                              "--topics",
+                              "/tf_static,/odom", "--drive", "no", "--seconds", "2"))
+    assert got["topics"]["/tf_static"]["count"] == 1
+    assert got["topics"]["/tf_static"]["first"]["transforms"]
+    assert got["topics"]["/odom"]["count"] > 20
 
 
 def ops(ws, *frames, want: int) -> list[dict]:
@@ -154,7 +173,7 @@ def ops(ws, *frames, want: int) -> list[dict]:
 
 
 def test_bad_frames_get_an_error_status_and_the_connection_stays(realtime_physics):
-    with connect(f"ws://127.0.0.1:{realtime_physics}", max_size=None) as ws:
+    with connect(f"ws://127.0.0.1:{realtime_physics.rosbridge}", max_size=None) as ws:
         replies = ops(
             ws,
             "{not json",

@@ -156,7 +156,8 @@ def _start_endpoints(scenario, name: str, runtime, live):
     catalog = Catalog(dict(sorted(topics.items())), inbox=runtime.inbox,
                       services=runtime.control,
                       no_inbox_text=f"node {name} has no inputs to drive",
-                      inbox_what=f"an input of node {name}")
+                      inbox_what=f"an input of node {name}",
+                      latched=frozenset(plan.latched_topics))
     endpoints = LiveEndpoints(catalog, live.live_address, live.rosbridge_address,
                               f"cosim-node {name}")
     for line in endpoints.start():

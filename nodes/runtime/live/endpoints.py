@@ -45,6 +45,7 @@ class Catalog:
     services: Services | None = None
     no_inbox_text: str = "this run takes no messages from outside"
     inbox_what: str = "a topic this run takes from outside"
+    latched: frozenset[str] = frozenset()  # sent once (/tf_static): a late client gets the last
     header_types: set[type] = field(default_factory=set)
 
     def __post_init__(self) -> None:

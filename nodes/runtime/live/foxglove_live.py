@@ -59,6 +59,8 @@ class FoxgloveLive:
         self._wanted: dict[str, int] = {}
         self._wanted_lock = threading.Lock()
         self._queue = BoundedChannels(QUEUE_DEPTH)
+        self._latched: dict[str, tuple[bytes, int]] = {}  # topic -> last (data, log time)
+        self._replay: set[str] = set()  # latched topics a client just subscribed to
         self._clock_ns = 0
         self._playing = True
         self._server = None
@@ -130,7 +132,7 @@ class FoxgloveLive:
     def offer(self, topic: str, data: bytes) -> None:
         """A message of the run: queued while some client subscribes to its topic (/clock
         always: it is the server's time)."""
-        if topic in self._wanted or topic == CLOCK_TOPIC:
+        if topic in self._wanted or topic == CLOCK_TOPIC or topic in self.catalog.latched:
             self._queue.put(topic, data)
 
     # -- the forwarding thread ----------------------------------------------------------------
@@ -143,8 +145,15 @@ class FoxgloveLive:
             for topic, data in items:
                 if topic == CLOCK_TOPIC:
                     self._clock_ns = decode_clock(data)
+                stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
+                if topic in self.catalog.latched:
+                    self._latched[topic] = (data, stamp)
                 if topic in self._wanted:
-                    stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
+                    self.channels[topic].log(data, log_time=stamp)
+            while self._replay:  # a new subscriber of a latched topic gets its last message
+                topic = self._replay.pop()
+                if topic in self._latched:
+                    data, stamp = self._latched[topic]
                     self.channels[topic].log(data, log_time=stamp)
             now = time.monotonic()
             if self._clock_ns != sent_ns and now >= next_time:
@@ -234,6 +243,8 @@ class _Listener:
         live.clients[client.id] = live.clients.get(client.id, 0) + 1
         live.clients_max = max(live.clients_max, len(live.clients))
         live.subscribed(channel.topic, +1)
+        if channel.topic in live.catalog.latched:
+            live._replay.add(channel.topic)
 
     def on_unsubscribe(self, client, channel) -> None:
         """A client unsubscribed from a channel (or left)."""

@@ -84,6 +84,7 @@ class RosbridgeServer:
         self.dropped_by_clients: dict[str, int] = {}
         self._wanted: frozenset[str] = frozenset()
         self._clock = b""
+        self.latched: dict[str, OutgoingMessage] = {}  # the last message of latched topics
         self._loop = asyncio.new_event_loop()
         self._queue = BoundedChannels(QUEUE_DEPTH, on_first=self._wake)
         self._thread = threading.Thread(target=self._loop.run_forever, name="cosim-rosbridge",
@@ -162,7 +163,7 @@ class RosbridgeServer:
         """A message of the run; queued only when a client subscribed to ``topic``."""
         if topic == CLOCK_TOPIC:
             self._clock = data  # stamps messages without a header (decoded when used)
-        if topic in self._wanted:
+        if topic in self._wanted or topic in self.catalog.latched:
             self._queue.put(topic, data)
 
     def _wake(self) -> None:
@@ -179,6 +180,8 @@ class RosbridgeServer:
             cls = self.catalog.topics[topic]
             message = OutgoingMessage(topic, cls, data,
                                       self.catalog.stamp_of(topic, data, clock_ns))
+            if topic in self.catalog.latched:
+                self.latched[topic] = message
             for session in self.clients:
                 sub = session.subs.get(topic)
                 if sub is not None:

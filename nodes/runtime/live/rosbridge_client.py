@@ -15,14 +15,11 @@ import logging
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from nodes.runtime.live import convert
 from nodes.runtime.live.endpoints import ServiceUnavailable
 from nodes.runtime.live.schemas import normalise_type, ros_type_name, same_type
-
-if TYPE_CHECKING:
-    from nodes.runtime.live.rosbridge import OutgoingMessage, RosbridgeServer
 
 log = logging.getLogger("cosim")
 
@@ -64,8 +61,8 @@ class Subscription:
             self.queue = deque(self.queue, maxlen=depth)
         self.compression = next(iter(self.ids.values()))[2]
 
-    def push(self, message: OutgoingMessage) -> None:
-        """Queue a message; the oldest goes when the queue is full."""
+    def push(self, message: Any) -> None:
+        """Queue a message (a rosbridge.OutgoingMessage); the oldest goes when full."""
         if len(self.queue) == self.queue.maxlen:
             self.dropped += 1
         self.queue.append(message)
@@ -74,7 +71,8 @@ class Subscription:
 class ClientSession:
     """Serves one websocket connection until it closes."""
 
-    def __init__(self, server: RosbridgeServer, websocket, number: int):
+    def __init__(self, server: Any, websocket, number: int):
+        """``server``: the RosbridgeServer this connection belongs to."""
         self.server = server
         self.ws = websocket
         self.number = number
@@ -216,9 +214,13 @@ class ClientSession:
         sub = self.subs.get(topic)
         if sub is None:
             sub = self.subs[topic] = Subscription(topic)
+        new = not sub.ids
         sub.ids[op_id] = (throttle, queue, compression)
         sub.merge()
         self.server.want(topic)
+        if new and topic in self.server.latched:  # what a latched topic sent before
+            sub.push(self.server.latched[topic])
+            self.wake.set()
         self.status("info", f"subscribed to {topic}", op_id)
 
     def _op_unsubscribe(self, request: dict, op_id: Any) -> None:
