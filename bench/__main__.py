@@ -1,6 +1,6 @@
 """`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import foreign_nav, lockstep, messages, nav, profile, sensors
+from bench import foreign_nav, live, lockstep, messages, nav, profile, sensors
 
 
 def main() -> None:
@@ -15,6 +15,8 @@ def main() -> None:
     nav.main(["--transport", "zenoh", "--repeats", "3"])
     print("\n== nav: the controller as a foreign rclpy program over built-in ==")
     foreign_nav.main(["--repeats", "3"])
+    print("\n== nav: with the Foxglove live view and one client over without ==")
+    live.main(["--repeats", "3"])
     print("\n== nav: where each process spends its time (py-spy) ==")
     profile.main([])
     print("\n== message cost ==")
