@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import struct
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from nodes.runtime.protocol import CLOCK_TOPIC, encode_clock
 log = logging.getLogger("cosim")
 
 POLL_S = 0.01
+YIELD_EVERY = 16  # records offered between two yields of the GIL (the master's loop waits)
 _HEAD = struct.Struct("<qHI")  # the part record's head (nodes.runtime.recording)
 
 
@@ -103,7 +105,9 @@ class PartsTail:
                 follower.restarted = False
             self.clock_tick = -1  # the run was reset: time starts over
         records.sort(key=lambda r: r[0])  # stable: each node's own order within a tick
-        for tick, topic, data in records:
+        for i, (tick, topic, data) in enumerate(records):
+            if i % YIELD_EVERY == YIELD_EVERY - 1:
+                time.sleep(0)  # let the master's thread have the interpreter
             while self.clock_tick < tick:
                 self.clock_tick += 1
                 self.offer(CLOCK_TOPIC, encode_clock(self.clock_tick * self.tick_ns))

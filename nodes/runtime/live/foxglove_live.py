@@ -37,6 +37,7 @@ log = logging.getLogger("cosim")
 QUEUE_DEPTH = 32  # per topic, between the run and the server's thread
 CLIENT_BACKLOG = 256  # messages the SDK keeps per client before dropping its oldest
 STATE_PERIOD_S = 0.25
+YIELD_EVERY = 16  # messages logged between two yields of the GIL (the run's threads wait)
 TIME_PERIOD_S = 0.02  # the server's time goes to clients at most this often (wall clock)
 PAUSE_SERVICE = "/cosim/pause"
 SERVICE_TIMEOUT_S = 10.0
@@ -142,7 +143,9 @@ class FoxgloveLive:
         sent_ns = -1
         while not self._queue.closed:
             items = self._queue.take(timeout_s=0.1)
-            for topic, data in items:
+            for i, (topic, data) in enumerate(items):
+                if i % YIELD_EVERY == YIELD_EVERY - 1:
+                    time.sleep(0)
                 if topic == CLOCK_TOPIC:
                     self._clock_ns = decode_clock(data)
                 stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
