@@ -1,6 +1,6 @@
 """`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import foreign_nav, lockstep, messages, nav, nav_worlds, profile, sensors, sweep
+from bench import foreign_nav, live, lockstep, messages, nav, nav_worlds, profile, sensors, sweep
 
 
 def main() -> None:
@@ -16,6 +16,8 @@ def main() -> None:
     nav.main(["--transport", "zenoh", "--repeats", "3"])
     print("\n== nav: the controller as a foreign rclpy program over built-in ==")
     foreign_nav.main(["--repeats", "3"])
+    print("\n== nav: with the Foxglove live view and one client over without ==")
+    live.main(["--repeats", "3"])
     print("\n== nav: where each process spends its time (py-spy) ==")
     profile.main([])
     print("\n== message cost ==")

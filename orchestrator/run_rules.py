@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from orchestrator.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError, ScenarioNotice
+from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
 from plan.packing import packable
 from plan.scenario import Scenario
@@ -14,7 +15,9 @@ from plan.scenario import Scenario
 
 def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
     """Refuse what this run cannot serve; return the scenario's warnings (a strict run
-    refuses the first of them)."""
+    refuses the first of them) and the run's (a live endpoint reachable from other
+    machines). An address the live view or rosbridge cannot listen on is a ValueError
+    naming the option (the CLI's exit 2)."""
     foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
     if options.in_process and foreign:
         raise ScenarioError(scenario.file, "", "in-process runs step classes only; node(s) "
@@ -40,6 +43,9 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "cosim cannot gate its executor, and with several inputs its callbacks would "
                 "see samples of different ticks from run to run (not deterministic).",
                 "a Python (rclpy) program, which cosim gates, or a program with one input.")
+    problems = address_problems(options.live_address, options.rosbridge_address)
+    if problems:
+        raise ValueError("; ".join(problems))
     warnings = list(scenario.warnings)
     if options.strict and warnings:
         first = warnings[0]
@@ -48,7 +54,7 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         if isinstance(first, ScenarioNotice):
             raise first.as_error(why)
         raise ScenarioError(scenario.file, "", f"{first} ({why})")
-    return warnings
+    return [*warnings, *exposure_warnings(options.live_address, options.rosbridge_address)]
 
 
 def _check_processes(scenario: Scenario) -> None:
