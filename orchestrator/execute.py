@@ -274,6 +274,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 attach_control(endpoints, control)
                 tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
+            outcome.loop_s = time.monotonic() - master.loop_started
         finally:
             if tail is not None:
                 tail.stop()
@@ -281,7 +282,6 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome.live, endpoints = endpoints.close(), None
             if control:
                 control.close()
-        outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
         if endpoints is not None:  # the run failed before its loop
