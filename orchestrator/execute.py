@@ -293,6 +293,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 attach_control(endpoints, control)
                 tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
+            outcome.loop_s = time.monotonic() - master.loop_started
         finally:
             if tail is not None:
                 tail.stop()
@@ -300,7 +301,6 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome.live, endpoints = endpoints.close(), None
             if control:
                 control.close()
-        outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
         if endpoints is not None:  # the run failed before its loop
