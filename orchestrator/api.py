@@ -21,12 +21,13 @@ from pathlib import Path
 from typing import Any
 
 from orchestrator.execute import RunOutcome, execute
+from orchestrator.external_arrivals import Arrivals, Replay
 from plan.errors import ScenarioError, ScenarioWarning, SimulationError
 from plan.options import RunOptions
 from plan.scenario import Scenario, load_scenario
 
-__all__ = ["EXIT_CODES", "FinishedRun", "RunOptions", "ScenarioError", "ScenarioWarning",
-           "SimulationError", "load", "overrides_for", "run"]
+__all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "RunOptions", "ScenarioError",
+           "ScenarioWarning", "SimulationError", "load", "overrides_for", "run"]
 
 EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
 """Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
@@ -72,7 +73,7 @@ def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
 
 def run(scenario: str | Path | Scenario, *, in_process: bool = False,
         out: str | Path = "runs", check: bool = True, options: RunOptions | None = None,
-        **overrides: Any) -> FinishedRun:
+        external: Arrivals | Replay | None = None, **overrides: Any) -> FinishedRun:
     """Run a scenario (a file or a loaded Scenario) and return its FinishedRun.
 
     ``in_process=True`` steps every node in this process with no transport (the reference,
@@ -82,11 +83,13 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     raises (look at ``FinishedRun.success``). Ctrl-C raises KeyboardInterrupt after the
     clean-up. ``options`` sets how the work is done (see plan.options.RunOptions; its
     ``out`` and ``in_process`` are replaced by the keywords). The scenario's warnings are
-    issued as ScenarioWarning.
+    issued as ScenarioWarning. ``external`` feeds the scenario's ``external:`` topics: an
+    ``Arrivals`` that other threads put messages into while the run goes (each enters at
+    the next tick of the external node), or a function tick -> {topic: message} (a replay).
     """
     loaded = load(scenario, **overrides)
     chosen = (options or RunOptions()).with_(out=Path(out), in_process=in_process)
-    outcome = execute(loaded, chosen)
+    outcome = execute(loaded, chosen, external=external)
     for text in outcome.warnings:
         warnings.warn(text, ScenarioWarning, stacklevel=2)
     result = FinishedRun(loaded, outcome, in_process)

@@ -59,6 +59,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a recorded run directory: on a digest mismatch, name the first topic\n"
                         "and tick that differ from it; its digest is expected unless\n"
                         "--expect-digest is given")
+    live = p.add_argument_group("watch and drive the run from outside (loopback unless an "
+                                "address is given)")
+    live.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="ADDR:PORT",
+                      help="a Foxglove WebSocket server streaming every topic (CDR) with sim\n"
+                           "time; pause/step/resume as services and playback controls\n"
+                           "(default 127.0.0.1:8765; the digest is the same with or without)")
+    live.add_argument("--rosbridge", nargs="?", const="127.0.0.1:9090", metavar="ADDR:PORT",
+                      help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
+                           "publish the scenario's external: topics (entering at a tick,\n"
+                           "recorded), call /cosim/* services (default 127.0.0.1:9090)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -69,6 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="zenoh: no shared memory for large messages")
     how.add_argument("--no-camera-warm-up", action="store_true",
                      help="cameras build their GL renderer at the first frame, not at set-up")
+    how.add_argument("--pack", choices=["node", "robot", "kind"],
+                     help="which nodes share a process: each node alone, a robot's nodes\n"
+                          "together, each kind's nodes together (default: the scenario's\n"
+                          "process: keys, else each node alone)")
     how.add_argument("--profile", choices=["wall", "cpu"],
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
@@ -83,7 +97,8 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
-                      shuffle_start=args.shuffle_start, strict=args.strict)
+                      pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict,
+                      live=args.live, rosbridge=args.rosbridge)
 
 
 def overrides_from(args: argparse.Namespace) -> dict:

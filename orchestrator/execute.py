@@ -23,6 +23,7 @@ from pathlib import Path
 from nodes.runtime.notes import Note, read_notes
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.factory import create_transport
+from orchestrator.external_arrivals import Arrivals, Replay
 from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.manifest import write_manifest
 from orchestrator.run_rules import check_run
@@ -56,6 +57,7 @@ class RunOutcome:
     node_stats: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)  # what nodes told people, in tick order
+    live: dict = field(default_factory=dict)  # what the live endpoints did (--live, --rosbridge)
 
     @property
     def digest(self) -> str | None:
@@ -72,15 +74,20 @@ OnTick = Callable[[int], None]
 """Called with each tick index once the tick is decided (progress bars)."""
 
 
-def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None
-            ) -> RunOutcome:
+def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None,
+            external: Arrivals | Replay | None = None) -> RunOutcome:
     """Run a checked scenario, write its run directory and manifest, return the outcome.
 
     The run's rules (``orchestrator.run_rules``) are applied first, whoever calls: a
     scenario this run cannot serve raises ScenarioError before anything is started or
-    written; its warnings are logged and kept in the outcome.
+    written; its warnings are logged and kept in the outcome. ``external`` feeds the
+    scenario's external node: live arrivals (servers put messages into it while the run
+    goes) or a replay of recorded ones. With ``options.rosbridge`` and no ``external``, the
+    rosbridge clients' messages are the run's arrivals.
     """
     warnings = check_run(scenario, options)
+    if external is None and options.rosbridge:
+        external = _arrivals_for(scenario)
     paths = make_run_dir(options.out, scenario.name)
     run_dir = paths.root
     handler = _log_to(paths.log("orchestrator"))
@@ -92,10 +99,11 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         if options.in_process:
             outcome.start_s = time.monotonic() - started
             outcome.command_to_first_tick_s = _since_process_start()
-            outcome.result = _in_process(scenario, paths, on_tick)
+            outcome.result = _in_process(scenario, paths, options, outcome, on_tick, external)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
-            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick)
+            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick,
+                                            external)
         _judge(scenario, outcome)
     except SimulationError as exc:
         outcome.status, outcome.error = "failed", str(exc)
@@ -174,22 +182,63 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     return out
 
 
-def _in_process(scenario: Scenario, paths: RunPaths, on_tick: OnTick | None) -> LoopResult:
+def _arrivals_for(scenario: Scenario) -> Arrivals | None:
+    """Live arrivals for the scenario's external node, when it has one."""
+    plan = next((p for p in scenario.nodes.values() if p.in_orchestrator), None)
+    return Arrivals(plan.outputs) if plan is not None else None
+
+
+def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
+                outcome: RunOutcome, on_tick: OnTick | None,
+                external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.inprocess import run_in_process
 
     writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
+    arrivals = external.take if isinstance(external, Arrivals) else external
+
+    def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
+        writers[name].write(k, items)
+
+    endpoints = _start_live(scenario, options, external)
+    if endpoints is not None:
+        from orchestrator.live import in_process_observer
+
+        live_observe, live_tick = in_process_observer(endpoints, scenario)
+        observe = _both(observe, live_observe)
+        on_tick = _both(on_tick, live_tick) if on_tick else live_tick
     try:
-        return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
-                              on_tick)
+        return run_in_process(scenario, observe, on_tick, arrivals)
     finally:
+        if endpoints is not None:
+            outcome.live = endpoints.close()
         for writer in writers.values():
             writer.close()
 
 
+def _both(first: Callable, second: Callable) -> Callable:
+    def both(*args):
+        first(*args)
+        second(*args)
+    return both
+
+
+def _start_live(scenario: Scenario, options: RunOptions, external,
+                control_later: bool = False):
+    """The live endpoints the options ask for, started; a failure to listen fails the run."""
+    from nodes.runtime.live.session import LiveError
+    from orchestrator.live import start_endpoints
+
+    try:
+        return start_endpoints(scenario, options, external, control_later)
+    except LiveError as exc:
+        raise SimulationError(str(exc), node="orchestrator") from exc
+
+
 def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
-                   outcome: RunOutcome, started: float, on_tick: OnTick | None) -> LoopResult:
+                   outcome: RunOutcome, started: float, on_tick: OnTick | None,
+                   external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    master = transport = mirror = None
+    master = transport = mirror = endpoints = tail = None
     participants: dict = {}
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
@@ -198,24 +247,38 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
     try:
         if opens_first:
             transport = _open_transport(settings)
+            if settings.mirror_to_dds:  # its publishers are discovered while nodes start
+                from orchestrator.dds_mirror import DdsMirror
+
+                mirror = DdsMirror(transport.session, transport.domain,
+                                   list(settings.mirror_to_dds), scenario.topics,
+                                   scenario.latched_topics)
         if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
             import orchestrator.picture  # noqa: F401
+        from orchestrator.external import ExternalSource
         from orchestrator.foreign_proxy import ForeignProxy
         from orchestrator.master import LockstepMaster
         from orchestrator.participants import CosimNode
 
         if not opens_first:
             transport = _open_transport(settings)
-        if settings.kind == "zenoh" and settings.mirror_to_dds:
-            from orchestrator.dds_mirror import DdsMirror
-
-            mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
-        participants = {
-            name: ForeignProxy(plan, scenario.schedule, transport, PartWriter(paths.part(name)))
-            if plan.foreign else CosimNode(plan, scenario.schedule)
-            for name, plan in scenario.nodes.items()}
+        # Clients may connect while the nodes start; they see the run once it is ready.
+        endpoints = _start_live(scenario, options, external,
+                                control_later=settings.kind == "ros2")
+        participants = {}
+        for name, plan in scenario.nodes.items():
+            if plan.foreign:
+                participants[name] = ForeignProxy(plan, scenario.schedule, transport,
+                                                  PartWriter(paths.part(name)))
+            elif plan.in_orchestrator:
+                participants[name] = ExternalSource(scenario, plan, transport,
+                                                    PartWriter(paths.part(name)),
+                                                    external or Arrivals(plan.outputs),
+                                                    options.pack)
+            else:
+                participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
                                 on_tick, paths.parts)
         master.wait_ready(started)
@@ -224,20 +287,31 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         log.info("all nodes ready after %.3f s", outcome.start_s)
         control = _sim_control(scenario, options)
         try:
+            if endpoints is not None:
+                from orchestrator.live import attach_control, follow_parts
+
+                attach_control(endpoints, control)
+                tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
         finally:
+            if tail is not None:
+                tail.stop()
+            if endpoints is not None:
+                outcome.live, endpoints = endpoints.close(), None
             if control:
                 control.close()
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
+        if endpoints is not None:  # the run failed before its loop
+            outcome.live = endpoints.close()
         if master is not None:
             outcome.ticks_done = max(master.tick, 0)
             outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                                   for name in scenario.nodes}
         supervisor.shutdown()
         for participant in participants.values():
-            if participant.foreign:
+            if participant.foreign or participant.in_orchestrator:
                 participant.recorder.close()
         if mirror is not None:
             mirror.close()
@@ -258,34 +332,43 @@ def _open_transport(settings: TransportSettings):
 
 def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
                  supervisor: Supervisor) -> bool:
-    """Start every node process: cosim nodes forked from this process when that is safe
-    (and no launch prefix wraps them), fresh interpreters otherwise; foreign programs by
-    their command; external nodes are announced for the user to start. True when any node
-    was forked."""
-    from nodes.runtime.cosim_node import run_lockstep
+    """Start every node process: cosim nodes (alone or packed, ``plan.packing``) forked
+    from this process when that is safe (and no launch prefix wraps them), fresh
+    interpreters otherwise; foreign programs by their command; external nodes are announced
+    for the user to start. True when any node was forked."""
+    from nodes.runtime.cosim_node import run_lockstep, run_packed
     from orchestrator.foreign_launch import foreign_argv, foreign_env
+    from plan.packing import process_groups
 
-    order = list(scenario.nodes)
+    groups = process_groups(scenario, options.pack)
     if options.shuffle_start is not None:
-        random.Random(options.shuffle_start).shuffle(order)
+        random.Random(options.shuffle_start).shuffle(groups)
     # Foreign programs first: they take longest to start and join.
-    for name in sorted(order, key=lambda n: not scenario.nodes[n].foreign):
-        plan = scenario.nodes[name]
-        argv = node_argv(scenario.file, plan.spec.kind or "any", name, paths.root,
-                         scenario.overrides, options)
-        prefix = plan.launch_prefix
-        if plan.spec.external:
-            _announce_external(name, argv)
-        elif plan.foreign:
-            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent), prefix=prefix,
-                             env=foreign_env(plan, scenario.schedule),
+    for name, plan in scenario.nodes.items():
+        if plan.foreign:
+            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
+                             prefix=plan.launch_prefix, env=foreign_env(plan, scenario.schedule),
                              cwd=scenario.file.parent.resolve())
-        elif options.spawn == "fork" and fork_is_safe() and not prefix:
-            supervisor.fork(name, partial(run_lockstep, scenario, name, paths.root, options))
+        elif plan.spec.external:
+            _announce_external(name, node_argv(scenario.file, plan.spec.kind or "any", [name],
+                                               paths.root, scenario.overrides, options))
+    for names in groups:
+        plan = scenario.nodes[names[0]]
+        argv = node_argv(scenario.file, plan.spec.kind or "any", names, paths.root,
+                         scenario.overrides, options)
+        label = "+".join(names)
+        prefix = plan.launch_prefix
+        if options.spawn == "fork" and fork_is_safe() and not prefix:
+            target = (partial(run_lockstep, scenario, names[0], paths.root, options)
+                      if len(names) == 1 else
+                      partial(run_packed, scenario, names, paths.root, options))
+            proc = supervisor.fork(label, target)
         else:
-            supervisor.spawn(name, argv, prefix=prefix)
-    log.info("started %s", ", ".join(order))
-    return any(p.started == "fork" for p in supervisor.procs.values())
+            proc = supervisor.spawn(label, argv, prefix=prefix)
+        if len(names) > 1:
+            supervisor.pack(proc, names)
+    log.info("started %s", ", ".join("+".join(g) for g in groups))
+    return any(p.started == "fork" for p in supervisor.processes())
 
 
 def _sim_control(scenario: Scenario, options: RunOptions):

@@ -18,9 +18,11 @@ Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 
 
 def run_in_process(scenario: Scenario, observer: Observer | None = None,
-                   on_tick: Callable[[int], None] | None = None) -> LoopResult:
+                   on_tick: Callable[[int], None] | None = None,
+                   external: Callable[[int], dict] | None = None) -> LoopResult:
     """Run every node in this process in schedule order; return the digest, metrics and
-    the nodes' notes."""
+    the nodes' notes. ``external(tick)`` gives what enters from outside at a tick of the
+    external node."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
     histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
@@ -33,6 +35,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     cost: dict[str, list[int]] = {}
     notes: list[Note] = []
     stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
+    activated: set[str] = set()  # a node's first activation also returns its latched outputs
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
         for name in sched.due(k):
@@ -41,12 +44,15 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             for index, wanted in sched.inputs_at(name, k):
                 own = plan.inputs[index].topic
                 inputs[own] = histories[(name, own)].take(wanted)
+            if plan.in_orchestrator and external is not None:
+                inputs = external(k)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
                 outputs = nodes[name].step(tick, inputs)
                 notes += [Note(name, k, tick.time_ns, t) for t in nodes[name].take_notes()]
-                items = prepare_outputs(name, plan.declared_outputs,
-                                        plan.output_names, tick, outputs)
+                items = prepare_outputs(name, plan.declared_outputs, plan.output_names,
+                                        tick, outputs, plan.latched, name not in activated)
+                activated.add(name)
             except Exception as exc:
                 raise SimulationError(f"node {name} failed at tick {k}: "
                                       f"{type(exc).__name__}: {exc}", node=name, tick=k) from exc

@@ -146,6 +146,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "options": options.as_dict(),
         "warnings": list(getattr(outcome, "warnings", [])),
         "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
+        "live": getattr(outcome, "live", None) or None,
     }
 
 

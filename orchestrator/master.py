@@ -41,6 +41,7 @@ from orchestrator.participants import Participant
 from orchestrator.supervisor import Supervisor
 from plan.errors import SimulationError
 from plan.options import RunOptions
+from plan.packing import process_groups
 from plan.scenario import Scenario
 from plan.schedule import PIPELINE_WINDOW
 
@@ -88,16 +89,28 @@ class LockstepMaster:
         self.tick = -1
         self.participants = participants
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
-        self.drainable = [p for p in participants.values() if p.foreign]
+        self.drainable = [p for p in participants.values() if p.foreign or p.in_orchestrator]
+        # processes that wake for /clock (the orchestrator's own participants need not)
+        # one /clock and one /cosim/command subscription per cosim node process (the nodes
+        # packed into one process share them; the orchestrator's own participants have none)
+        process_of = {n: i for i, group in enumerate(process_groups(scenario, options.pack))
+                      for n in group}
+        for n, p in participants.items():
+            if n not in process_of and not (p.foreign or p.in_orchestrator):
+                process_of[n] = n  # started by the user: a process of its own
+        self.command_subscribers = len(set(process_of.values()))
+        self.clock_subscribers = len({process_of[n] for n in self.sched.clock_driven()
+                                      if n in process_of})
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
         # benchmarks); the outputs, digest and stop decision are the same either way.
-        # Foreign programs answer tick by tick: no clock runs ahead for them.
+        # A program that reads the run's /clock itself (an ungated foreign program) answers
+        # tick by tick: no clock runs ahead for it. A gated one sees only its fed clock.
         strict = not options.pipeline
         self.may_trail = frozenset() if strict else self.trailing
-        foreign = any(p.foreign for p in participants.values())
-        self.window = 1 if strict or foreign else PIPELINE_WINDOW
+        follows = any(p.follows_clock for p in participants.values())
+        self.window = 1 if strict or follows else PIPELINE_WINDOW
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
@@ -120,9 +133,8 @@ class LockstepMaster:
                     self.stats[name].ready_s = time.monotonic() - started_at
                     ready.add(name)
             self._check_processes("start")
-            cosim_nodes = sum(not p.foreign for p in self.participants.values())
-            if (ready == names and self.command_pub.matched() >= cosim_nodes
-                    and self.clock_pub.matched() >= len(self.sched.clock_driven())):
+            if (ready == names and self.command_pub.matched() >= self.command_subscribers
+                    and self.clock_pub.matched() >= self.clock_subscribers):
                 return
             if time.monotonic() > deadline:
                 raise SimulationError(self._start_timeout_text(names - ready))
@@ -138,7 +150,7 @@ class LockstepMaster:
             parts.append(f"node {name} ({alive}) {self.participants[name].not_ready_text()}")
         if not parts:
             parts.append(f"/clock has {self.clock_pub.matched()} of "
-                         f"{len(self.sched.clock_driven())} subscriptions")
+                         f"{self.clock_subscribers} subscriptions")
         limit = self.scenario.model.deadlines.start / 1e9
         return f"start deadline of {limit:g} s expired: " + "; ".join(parts) + "."
 
@@ -226,6 +238,10 @@ class LockstepMaster:
         sent = self._handshake(CommandMessage(Command.RESET, self.epoch), RESETTING)
         counts = {k[5:]: int(v) for values in sent.values() for k, v in values.items()
                   if k.startswith("sent:")}
+        for participant in self.participants.values():
+            if participant.in_orchestrator:
+                counts.update(participant.sent)
+                participant.reset()
         self._handshake(CommandMessage(Command.RESTART, self.epoch, counts), READY)
         self.stats = {name: NodeStats(ready_s=s.ready_s) for name, s in self.stats.items()}
         self.tick = -1
@@ -233,7 +249,8 @@ class LockstepMaster:
     def _handshake(self, command: CommandMessage, answer: str) -> dict[str, dict[str, str]]:
         """Publish a command and wait until every node answered it with ``answer``."""
         self.command_pub.publish(encode_command(command))
-        pending, replies = set(self.scenario.nodes), {}
+        pending = {n for n, p in self.participants.items() if not p.in_orchestrator}
+        replies: dict[str, dict[str, str]] = {}
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
         while pending:
             for status in self._statuses():
@@ -309,14 +326,18 @@ class LockstepMaster:
             self._next_sample = now + SAMPLE_PERIOD_S
             self.supervisor.sample()
         for proc in self.supervisor.dead():
-            if proc.name in self.scenario.nodes:
-                self._drain_errors(proc.name)
-                tick = self._tick_of(proc.name)
+            for name in proc.members:
+                if name not in self.scenario.nodes:
+                    continue
+                self._drain_errors(name)
+                tick = self._tick_of(name)
                 when = when if tick is None else f"tick {tick}"
+                shared = (f", in process {proc.name} with {', '.join(proc.members)}"
+                          if len(proc.members) > 1 else "")
                 raise SimulationError(
-                    f"node {proc.name} died at {when} ({proc.exit_text()}). "
+                    f"node {name} died at {when} ({proc.exit_text()}{shared}). "
                     f"Last lines of its log ({proc.log_path}):\n{proc.log_tail()}",
-                    node=proc.name, tick=max(self.tick, 0) if tick is None else tick)
+                    node=name, tick=max(self.tick, 0) if tick is None else tick)
 
     def _tick_of(self, name: str) -> int | None:
         """The tick a node was working on: the one after the last it recorded, or the

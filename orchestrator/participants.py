@@ -21,7 +21,9 @@ class Participant(ABC):
     """One node of the run as the master sees it."""
 
     name: str
-    foreign: bool = False  # a foreign program answers every tick; no clock runs ahead of it
+    foreign: bool = False  # a foreign program: the orchestrator counts its outputs
+    follows_clock: bool = False  # it reads the run's /clock itself: no clock may run ahead
+    in_orchestrator: bool = False  # no process of its own: the orchestrator steps it
 
     @property
     def topics(self) -> frozenset[str]:
@@ -42,6 +44,9 @@ class Participant(ABC):
     def drain(self) -> list[Status]:
         """Status reports completed without a message (the master asks in every wait)."""
         return []
+
+    def reset(self) -> None:  # noqa: B027 - only participants without a process need it
+        """The run's reset, for a participant without a process of its own."""
 
     @abstractmethod
     def ready(self) -> bool:

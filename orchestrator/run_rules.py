@@ -7,13 +7,17 @@ from __future__ import annotations
 
 from orchestrator.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError, ScenarioNotice
+from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
+from plan.packing import packable
 from plan.scenario import Scenario
 
 
 def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
     """Refuse what this run cannot serve; return the scenario's warnings (a strict run
-    refuses the first of them)."""
+    refuses the first of them) and the run's (a live endpoint reachable from other
+    machines). An address the live view or rosbridge cannot listen on is a ValueError
+    naming the option (the CLI's exit 2)."""
     foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
     if options.in_process and foreign:
         raise ScenarioError(scenario.file, "", "in-process runs step classes only; node(s) "
@@ -23,6 +27,7 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         raise ScenarioError(scenario.file, "transport", "zenoh carries cosim nodes only; "
                             f"node(s) {', '.join(foreign)} are foreign ROS 2 programs "
                             "(command:) that talk DDS.", "transport: ros2 for this scenario.")
+    _check_processes(scenario)
     for i, (name, plan) in enumerate(scenario.nodes.items()):
         if not plan.foreign:
             continue
@@ -38,6 +43,9 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "cosim cannot gate its executor, and with several inputs its callbacks would "
                 "see samples of different ticks from run to run (not deterministic).",
                 "a Python (rclpy) program, which cosim gates, or a program with one input.")
+    problems = address_problems(options.live_address, options.rosbridge_address)
+    if problems:
+        raise ValueError("; ".join(problems))
     warnings = list(scenario.warnings)
     if options.strict and warnings:
         first = warnings[0]
@@ -46,4 +54,24 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         if isinstance(first, ScenarioNotice):
             raise first.as_error(why)
         raise ScenarioError(scenario.file, "", f"{first} ({why})")
-    return warnings
+    return [*warnings, *exposure_warnings(options.live_address, options.rosbridge_address)]
+
+
+def _check_processes(scenario: Scenario) -> None:
+    """A ``process:`` name groups cosim nodes the orchestrator starts, with one prefix."""
+    prefixes: dict[str, tuple[str, str | None]] = {}
+    for i, (name, plan) in enumerate(scenario.nodes.items()):
+        group = plan.spec.process
+        if group is None:
+            continue
+        key = f"nodes[{i}] ({name}).process"
+        if not packable(plan):
+            raise ScenarioError(scenario.file, key, f"{name} is "
+                                f"{'a foreign program' if plan.foreign else 'started by you'}"
+                                "; only cosim nodes the orchestrator starts share a process.",
+                                "leave process out for this node.")
+        first = prefixes.setdefault(group, (name, plan.spec.prefix))
+        if first[1] != plan.spec.prefix:
+            raise ScenarioError(scenario.file, key, f"{name} and {first[0]} share process "
+                                f"{group!r} but not their launch prefix.",
+                                "the same prefix for every node of a process, or none.")

@@ -57,6 +57,9 @@ class NodeSpec(Strict):
                                       "directory with use_sim_time")
     external: bool = Field(False, description="true: not spawned; you start it with "
                            "'cosim-node KIND --scenario FILE --node NAME --lockstep'")
+    process: Name | None = Field(None, description="nodes with the same process name share "
+                                 "one OS process (one transport session, one wait); the "
+                                 "result is the same whatever the packing")
     prefix: str | None = Field(None, description="a command that wraps the node's process, "
                                "like ros2 launch's prefix, e.g. 'gdb -ex run --args' or "
                                "'valgrind'; it must exec the node (keep its pid)")
@@ -102,6 +105,16 @@ class ZenohSpec(Strict):
         description="topics the orchestrator republishes on ROS 2 (DDS) for ros2 tools")
 
 
+class ExternalSpec(Strict):
+    """Topics that enter the run from outside (an action client, a rosbridge client, a
+    real robot) at tick boundaries, recorded so the run replays: an orchestrator-owned node
+    named ``external`` publishes, at ``rate``, the latest message received on each topic."""
+
+    period_ns: PeriodNs = Field(alias="rate", description=RATE_HELP)  # given as a rate in Hz
+    topics: dict[Topic, str] = Field(min_length=1, description="topic -> message type, e.g. "
+                                     "{/goal_pose: geometry_msgs/msg/PoseStamped}")
+
+
 class ScenarioModel(Strict):
     """A whole scenario file."""
 
@@ -115,4 +128,5 @@ class ScenarioModel(Strict):
     goal: GoalSpec | None = None
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
+    external: ExternalSpec | None = None
     nodes: list[NodeSpec] = Field(min_length=1)

@@ -15,7 +15,10 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Literal
 
+from plan.listen import LIVE_DEFAULT, ROSBRIDGE_DEFAULT, ListenAddress, parse_listen
+
 SPAWN_MODES = ("fork", "exec")
+PACKINGS = ("node", "robot", "kind")
 PROFILE_MODES = ("wall", "cpu")
 
 
@@ -32,16 +35,39 @@ class RunOptions:
     zenoh_shm: bool = True  # zenoh's shared-memory transport for large messages
     camera_warm_up: bool = True  # build the camera's GL renderer in a thread at set-up
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
+    pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
     shuffle_start: int | None = None  # tests: start node processes in a seeded order
     strict: bool = False  # refuse a scenario with warnings (ScenarioError: exit 2)
+    live: str | None = None  # ADDR:PORT of a Foxglove WebSocket server watching the run
+    rosbridge: str | None = None  # ADDR:PORT of a rosbridge v2 server (watch and drive)
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:
             raise ValueError(f"spawn must be one of {', '.join(SPAWN_MODES)}, not {self.spawn!r}")
+        if self.pack is not None and self.pack not in PACKINGS:
+            raise ValueError(f"pack must be one of {', '.join(PACKINGS)} or None, "
+                             f"not {self.pack!r}")
         if self.profile is not None and self.profile not in PROFILE_MODES:
             raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
                              f"not {self.profile!r}")
         object.__setattr__(self, "out", Path(self.out))
+        for name, default in (("live", LIVE_DEFAULT), ("rosbridge", ROSBRIDGE_DEFAULT)):
+            text = getattr(self, name)
+            if text is not None:
+                try:
+                    object.__setattr__(self, name, str(parse_listen(str(text), default)))
+                except ValueError as exc:
+                    raise ValueError(f"{name}: {exc}") from None
+
+    @property
+    def live_address(self) -> ListenAddress | None:
+        """Where the Foxglove live view listens (None: no live view)."""
+        return parse_listen(self.live, LIVE_DEFAULT) if self.live else None
+
+    @property
+    def rosbridge_address(self) -> ListenAddress | None:
+        """Where the rosbridge server listens (None: no rosbridge)."""
+        return parse_listen(self.rosbridge, ROSBRIDGE_DEFAULT) if self.rosbridge else None
 
     def with_(self, **changes) -> RunOptions:
         """A copy with some fields changed."""
@@ -69,7 +95,7 @@ class RunOptions:
         return out
 
 
-NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile")
+NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile", "pack")
 """The options a node process acts on."""
 
 assert set(NODE_FIELDS) <= {f.name for f in fields(RunOptions)}

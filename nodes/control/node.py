@@ -20,7 +20,9 @@
   warning (``world_warnings``).
 
 Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped,
-replaces the goal while it is not yet reached). Outputs: /cmd_vel, /plan (frame odom).
+replaces the goal while it is not yet reached). Outputs: /cmd_vel (geometry_msgs/Twist, or
+TwistStamped in ``base_frame`` with ``enable_stamped_cmd_vel``, Nav2's parameter of the same
+name: Jazzy's Nav2 publishes Twist by default, Kilted's TwistStamped), /plan (frame odom).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Path
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -53,6 +55,8 @@ class ControlParams(BaseModel):
     base_body: str = "base_link"
     laser_site: str = "laser"
     frame_id: str = "odom"
+    base_frame: str = Field("base_link", description="frame of a stamped /cmd_vel")
+    enable_stamped_cmd_vel: bool = Field(False, description="publish /cmd_vel as TwistStamped")
     robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
     safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
     tight_margin: float = Field(0.01, ge=0, description="m added to the radius on the scan "
@@ -82,11 +86,13 @@ class ControlNode(StepNode):
 
     Params = ControlParams
     needs_world = True
+    type_keys = {"/cmd_vel": "params.enable_stamped_cmd_vel"}
 
     @classmethod
     def outputs(cls, params: ControlParams) -> dict[str, type]:
-        """Velocity command and the current global plan."""
-        return {"/cmd_vel": Twist, "/plan": Path}
+        """Velocity command (Twist or TwistStamped) and the current global plan."""
+        return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist,
+                "/plan": Path}
 
     @classmethod
     def world_problems(cls, params: ControlParams, model, goal) -> list[tuple[str, str, str]]:
@@ -164,8 +170,12 @@ class ControlNode(StepNode):
         self._account(pose, inputs.get("/scan"))
         self._maybe_new_goal(inputs.get("/goal_pose"), pose)
         v, w = self._decide(tick, pose)
-        cmd = Twist()
-        cmd.linear.x, cmd.angular.z = float(v), float(w)
+        twist = Twist()
+        twist.linear.x, twist.angular.z = float(v), float(w)
+        cmd = twist
+        if self.params.enable_stamped_cmd_vel:  # stamped with the tick's time by the runtime
+            cmd = TwistStamped(twist=twist)
+            cmd.header.frame_id = self.params.base_frame
         return {"/cmd_vel": cmd, "/plan": self.plan_msg}
 
     # -- bookkeeping ------------------------------------------------------------------------
@@ -185,7 +195,8 @@ class ControlNode(StepNode):
                                     scan.range_min, self.laser, pose)
 
     def _maybe_new_goal(self, msg: Any, pose: tuple[float, float, float]) -> None:
-        if msg is None or self.reached_ns is not None:
+        # an external source holds a default message (no frame) until a goal arrives
+        if msg is None or self.reached_ns is not None or not msg.header.frame_id:
             return
         new = _pose_of(msg.pose)
         if max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) > 1e-9:

@@ -1,0 +1,95 @@
+"""What enters a run from outside enters at a tick boundary and is recorded: the scenario's
+external node publishes the latest arrival of each topic; the same arrivals at the same
+ticks give the same digest multi-process and in-process, and the bag has them."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+import yaml
+from geometry_msgs.msg import PoseStamped
+
+from orchestrator.api import Arrivals, ScenarioError, load, run
+from tests.helpers import ROOT
+
+NAV = ROOT / "scenarios" / "nav.yaml"
+
+
+def nav_with_goal_input(tmp_path, duration="4s"):
+    """nav (no camera) whose control node also takes /goal_pose from outside."""
+    doc = yaml.safe_load(NAV.read_text())
+    doc["duration"] = duration
+    doc["world"] = str((NAV.parent / doc["world"]).resolve())
+    doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    doc["external"] = {"rate": 10, "topics": {"/goal_pose": "geometry_msgs/msg/PoseStamped"}}
+    control = next(n for n in doc["nodes"] if n["name"] == "control")
+    control["inputs"].append({"topic": "/goal_pose", "mode": "same_tick"})
+    path = tmp_path / "nav_goal.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def goal(x: float, y: float) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.frame_id = "odom"
+    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.orientation.w = 1.0
+    return msg
+
+
+def replay(tick: int) -> dict:
+    return {"/goal_pose": goal(-3.0, 0.5)} if tick == 50 else {}
+
+
+def test_the_same_arrivals_give_one_digest_multi_and_in_process(tmp_path):
+    path = nav_with_goal_input(tmp_path)
+    multi = run(path, out=tmp_path / "m", external=replay, check=True)
+    inproc = run(path, in_process=True, out=tmp_path / "i", external=replay)
+    plain = run(path, in_process=True, out=tmp_path / "p")
+    assert multi.digest == inproc.digest != plain.digest
+    goals = [(stamp, msg.header.frame_id, msg.pose.position.x)
+             for stamp, msg in multi.messages("/goal_pose")]
+    assert len(goals) == 41  # the external node at 10 Hz over 4 s, tick 0 included
+    assert all(frame == "" for stamp, frame, _ in goals if stamp < 1_000_000_000)
+    assert all((frame, x) == ("odom", -3.0) for stamp, frame, x in goals
+               if stamp >= 1_000_000_000)
+    # the new goal turned the robot around: its plan ends at the new goal from tick 50 on
+    last_plan = multi.last("/plan")
+    assert last_plan.poses[-1].pose.position.x == pytest.approx(-3.0)
+
+
+def test_live_arrivals_enter_at_a_tick_and_are_recorded(tmp_path):
+    path = nav_with_goal_input(tmp_path, duration="2s")
+    scenario = load(path)
+    arrivals = Arrivals(scenario.nodes["external"].outputs)
+    timer = threading.Timer(0.5, arrivals.put, ("/goal_pose", goal(-3.0, 0.5)))
+    timer.start()
+    live = run(scenario, out=tmp_path / "live", external=arrivals)
+    timer.join()
+    ticks = [stamp for stamp, msg in live.messages("/goal_pose") if msg.header.frame_id]
+    assert ticks, "the goal never entered the run"
+    first = min(ticks) // scenario.tick_ns
+
+    def again(tick: int) -> dict:
+        return {"/goal_pose": goal(-3.0, 0.5)} if tick == first else {}
+
+    replayed = run(scenario, in_process=True, out=tmp_path / "again", external=again)
+    assert replayed.digest == live.digest
+
+
+def test_the_external_name_is_reserved(tmp_path):
+    doc = yaml.safe_load(nav_with_goal_input(tmp_path).read_text())
+    doc["nodes"][0]["name"] = "external"
+    path = tmp_path / "clash.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ScenarioError, match="reserved"):
+        load(path)
+
+
+def test_arrivals_refuse_unknown_topics_and_wrong_types():
+    arrivals = Arrivals({"/goal_pose": PoseStamped})
+    with pytest.raises(KeyError, match="not an external topic"):
+        arrivals.put("/other", PoseStamped())
+    with pytest.raises(TypeError, match="takes PoseStamped"):
+        arrivals.put("/goal_pose", 3)
