@@ -202,28 +202,30 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
             mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
         participants = {}
+        live = None  # the arrivals ROS 2 servers put into (None: a replay, or no external)
         for name, plan in scenario.nodes.items():
             if plan.foreign:
                 participants[name] = ForeignProxy(plan, scenario.schedule, transport,
                                                   PartWriter(paths.part(name)))
             elif plan.in_orchestrator:
+                source = external if external is not None else Arrivals(plan.outputs)
+                live = source if isinstance(source, Arrivals) else None
                 participants[name] = ExternalSource(scenario, plan, transport,
-                                                    PartWriter(paths.part(name)),
-                                                    external or Arrivals(plan.outputs))
+                                                    PartWriter(paths.part(name)), source)
             else:
                 participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
                                 on_tick, paths.parts)
-        master.wait_ready(started)
-        outcome.start_s = time.monotonic() - started
-        outcome.command_to_first_tick_s = _since_process_start()
-        log.info("all nodes ready after %.3f s", outcome.start_s)
-        control = _sim_control(scenario, options)
+        control, services = _ros_interfaces(scenario, options, master, live)
         try:
+            master.wait_ready(started)
+            outcome.start_s = time.monotonic() - started
+            outcome.command_to_first_tick_s = _since_process_start()
+            log.info("all nodes ready after %.3f s", outcome.start_s)
             result = master.run(control)
         finally:
-            if control:
-                control.close()
+            if services:
+                services.close()
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
@@ -286,15 +288,18 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
     return any(p.started == "fork" for p in supervisor.procs.values())
 
 
-def _sim_control(scenario: Scenario, options: RunOptions):
-    """The /cosim/* services (ros2 runs only, where ROS 2 tools can reach them)."""
+def _ros_interfaces(scenario: Scenario, options: RunOptions, master, live: Arrivals | None):
+    """The run's control and its ROS 2 interfaces (orchestrator.sim_services): ros2 runs
+    only, where ROS 2 tools can reach them; (None, None) otherwise."""
     if scenario.model.transport != "ros2":
-        return None
-    from orchestrator.simcontrol import SimControl
+        return None, None
+    from orchestrator.sim_services import start_services
+    from orchestrator.simcontrol import RunControl
 
     foreign = [n for n, p in scenario.nodes.items() if p.foreign]
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
-    return SimControl(scenario.tick_ns, paused=options.paused, can_reset=why)
+    control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
+    return control, start_services(scenario, control, live, master)
 
 
 def _announce_external(name: str, argv: list[str]) -> None:

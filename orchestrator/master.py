@@ -34,7 +34,7 @@ from nodes.runtime.protocol import (
     encode_command,
 )
 from nodes.runtime.recording import read_part
-from nodes.runtime.transport.base import Transport
+from nodes.runtime.transport.base import Received, Transport
 from orchestrator.acks import AckBook
 from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.participants import Participant
@@ -47,6 +47,7 @@ from plan.schedule import PIPELINE_WINDOW
 LIVENESS_PERIOD_S = 0.1
 SAMPLE_PERIOD_S = 1.0
 WAIT_SLICE_NS = 50_000_000
+IDLE_SLICE_NS = 10_000_000  # while paused: how long one wait for messages lasts
 
 
 @dataclass
@@ -104,6 +105,8 @@ class LockstepMaster:
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
+        self.control = None  # the run's RunControl, while ``run`` goes
+        self.watchers: dict[str, list[Callable[[Received], None]]] = {}
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -155,22 +158,29 @@ class LockstepMaster:
         (a leaf such as a camera: its period more): a node acts on a tick as soon as the
         inputs the schedule names are there, so outputs cannot depend on how far ahead the
         clock is, and the stop decision is taken tick by tick in order, as in-process.
-        ``control`` (a SimControl) may pause, single-step or reset the run between ticks.
+        ``control`` (a RunControl) may pause, step, stop or reset the run between ticks.
         """
         self.loop_started = time.monotonic()
+        self.control = control
         book = self._new_book()
         n = self.sched.n_ticks
+        requested = False  # a stop asked for through ``control``
         while True:
             self._decide(book)
             k = self.published
             if self.end is None and k < n and book.may_start(k, self.window):
                 if control:
-                    if control.next_action(k, self._idle(k), partial(self._drain, book)) == "reset":
+                    action = control.next_action(k, self._idle(k), partial(self._drain, book))
+                    if action == "reset":
                         self._drain(book)
                         self._reset_nodes()
                         book = self._new_book()
+                        control.reset_done()
                         continue
                     self._decide(book)  # ticks finished before a pause may have met the goal
+                    if action == "stop" and self.end is None:
+                        self.end, requested = k, True
+                        book.close(k)
                     if self.end is not None:
                         continue
                 self._publish(book, k)
@@ -181,8 +191,20 @@ class LockstepMaster:
         end = n if self.end is None else self.end
         book.close(end)
         self._drain(book)
+        if control:
+            control.finished(f"stopped by request before tick {end}" if requested
+                             else f"the goal was reached at tick {end - 1}" if self.end
+                             is not None else f"the run reached its duration ({n} ticks)")
         return LoopResult(book.hexdigest(), end, self.metrics(),
                           stopped_early=self.end is not None)
+
+    def watch(self, topic: str, msg_type: type, take: Callable[[Received], None],
+              depth: int = 100) -> None:
+        """Hand every message of a run topic to ``take`` (in this thread, as it arrives):
+        what the orchestrator's servers need to see of the run, e.g. the robot's /odom."""
+        if topic not in self.watchers and topic not in self.reader_of:
+            self.transport.subscription(topic, msg_type, depth)
+        self.watchers.setdefault(topic, []).append(take)
 
     def _new_book(self) -> AckBook:
         self.published, self.end = 0, None
@@ -207,6 +229,8 @@ class LockstepMaster:
                     self.decided_metrics[name] = done.metrics
             if self.on_tick:
                 self.on_tick(tick)
+            if self.control:
+                self.control.tick_decided(tick, reports)
             if self.stop_on_goal and goal_reached(self.decided_metrics, self.trailing):
                 self.end = tick + 1
                 book.close(self.end)
@@ -222,7 +246,14 @@ class LockstepMaster:
         self._decide(book)
 
     def _idle(self, k: int) -> Callable[[], None]:
-        return lambda: self._check_processes(f"pause before tick {k}")
+        """While paused before tick ``k``: take what arrives (watched topics, errors) and
+        watch the processes."""
+        def idle() -> None:
+            for status in self._statuses(IDLE_SLICE_NS):
+                if status.state == ERROR:
+                    self._raise_node_error(status, f"pause before tick {k}")
+            self._check_processes(f"pause before tick {k}")
+        return idle
 
     def _reset_nodes(self) -> None:
         """Two-phase reset: every node stops and says what it sent; then all restart at 0."""
@@ -294,17 +325,20 @@ class LockstepMaster:
 
     # -- shared ------------------------------------------------------------------------------
 
-    def _statuses(self) -> list[Status]:
+    def _statuses(self, timeout_ns: int = WAIT_SLICE_NS) -> list[Status]:
         out = []
-        for rec in self.transport.wait(WAIT_SLICE_NS):
+        for rec in self.transport.wait(timeout_ns):
             if rec.topic == STATUS_TOPIC:
                 status = decode_status(rec.data)
                 self.last_status[status.node] = status
                 if status.node in self.participants:
                     self.participants[status.node].see(status)
                 out.append(status)
-            elif rec.topic in self.reader_of:
+                continue
+            if rec.topic in self.reader_of:
                 out += self.reader_of[rec.topic].take(rec, self.tick)
+            for take in self.watchers.get(rec.topic, ()):
+                take(rec)
         for participant in self.drainable:
             out += participant.drain()
         return out

@@ -11,8 +11,11 @@
 - Progress checker and recovery: if the robot moves less than ``progress_distance`` within
   ``progress_window`` seconds it backs up (when the scan behind is clear) and replans.
 
-Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped,
-replaces the goal while it is not yet reached). Outputs: /cmd_vel, /plan (frame odom).
+Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped in odom:
+a pose that differs from the current goal replaces it, reached or not; a zero quaternion
+means stop: no goal, zero velocity until the next one; an empty frame_id, what an external
+source holds before anything arrived, changes nothing). Outputs: /cmd_vel, /plan (frame
+odom). Its metrics tell a NavigateToPose server how the current goal goes (``metrics``).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from nodes.control.plan import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
 
 NS = 1_000_000_000
+IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
 
 
 class ControlParams(BaseModel):
@@ -68,6 +72,11 @@ class ControlNode(StepNode):
 
     Params = ControlParams
     needs_world = True
+    runtime_params = frozenset({
+        "max_speed", "min_speed", "max_turn", "lookahead", "min_turn_radius",
+        "rotate_threshold", "turn_gain", "approach_gain", "stop_time", "horizon",
+        "safety_margin", "progress_window", "progress_distance", "backup_distance",
+        "backup_speed"})  # read at every step; the map and planner's are fixed at set-up
 
     @classmethod
     def outputs(cls, params: ControlParams) -> dict[str, type]:
@@ -119,13 +128,16 @@ class ControlNode(StepNode):
         self.min_clearance = math.inf
         self.points = np.zeros((0, 2))
         self.recoveries = 0
+        self.active = True  # False after a stop request: no goal
+        self.pose: tuple[float, float, float] | None = None
+        self.tail = np.zeros(0)  # path length from each plan point to its end
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One control cycle: read odom and scan, then decide the velocity command."""
         odom = inputs.get("/odom")
         if odom is None:
             raise ValueError("the control node needs /odom at every activation (same_tick)")
-        pose = _pose(odom)
+        pose = self.pose = _pose(odom)
         self._account(pose, inputs.get("/scan"))
         self._maybe_new_goal(inputs.get("/goal_pose"), pose)
         v, w = self._decide(tick, pose)
@@ -150,25 +162,36 @@ class ControlNode(StepNode):
                                     scan.range_min, self.laser, pose)
 
     def _maybe_new_goal(self, msg: Any, pose: tuple[float, float, float]) -> None:
-        # an external source holds a default message (no frame) until a goal arrives
-        if msg is None or self.reached_ns is not None or not msg.header.frame_id:
+        # An external source holds a default message (no frame) until a goal arrives, then
+        # publishes the latest one at every activation: only a change is a request.
+        if msg is None or not msg.header.frame_id:
+            return
+        q = msg.pose.orientation
+        if q.x == q.y == q.z == q.w == 0.0:  # stop
+            if self.active:
+                self.active, self.path, self.recovery = False, None, None
+                self.plan_msg = path_message(None, self.params.frame_id, 0.0)
             return
         new = _pose_of(msg.pose)
-        if max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) > 1e-9:
-            self.goal = new
-            self.xy_reached = False
-            self._replan(pose)
+        if self.active and max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) <= 1e-9:
+            return
+        self.goal, self.active = new, True
+        self.xy_reached, self.reached_ns, self.recovery = False, None, None
+        self._replan(pose)
 
     def _replan(self, pose: tuple[float, float, float]) -> None:
         self.path = self.planner.plan(pose[:2], self.goal[:2])
         self.index = 0
         self.plan_msg = path_message(self.path, self.params.frame_id, self.goal[2])
+        if self.path is not None:
+            seg = np.hypot(np.diff(self.path[:, 0]), np.diff(self.path[:, 1]))
+            self.tail = np.append(np.cumsum(seg[::-1])[::-1], 0.0)
 
     # -- behaviour --------------------------------------------------------------------------
 
     def _decide(self, tick: Tick, pose: tuple[float, float, float]) -> tuple[float, float]:
         p = self.params
-        if self.reached_ns is not None:
+        if self.reached_ns is not None or not self.active:
             return 0.0, 0.0
         dist = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         if not self.xy_reached and dist < 0.5 * self.pos_tol:
@@ -242,13 +265,34 @@ class ControlNode(StepNode):
         return 0.0, 0.0
 
     def metrics(self) -> dict[str, float]:
-        """goal_reached (latched), time_to_goal (s, -1 before), path_length, min_clearance."""
-        done = self.reached_ns is not None
-        return {"goal_reached": 1.0 if done else 0.0,
-                "time_to_goal": self.reached_ns / NS if done else -1.0,
-                "path_length": self.path_length,
-                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
-                "recoveries": float(self.recoveries)}
+        """goal_reached (latched until a new goal), time_to_goal (s, -1 before),
+        path_length, min_clearance, recoveries; and for a NavigateToPose server: nav_state
+        (0 idle, 1 active, 2 reached, 3 failed: no path), the pose (nav_x, nav_y, nav_yaw),
+        the goal (nav_goal_x, nav_goal_y, nav_goal_yaw), nav_distance_remaining (m along
+        the plan)."""
+        done = self.reached_ns is not None and self.active
+        out = {"goal_reached": 1.0 if done else 0.0,
+               "time_to_goal": self.reached_ns / NS if done else -1.0,
+               "path_length": self.path_length,
+               "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
+               "recoveries": float(self.recoveries)}
+        if self.pose is None:
+            return out
+        state = (IDLE if not self.active else REACHED if done
+                 else FAILED if self.path is None and self.recovery is None else ACTIVE)
+        x, y, yaw = self.pose
+        out.update(nav_state=state, nav_x=x, nav_y=y, nav_yaw=yaw, nav_goal_x=self.goal[0],
+                   nav_goal_y=self.goal[1], nav_goal_yaw=self.goal[2],
+                   nav_distance_remaining=self._remaining(self.pose))
+        return out
+
+    def _remaining(self, pose: tuple[float, float, float]) -> float:
+        """Distance left along the plan (straight to the goal without one)."""
+        if self.path is None or len(self.path) == 0:
+            return math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
+        i = min(self.index, len(self.path) - 1)
+        x, y = self.path[i]
+        return float(math.hypot(x - pose[0], y - pose[1]) + self.tail[i])
 
 
 def _turn(w: float, limit: float, floor: float = 0.25) -> float:

@@ -19,6 +19,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
+from nodes.live_params import ParamsInput
 from nodes.runtime.exchange import InputHistory, output_digest, prepare_outputs
 from nodes.runtime.protocol import (
     CLOCK_TOPIC,
@@ -107,6 +108,7 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
         self._wire()
 
     def _wire(self) -> None:
@@ -221,6 +223,8 @@ class LockstepRuntime:
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
             self.node.reset(self.scenario.model.seed, self.node.config)
+            if self.params_input:
+                self.params_input.forget()
             if self.recorder:
                 self.recorder.truncate()
             self.report(Status(self.name, READY, values={"epoch": epoch}))
@@ -262,6 +266,8 @@ class LockstepRuntime:
         start = time.perf_counter_ns()
         self.in_step = True
         try:
+            if self.params_input:
+                inputs = self.params_input.apply(self.node, inputs)
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
