@@ -17,6 +17,7 @@ server follows them tick by tick in the order the master decides them:
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections import deque
@@ -24,6 +25,7 @@ from collections import deque
 from geometry_msgs.msg import PoseStamped
 from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.qos import QoSProfile
 
 from orchestrator.external_arrivals import Arrivals
 from orchestrator.simcontrol import RunControl
@@ -33,10 +35,16 @@ UNKNOWN, TF_ERROR = 9000, 9002  # Nav2's error codes (named in the action after 
 IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # the control node's nav_state
 SAME = 1e-6  # how close the node's goal must be to this one to be it
 WAIT_S = 0.1
+FEEDBACK_DEPTH = 100  # feedback comes in bursts when the run goes faster than real time
+
+log = logging.getLogger("cosim")
 
 
 class NavigateServer:
-    """Goals in, the navigation node's reports out as feedback and results."""
+    """Goals in, the navigation node's reports out as feedback and results.
+
+    What a goal or a cancel puts into the run is put before the client hears that it was
+    accepted, so a client that asks while the run is paused knows the tick it enters at."""
 
     def __init__(self, node, group, control: RunControl, arrivals: Arrivals, navigator: str,
                  goal_topic: str, tick_ns: int):
@@ -48,11 +56,13 @@ class NavigateServer:
         self._cond = threading.Condition()
         self._reports: deque[tuple[int, int, dict[str, float]]] = deque(maxlen=4096)
         self._seq = 0
-        self._current = None  # the newest accepted goal's handle: older ones are replaced
+        self._latest = None  # the request of the newest goal put into the run
+        self._put_at: dict[int, int] = {}  # id of a goal request -> _seq when it was put
+        self._stopped: dict[int, int] = {}  # id of a cancelled request -> _seq at its stop
         self.server = ActionServer(node, NavigateToPose, "/navigate_to_pose", self._execute,
-                                   callback_group=group, goal_callback=_accept,
-                                   cancel_callback=_accept_cancel,
-                                   handle_accepted_callback=self._accepted)
+                                   callback_group=group, goal_callback=self._on_goal,
+                                   cancel_callback=self._on_cancel,
+                                   feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))
         control.observers.append(self._observe)
 
     def _observe(self, tick: int, reports: dict) -> None:
@@ -65,25 +75,43 @@ class NavigateServer:
             self._reports.append((self._seq, tick, done.metrics))
             self._cond.notify_all()
 
-    def _accepted(self, handle) -> None:
+    def _on_goal(self, request) -> GoalResponse:
+        """Accept every goal; put a valid one into the run (a goal that cannot be taken is
+        aborted with the reason once it executes)."""
+        if goal_problem(request.pose) is None:
+            msg = PoseStamped()
+            msg.header.frame_id = "odom"
+            msg.pose = request.pose.pose
+            with self._cond:
+                self._latest = request
+                self._put_at[id(request)] = self._seq
+                self.arrivals.put(self.goal_topic, msg)
+            log.info("NavigateToPose: goal (%g, %g, %g) from %s", *pose_of(request.pose.pose),
+                     self.control.at())
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, handle) -> CancelResponse:
+        """Accept; stop the robot when the goal is the one it is working on: /goal_pose
+        with a zero quaternion, the control node's 'no goal'."""
         with self._cond:
-            self._current = handle
-            self._cond.notify_all()
-        handle.execute()
+            if handle.request is self._latest:
+                msg = PoseStamped()
+                msg.header.frame_id = "odom"
+                msg.pose.orientation.w = 0.0
+                self.arrivals.put(self.goal_topic, msg)
+                self._stopped[id(handle.request)] = self._seq
+                log.info("NavigateToPose: cancel from %s", self.control.at())
+        return CancelResponse.ACCEPT
 
     def _execute(self, handle) -> NavigateToPose.Result:
-        request = handle.request.pose
-        problem = goal_problem(request)
+        request = handle.request
+        problem = goal_problem(request.pose)
         if problem:
             return _finish(handle, "abort", *problem)
-        goal = pose_of(request.pose)
-        msg = PoseStamped()
-        msg.header.frame_id = "odom"
-        msg.pose = request.pose
+        goal = pose_of(request.pose.pose)
         with self._cond:
-            seen, epoch = self._seq, self.control.epoch
-        self.arrivals.put(self.goal_topic, msg)
-        started = recoveries = stopping = None
+            seen, epoch = self._put_at.pop(id(request)), self.control.epoch
+        started = recoveries = None
         while True:
             # read before the reports: a run's last reports come before its end or reset
             run_over, epoch_now = self.control.ended, self.control.epoch
@@ -92,7 +120,8 @@ class NavigateServer:
                     self._cond.wait(WAIT_S)
                 fresh = [r for r in self._reports if r[0] > seen]
                 seen = fresh[-1][0] if fresh else seen
-                replaced = self._current is not handle
+                replaced = self._latest is not request
+                stopping = self._stopped.get(id(request))
             for seq, tick, m in fresh:
                 if stopping is not None:
                     if seq > stopping and m["nav_state"] == IDLE:
@@ -106,26 +135,15 @@ class NavigateServer:
                 if m["nav_state"] == REACHED:
                     return _finish(handle, "succeed", 0, "")
                 if m["nav_state"] == FAILED:
-                    self._stop()
                     return _finish(handle, "abort", UNKNOWN, "no path to the goal; the robot "
                                    "stopped")
-            if stopping is None and handle.is_cancel_requested and not replaced:
-                stopping = seen
-                self._stop()
-            how = "canceled" if stopping is not None else "abort"
+            how = "canceled" if handle.is_cancel_requested else "abort"
             if replaced:
                 return _finish(handle, how, UNKNOWN, "replaced by a newer goal")
             if epoch_now != epoch:
                 return _finish(handle, how, UNKNOWN, "the run was reset")
             if run_over is not None:
                 return _finish(handle, how, UNKNOWN, f"the run ended: {run_over}")
-
-    def _stop(self) -> None:
-        """Stop the robot: /goal_pose with a zero quaternion, the control node's 'no goal'."""
-        msg = PoseStamped()
-        msg.header.frame_id = "odom"
-        msg.pose.orientation.w = 0.0
-        self.arrivals.put(self.goal_topic, msg)
 
     def _feedback(self, tick: int, started: int, recoveries: float,
                   m: dict[str, float]) -> NavigateToPose.Feedback:
@@ -173,13 +191,8 @@ def same_goal(m: dict[str, float], goal: tuple[float, float, float]) -> bool:
 
 
 def _finish(handle, how: str, code: int, text: str) -> NavigateToPose.Result:
+    log.info("NavigateToPose: %s %s", how, text)
     getattr(handle, how)()
     return NavigateToPose.Result(error_code=code, error_msg=text)
 
 
-def _accept(_request) -> GoalResponse:
-    return GoalResponse.ACCEPT
-
-
-def _accept_cancel(_handle) -> CancelResponse:
-    return CancelResponse.ACCEPT

@@ -10,6 +10,7 @@
   the goal stays reached and the node publishes zero velocity for the rest of the run.
 - Progress checker and recovery: if the robot moves less than ``progress_distance`` within
   ``progress_window`` seconds it backs up (when the scan behind is clear) and replans.
+  When a plan finds no path, the node gives up: it stops until it gets a new goal.
 
 Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped in odom:
 a pose that differs from the current goal replaces it, reached or not; a zero quaternion
@@ -129,6 +130,7 @@ class ControlNode(StepNode):
         self.points = np.zeros((0, 2))
         self.recoveries = 0
         self.active = True  # False after a stop request: no goal
+        self.failed = False  # no path to the goal: stopped until a new goal
         self.pose: tuple[float, float, float] | None = None
         self.tail = np.zeros(0)  # path length from each plan point to its end
 
@@ -175,7 +177,7 @@ class ControlNode(StepNode):
         new = _pose_of(msg.pose)
         if self.active and max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) <= 1e-9:
             return
-        self.goal, self.active = new, True
+        self.goal, self.active, self.failed = new, True, False
         self.xy_reached, self.reached_ns, self.recovery = False, None, None
         self._replan(pose)
 
@@ -191,7 +193,7 @@ class ControlNode(StepNode):
 
     def _decide(self, tick: Tick, pose: tuple[float, float, float]) -> tuple[float, float]:
         p = self.params
-        if self.reached_ns is not None or not self.active:
+        if self.reached_ns is not None or not self.active or self.failed:
             return 0.0, 0.0
         dist = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         if not self.xy_reached and dist < 0.5 * self.pos_tol:
@@ -205,6 +207,9 @@ class ControlNode(StepNode):
             return 0.0, _turn(p.turn_gain * err, p.max_turn)
         if self.path is None:
             self._replan(pose)
+            if self.path is None:  # no path to the goal: give up, stopped, until a new one
+                self.failed = True
+                return 0.0, 0.0
         if self.recovery is not None:
             return self._recover(tick, pose)
         if self._stuck(tick, pose):
@@ -278,8 +283,8 @@ class ControlNode(StepNode):
                "recoveries": float(self.recoveries)}
         if self.pose is None:
             return out
-        state = (IDLE if not self.active else REACHED if done
-                 else FAILED if self.path is None and self.recovery is None else ACTIVE)
+        state = (IDLE if not self.active else REACHED if done else FAILED if self.failed
+                 else ACTIVE)
         x, y, yaw = self.pose
         out.update(nav_state=state, nav_x=x, nav_y=y, nav_yaw=yaw, nav_goal_x=self.goal[0],
                    nav_goal_y=self.goal[1], nav_goal_yaw=self.goal[2],
@@ -287,12 +292,14 @@ class ControlNode(StepNode):
         return out
 
     def _remaining(self, pose: tuple[float, float, float]) -> float:
-        """Distance left along the plan (straight to the goal without one)."""
+        """Distance left along the plan from its point nearest the robot (straight to the
+        goal without a plan)."""
         if self.path is None or len(self.path) == 0:
             return math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
-        i = min(self.index, len(self.path) - 1)
-        x, y = self.path[i]
-        return float(math.hypot(x - pose[0], y - pose[1]) + self.tail[i])
+        ahead = self.path[self.index:]
+        d = np.hypot(ahead[:, 0] - pose[0], ahead[:, 1] - pose[1])
+        i = int(np.argmin(d))
+        return float(d[i] + self.tail[self.index + i])
 
 
 def _turn(w: float, limit: float, floor: float = 0.25) -> float:
