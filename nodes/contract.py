@@ -55,7 +55,8 @@ class StepNode:
 
     Subclasses set ``Params`` (a pydantic model, checked when the scenario loads),
     ``needs_world`` and implement ``outputs``, ``step`` and optionally ``setup`` and
-    ``metrics``. ``step`` returns one message per declared output topic.
+    ``metrics``. ``step`` returns one message per declared output topic, and at the first
+    activation also one per ``latched_outputs`` topic.
     """
 
     Params: ClassVar[type[BaseModel]] = NoParams
@@ -63,11 +64,28 @@ class StepNode:
     runtime_params: ClassVar[frozenset[str]] = frozenset()
     """Top-level keys of ``Params`` that may change while the run goes (the node reads them
     from ``self.params`` at every step); the others are fixed once the node is set up."""
+    type_keys: ClassVar[dict[str, str]] = {}  # topic -> the parameter that sets its type
 
     @classmethod
     def outputs(cls, params: BaseModel) -> dict[str, type]:
         """Topic -> ROS 2 message class of everything this node publishes each activation."""
         raise NotImplementedError
+
+    @classmethod
+    def latched_outputs(cls, params: BaseModel) -> dict[str, type]:
+        """Topic -> ROS 2 message class of what this node publishes once, latched: ``step``
+        returns these at the node's first activation after each reset (with its ``outputs``)
+        and never again. They go out with transient-local durability, so a subscriber that
+        joins later still receives them (``/tf_static``); no scheduled input may take them.
+        Nothing by default."""
+        return {}
+
+    @classmethod
+    def input_types(cls, params: BaseModel) -> dict[str, type]:
+        """Input topic -> the message class this node takes on it, where it cares; the
+        scenario is refused when the topic's producer publishes another type. ``type_keys``
+        names the parameter that chooses the type, for that message. Nothing by default."""
+        return {}
 
     @classmethod
     def world_problems(cls, params: BaseModel, model: Any, goal: dict[str, float] | None

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from nodes.contract import StepNode, Tick
-from nodes.foreign_program import message_class
+from nodes.foreign_program import installed_types, message_class
 
 
 class ExternalParams(BaseModel):
@@ -25,12 +25,7 @@ class ExternalParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     topics: dict[str, str] = Field(min_length=1)
 
-    @field_validator("topics")
-    @classmethod
-    def _types_exist(cls, value: dict[str, str]) -> dict[str, str]:
-        for type_name in value.values():
-            message_class(type_name)
-        return value
+    _types_exist = field_validator("topics")(lambda cls, value: installed_types(value))
 
 
 class ExternalInputs(StepNode):

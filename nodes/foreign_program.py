@@ -31,6 +31,13 @@ def message_class(name: str) -> type:
         raise ValueError(f"message type {name!r} is not installed ({exc})") from None
 
 
+def installed_types(topics: dict[str, str]) -> dict[str, str]:
+    """``topics`` (topic -> message type name) unchanged, once every type is installed."""
+    for type_name in topics.values():
+        message_class(type_name)
+    return topics
+
+
 class ForeignParams(BaseModel):
     """What cosim needs to know of a foreign program: its outputs and their message counts."""
 
@@ -43,12 +50,7 @@ class ForeignParams(BaseModel):
                                   "at tick 0 (a sim-time timer first fires one period in); "
                                   "then no node may consume its outputs")
 
-    @field_validator("outputs")
-    @classmethod
-    def _types_exist(cls, value: dict[str, str]) -> dict[str, str]:
-        for type_name in value.values():
-            message_class(type_name)
-        return value
+    _types_exist = field_validator("outputs")(lambda cls, value: installed_types(value))
 
     def count(self, topic: str, activation: int = 1) -> int:
         """Messages the program publishes on ``topic`` at its ``activation``-th activation."""

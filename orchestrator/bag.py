@@ -14,12 +14,27 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from nodes.runtime.protocol import CLOCK_TOPIC, encode_clock
 from nodes.runtime.recording import read_part
 from plan.run_paths import RunPaths
+
+UNSPECIFIED = QosTime(0, 0)  # the middleware's default (infinite), as rosbag2 reads it
+LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
+                  QosDurability.TRANSIENT_LOCAL, UNSPECIFIED, UNSPECIFIED,
+                  QosLiveliness.AUTOMATIC, UNSPECIFIED, False)
+"""The offered QoS recorded for a latched topic (/tf_static): what tf2's static broadcaster
+offers, so that ``ros2 bag play`` republishes it latched and Foxglove treats it so."""
 
 
 def ros_type_name(msg_class: type) -> str:
@@ -48,9 +63,12 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
     with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         connections = {CLOCK_TOPIC: writer.add_connection(CLOCK_TOPIC, "rosgraph_msgs/msg/Clock",
                                                           typestore=typestore)}
+        latched = scenario.latched_topics
         for topic, msg_class in sorted(scenario.topics.items()):
+            qos = [LATCHED_QOS] if topic in latched else []
             connections[topic] = writer.add_connection(topic, ros_type_name(msg_class),
-                                                       typestore=typestore)
+                                                       typestore=typestore,
+                                                       offered_qos_profiles=qos)
         for tick, _, topic, data in heapq.merge(clock, *streams):
             if tick <= last_tick or (topic != CLOCK_TOPIC and not finished):
                 writer.write(connections[topic], scenario.schedule.time_ns(tick), data)

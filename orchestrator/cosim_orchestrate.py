@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="zenoh: no shared memory for large messages")
     how.add_argument("--no-camera-warm-up", action="store_true",
                      help="cameras build their GL renderer at the first frame, not at set-up")
+    how.add_argument("--pack", choices=["node", "robot", "kind"],
+                     help="which nodes share a process: each node alone, a robot's nodes\n"
+                          "together, each kind's nodes together (default: the scenario's\n"
+                          "process: keys, else each node alone)")
     how.add_argument("--profile", choices=["wall", "cpu"],
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
@@ -80,6 +84,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
+                      pack=args.pack,
                       shuffle_start=args.shuffle_start)
 
 

@@ -186,6 +186,12 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
     try:
         if opens_first:
             transport = _open_transport(settings)
+            if settings.mirror_to_dds:  # its publishers are discovered while nodes start
+                from orchestrator.dds_mirror import DdsMirror
+
+                mirror = DdsMirror(transport.session, transport.domain,
+                                   list(settings.mirror_to_dds), scenario.topics,
+                                   scenario.latched_topics)
         if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
@@ -197,10 +203,6 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
         if not opens_first:
             transport = _open_transport(settings)
-        if settings.kind == "zenoh" and settings.mirror_to_dds:
-            from orchestrator.dds_mirror import DdsMirror
-
-            mirror = DdsMirror(transport.session, transport.domain, list(settings.mirror_to_dds))
         participants = {}
         live = None  # the arrivals ROS 2 servers put into (None: a replay, or no external)
         for name, plan in scenario.nodes.items():
@@ -211,7 +213,8 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 source = external if external is not None else Arrivals(plan.outputs)
                 live = source if isinstance(source, Arrivals) else None
                 participants[name] = ExternalSource(scenario, plan, transport,
-                                                    PartWriter(paths.part(name)), source)
+                                                    PartWriter(paths.part(name)), source,
+                                                    options.pack)
             else:
                 participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
@@ -256,36 +259,43 @@ def _open_transport(settings: TransportSettings):
 
 def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
                  supervisor: Supervisor) -> bool:
-    """Start every node process: cosim nodes forked from this process when that is safe
-    (and no launch prefix wraps them), fresh interpreters otherwise; foreign programs by
-    their command; external nodes are announced for the user to start. True when any node
-    was forked."""
-    from nodes.runtime.cosim_node import run_lockstep
+    """Start every node process: cosim nodes (alone or packed, ``plan.packing``) forked
+    from this process when that is safe (and no launch prefix wraps them), fresh
+    interpreters otherwise; foreign programs by their command; external nodes are announced
+    for the user to start. True when any node was forked."""
+    from nodes.runtime.cosim_node import run_lockstep, run_packed
     from orchestrator.foreign_launch import foreign_argv, foreign_env
+    from plan.packing import process_groups
 
-    order = list(scenario.nodes)
+    groups = process_groups(scenario, options.pack)
     if options.shuffle_start is not None:
-        random.Random(options.shuffle_start).shuffle(order)
+        random.Random(options.shuffle_start).shuffle(groups)
     # Foreign programs first: they take longest to start and join.
-    for name in sorted(order, key=lambda n: not scenario.nodes[n].foreign):
-        plan = scenario.nodes[name]
-        argv = node_argv(scenario.file, plan.spec.kind or "any", name, paths.root,
-                         scenario.overrides, options)
-        prefix = plan.launch_prefix
-        if plan.in_orchestrator:
-            continue  # the orchestrator steps it
-        if plan.spec.external:
-            _announce_external(name, argv)
-        elif plan.foreign:
-            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent), prefix=prefix,
-                             env=foreign_env(plan, scenario.schedule),
+    for name, plan in scenario.nodes.items():
+        if plan.foreign:
+            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
+                             prefix=plan.launch_prefix, env=foreign_env(plan, scenario.schedule),
                              cwd=scenario.file.parent.resolve())
-        elif options.spawn == "fork" and fork_is_safe() and not prefix:
-            supervisor.fork(name, partial(run_lockstep, scenario, name, paths.root, options))
+        elif plan.spec.external:
+            _announce_external(name, node_argv(scenario.file, plan.spec.kind or "any", [name],
+                                               paths.root, scenario.overrides, options))
+    for names in groups:
+        plan = scenario.nodes[names[0]]
+        argv = node_argv(scenario.file, plan.spec.kind or "any", names, paths.root,
+                         scenario.overrides, options)
+        label = "+".join(names)
+        prefix = plan.launch_prefix
+        if options.spawn == "fork" and fork_is_safe() and not prefix:
+            target = (partial(run_lockstep, scenario, names[0], paths.root, options)
+                      if len(names) == 1 else
+                      partial(run_packed, scenario, names, paths.root, options))
+            proc = supervisor.fork(label, target)
         else:
-            supervisor.spawn(name, argv, prefix=prefix)
-    log.info("started %s", ", ".join(order))
-    return any(p.started == "fork" for p in supervisor.procs.values())
+            proc = supervisor.spawn(label, argv, prefix=prefix)
+        if len(names) > 1:
+            supervisor.pack(proc, names)
+    log.info("started %s", ", ".join("+".join(g) for g in groups))
+    return any(p.started == "fork" for p in supervisor.processes())
 
 
 def _ros_interfaces(scenario: Scenario, options: RunOptions, master, live: Arrivals | None):

@@ -18,6 +18,7 @@ from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.base import Transport
 from orchestrator.external_arrivals import Arrivals, Replay
 from orchestrator.participants import Participant
+from plan.packing import subscribers
 from plan.scenario import NodePlan, Scenario
 
 
@@ -27,7 +28,8 @@ class ExternalSource(Participant):
     in_orchestrator = True
 
     def __init__(self, scenario: Scenario, plan: NodePlan, transport: Transport,
-                 recorder: PartWriter | None, arrivals: Arrivals | Replay):
+                 recorder: PartWriter | None, arrivals: Arrivals | Replay,
+                 pack: str | None = None):
         self.name = plan.name
         self.plan = plan
         self.scenario = scenario
@@ -35,13 +37,11 @@ class ExternalSource(Participant):
         self.node = make_node(scenario, plan.name)
         self.arrivals = arrivals
         self.recorder = recorder
-        consumers: dict[str, int] = {t: 0 for t in plan.outputs}
         depth: dict[str, int] = {t: 2 for t in plan.outputs}
         for edge in self.schedule.edges:
             if edge.producer == self.name:
-                consumers[edge.topic] += 1
                 depth[edge.topic] = max(depth[edge.topic], self.schedule.history_depth(edge))
-        self.expected = consumers
+        self.expected = subscribers(scenario, pack, self.name)
         self.publishers = {t: transport.publisher(t, cls, depth[t])
                            for t, cls in plan.outputs.items()}
         self.pending: list[Status] = []

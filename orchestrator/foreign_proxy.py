@@ -63,6 +63,7 @@ class ForeignProxy(Participant):
         self.pending: list[Status] = []  # activations done without a message (silent)
         self._matched_since: float | None = None
         self.gated = is_python(plan)
+        self.follows_clock = not self.gated  # a gated program sees only its fed clock
         self.channels: dict[str, InputChannel] = {}
         self.feeds = {}
         if self.gated:

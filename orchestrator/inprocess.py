@@ -35,6 +35,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
     stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
+    activated: set[str] = set()  # a node's first activation also returns its latched outputs
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
         for name in sched.due(k):
@@ -50,8 +51,9 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 if name in params_inputs:
                     inputs = params_inputs[name].apply(nodes[name], inputs)
                 outputs = nodes[name].step(tick, inputs)
-                items = prepare_outputs(name, plan.declared_outputs,
-                                        plan.output_names, tick, outputs)
+                items = prepare_outputs(name, plan.declared_outputs, plan.output_names,
+                                        tick, outputs, plan.latched, name not in activated)
+                activated.add(name)
             except Exception as exc:
                 raise SimulationError(f"node {name} failed at tick {k}: "
                                       f"{type(exc).__name__}: {exc}", node=name, tick=k) from exc

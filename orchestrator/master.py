@@ -41,6 +41,7 @@ from orchestrator.participants import Participant
 from orchestrator.supervisor import Supervisor
 from plan.errors import SimulationError
 from plan.options import RunOptions
+from plan.packing import process_groups
 from plan.scenario import Scenario
 from plan.schedule import PIPELINE_WINDOW
 
@@ -91,17 +92,26 @@ class LockstepMaster:
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
         self.drainable = [p for p in participants.values() if p.foreign or p.in_orchestrator]
         # processes that wake for /clock (the orchestrator's own participants need not)
-        self.clock_subscribers = len([n for n in self.sched.clock_driven()
-                                      if not participants[n].in_orchestrator])
+        # one /clock and one /cosim/command subscription per cosim node process (the nodes
+        # packed into one process share them; the orchestrator's own participants have none)
+        process_of = {n: i for i, group in enumerate(process_groups(scenario, options.pack))
+                      for n in group}
+        for n, p in participants.items():
+            if n not in process_of and not (p.foreign or p.in_orchestrator):
+                process_of[n] = n  # started by the user: a process of its own
+        self.command_subscribers = len(set(process_of.values()))
+        self.clock_subscribers = len({process_of[n] for n in self.sched.clock_driven()
+                                      if n in process_of})
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
         # benchmarks); the outputs, digest and stop decision are the same either way.
-        # Foreign programs answer tick by tick: no clock runs ahead for them.
+        # A program that reads the run's /clock itself (an ungated foreign program) answers
+        # tick by tick: no clock runs ahead for it. A gated one sees only its fed clock.
         strict = not options.pipeline
         self.may_trail = frozenset() if strict else self.trailing
-        foreign = any(p.foreign for p in participants.values())
-        self.window = 1 if strict or foreign else PIPELINE_WINDOW
+        follows = any(p.follows_clock for p in participants.values())
+        self.window = 1 if strict or follows else PIPELINE_WINDOW
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
@@ -126,9 +136,7 @@ class LockstepMaster:
                     self.stats[name].ready_s = time.monotonic() - started_at
                     ready.add(name)
             self._check_processes("start")
-            cosim_nodes = sum(not (p.foreign or p.in_orchestrator)
-                              for p in self.participants.values())
-            if (ready == names and self.command_pub.matched() >= cosim_nodes
+            if (ready == names and self.command_pub.matched() >= self.command_subscribers
                     and self.clock_pub.matched() >= self.clock_subscribers):
                 return
             if time.monotonic() > deadline:
@@ -352,14 +360,18 @@ class LockstepMaster:
             self._next_sample = now + SAMPLE_PERIOD_S
             self.supervisor.sample()
         for proc in self.supervisor.dead():
-            if proc.name in self.scenario.nodes:
-                self._drain_errors(proc.name)
-                tick = self._tick_of(proc.name)
+            for name in proc.members:
+                if name not in self.scenario.nodes:
+                    continue
+                self._drain_errors(name)
+                tick = self._tick_of(name)
                 when = when if tick is None else f"tick {tick}"
+                shared = (f", in process {proc.name} with {', '.join(proc.members)}"
+                          if len(proc.members) > 1 else "")
                 raise SimulationError(
-                    f"node {proc.name} died at {when} ({proc.exit_text()}). "
+                    f"node {name} died at {when} ({proc.exit_text()}{shared}). "
                     f"Last lines of its log ({proc.log_path}):\n{proc.log_tail()}",
-                    node=proc.name, tick=max(self.tick, 0) if tick is None else tick)
+                    node=name, tick=max(self.tick, 0) if tick is None else tick)
 
     def _tick_of(self, name: str) -> int | None:
         """The tick a node was working on: the one after the last it recorded, or the

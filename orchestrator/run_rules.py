@@ -8,6 +8,7 @@ from __future__ import annotations
 from orchestrator.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError
 from plan.options import RunOptions
+from plan.packing import packable
 from plan.scenario import Scenario
 
 
@@ -22,6 +23,7 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
         raise ScenarioError(scenario.file, "transport", "zenoh carries cosim nodes only; "
                             f"node(s) {', '.join(foreign)} are foreign ROS 2 programs "
                             "(command:) that talk DDS.", "transport: ros2 for this scenario.")
+    _check_processes(scenario)
     for i, (name, plan) in enumerate(scenario.nodes.items()):
         if not plan.foreign:
             continue
@@ -38,3 +40,23 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "see samples of different ticks from run to run (not deterministic).",
                 "a Python (rclpy) program, which cosim gates, or a program with one input.")
     return list(scenario.warnings)
+
+
+def _check_processes(scenario: Scenario) -> None:
+    """A ``process:`` name groups cosim nodes the orchestrator starts, with one prefix."""
+    prefixes: dict[str, tuple[str, str | None]] = {}
+    for i, (name, plan) in enumerate(scenario.nodes.items()):
+        group = plan.spec.process
+        if group is None:
+            continue
+        key = f"nodes[{i}] ({name}).process"
+        if not packable(plan):
+            raise ScenarioError(scenario.file, key, f"{name} is "
+                                f"{'a foreign program' if plan.foreign else 'started by you'}"
+                                "; only cosim nodes the orchestrator starts share a process.",
+                                "leave process out for this node.")
+        first = prefixes.setdefault(group, (name, plan.spec.prefix))
+        if first[1] != plan.spec.prefix:
+            raise ScenarioError(scenario.file, key, f"{name} and {first[0]} share process "
+                                f"{group!r} but not their launch prefix.",
+                                "the same prefix for every node of a process, or none.")

@@ -73,6 +73,10 @@ class NodeProcess:
     peak_rss: int = 0
     cpu_s: float = 0.0
     tree: set[int] = field(default_factory=set)
+    members: tuple[str, ...] = ()  # the nodes packed into this process (default: its name)
+
+    def __post_init__(self) -> None:
+        self.members = self.members or (self.name,)
 
     def exit_text(self) -> str:
         """'exit code 3' or 'killed by signal SIGKILL'."""
@@ -157,13 +161,23 @@ class Supervisor:
         self.procs[proc.name] = proc
         return proc
 
+    def processes(self) -> list[NodeProcess]:
+        """Every started process once (packed nodes share one)."""
+        return list({id(p): p for p in self.procs.values()}.values())
+
+    def pack(self, proc: NodeProcess, members: list[str]) -> None:
+        """Register a process that runs several nodes under each of their names."""
+        proc.members = tuple(members)
+        for name in members:
+            self.procs[name] = proc
+
     def dead(self) -> list[NodeProcess]:
-        """Nodes whose process has exited."""
-        return [p for p in self.procs.values() if p.popen.poll() is not None]
+        """Processes that have exited."""
+        return [p for p in self.processes() if p.popen.poll() is not None]
 
     def sample(self, with_children: bool = False) -> None:
         """Sample CPU and memory of every live node (children too: costly, so on request)."""
-        for proc in self.procs.values():
+        for proc in self.processes():
             if proc.popen.poll() is None:
                 proc.sample(with_children)
 
@@ -171,7 +185,8 @@ class Supervisor:
         """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL; never interrupted."""
         with signals_ignored():
             self.sample(with_children=True)
-            pending = [ps for p in self.procs.values() for ps in self._tree(p)]
+            pending = list({ps.pid: ps for p in self.processes()
+                            for ps in self._tree(p)}.values())
             for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),
                                  (signal.SIGTERM, SIGTERM_TIMEOUT_S), (signal.SIGKILL, 5.0)):
                 pending = [ps for ps in pending if _alive(ps)]
@@ -182,7 +197,7 @@ class Supervisor:
                     _signal(ps, signal.SIGCONT)  # a stopped process must run to see it
                 gone, pending = psutil.wait_procs(pending, timeout=timeout)
                 self._note_exit_codes(gone)
-            for proc in self.procs.values():
+            for proc in self.processes():
                 try:
                     proc.popen.wait(timeout=1.0)
                 except subprocess.TimeoutExpired:
@@ -283,13 +298,16 @@ def _alive(ps: psutil.Process) -> bool:
         return False
 
 
-def node_argv(scenario_file: Path, kind: str, name: str, run_dir: Path | None,
+def node_argv(scenario_file: Path, kind: str, names: list[str], run_dir: Path | None,
               overrides: dict, options: RunOptions | None = None) -> list[str]:
-    """The command line that runs node ``name`` under this orchestrator."""
+    """The command line that runs the nodes ``names`` (one process) under this
+    orchestrator."""
     import json
 
     argv = [sys.executable, "-m", "nodes.runtime.cosim_node", kind,
-            "--scenario", str(scenario_file), "--node", name]
+            "--scenario", str(scenario_file)]
+    for name in names:
+        argv += ["--node", name]
     if run_dir is not None:
         argv += ["--run-dir", str(run_dir)]
     if options is not None and options.node_json() != RunOptions().node_json():

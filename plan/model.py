@@ -57,6 +57,9 @@ class NodeSpec(Strict):
                                       "directory with use_sim_time")
     external: bool = Field(False, description="true: not spawned; you start it with "
                            "'cosim-node KIND --scenario FILE --node NAME --lockstep'")
+    process: Name | None = Field(None, description="nodes with the same process name share "
+                                 "one OS process (one transport session, one wait); the "
+                                 "result is the same whatever the packing")
     prefix: str | None = Field(None, description="a command that wraps the node's process, "
                                "like ros2 launch's prefix, e.g. 'gdb -ex run --args' or "
                                "'valgrind'; it must exec the node (keep its pid)")

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Literal
 
 SPAWN_MODES = ("fork", "exec")
+PACKINGS = ("node", "robot", "kind")
 PROFILE_MODES = ("wall", "cpu")
 
 
@@ -31,11 +32,15 @@ class RunOptions:
     zenoh_shm: bool = True  # zenoh's shared-memory transport for large messages
     camera_warm_up: bool = True  # build the camera's GL renderer in a thread at set-up
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
+    pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
     shuffle_start: int | None = None  # tests: start node processes in a seeded order
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:
             raise ValueError(f"spawn must be one of {', '.join(SPAWN_MODES)}, not {self.spawn!r}")
+        if self.pack is not None and self.pack not in PACKINGS:
+            raise ValueError(f"pack must be one of {', '.join(PACKINGS)} or None, "
+                             f"not {self.pack!r}")
         if self.profile is not None and self.profile not in PROFILE_MODES:
             raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
                              f"not {self.profile!r}")
@@ -67,7 +72,7 @@ class RunOptions:
         return out
 
 
-NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile")
+NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile", "pack")
 """The options a node process acts on."""
 
 assert set(NODE_FIELDS) <= {f.name for f in fields(RunOptions)}

@@ -51,9 +51,15 @@ class NodePlan:
     class_ref: str
     params: BaseModel
     period_ticks: int
-    outputs: dict[str, type]  # graph topic -> message class
+    outputs: dict[str, type]  # graph topic -> message class (latched ones included)
     output_names: dict[str, str]  # node's own topic -> graph topic
     inputs: list[InputPlan]
+    latched: frozenset[str] = frozenset()  # own names of the outputs published once, latched
+
+    @property
+    def latched_topics(self) -> frozenset[str]:
+        """Graph names of the outputs published once, at the first activation, latched."""
+        return frozenset(self.output_names[own] for own in self.latched)
 
     @property
     def declared_outputs(self) -> dict[str, type]:
@@ -74,6 +80,22 @@ class NodePlan:
     def foreign(self) -> bool:
         """Whether this node is a foreign ROS 2 program started from a command."""
         return self.spec.command is not None
+
+
+@dataclass(frozen=True)
+class Producer:
+    """Who publishes a graph topic, as the loader resolves inputs against it."""
+
+    name: str
+    index: int  # in the scenario's nodes list
+    msg: type
+    latched: bool
+    type_key: str | None  # the producer's parameter that chooses the type, if any
+
+
+def ros_type(msg_class: type) -> str:
+    """'geometry_msgs/msg/Twist' for an rclpy message class."""
+    return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
 
 @dataclass
@@ -102,6 +124,11 @@ class Scenario:
         for plan in self.nodes.values():
             out.update(plan.outputs)
         return out
+
+    @property
+    def latched_topics(self) -> frozenset[str]:
+        """Graph topics published once per run, latched (transient-local), e.g. /tf_static."""
+        return frozenset(t for plan in self.nodes.values() for t in plan.latched_topics)
 
     @property
     def trailing_nodes(self) -> frozenset[str]:
@@ -285,7 +312,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     last_tick = where.last_tick(tick_ns)
     outputs = {i: where.node_outputs(i, spec, classes[i][1], params[i])
                for i, spec in enumerate(model.nodes)}
-    producers = where.producers(outputs)
+    producers = where.producers(outputs, {i: cls for i, (_, cls) in classes.items()})
     nodes: dict[str, NodePlan] = {}
     edges: list[Edge] = []
     for i, spec in enumerate(model.nodes):
@@ -294,7 +321,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
         nodes[spec.name] = NodePlan(
             name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
             period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
-            output_names=outputs[i][1], inputs=inputs)
+            output_names=outputs[i][1], inputs=inputs, latched=outputs[i][2])
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
@@ -496,9 +523,16 @@ class ScenarioContext:
         return self.model.duration // tick_ns
 
     def node_outputs(self, i: int, spec: NodeSpec, cls: type, params: BaseModel
-                     ) -> tuple[dict[str, type], dict[str, str]]:
-        """The node's outputs under graph names (after remap), and own -> graph names."""
+                     ) -> tuple[dict[str, type], dict[str, str], frozenset[str]]:
+        """The node's outputs under graph names (after remap), own -> graph names, and the
+        own names of its latched outputs (published once, at the first activation)."""
         own = cls.outputs(params)
+        latched = cls.latched_outputs(params)
+        if both := sorted(set(own) & set(latched)):
+            raise self.fail(self.node_key(i), f"the node declares {both[0]} both as an output "
+                            "of every activation and as a latched one.",
+                            "each topic in one of outputs() and latched_outputs().")
+        own = {**own, **latched}
         accepted = cls.accepted_inputs(params)
         known = set(own) | {inp.topic for inp in spec.inputs} | (accepted or set())
         for source in spec.remap:
@@ -514,22 +548,26 @@ class ScenarioContext:
                                 f"{t} would both be published as {graph}.",
                                 "a distinct graph name for each output.")
             graph_names[graph] = t
-        return {names[t]: msg for t, msg in own.items()}, names
+        return {names[t]: msg for t, msg in own.items()}, names, frozenset(latched)
 
-    def producers(self, outputs: dict[int, tuple[dict[str, type], dict]]) -> dict[str, tuple]:
-        """graph topic -> (producer name, message class); a topic has one publisher."""
-        producers: dict[str, tuple] = {}
-        for i, (topics, _) in outputs.items():
+    def producers(self, outputs: dict[int, tuple[dict[str, type], dict, frozenset]],
+                  classes: dict[int, type]) -> dict[str, Producer]:
+        """graph topic -> its Producer; a topic has one publisher."""
+        producers: dict[str, Producer] = {}
+        for i, (topics, names, latched) in outputs.items():
+            own_of = {graph: own for own, graph in names.items()}
             for topic, msg in topics.items():
                 if topic in producers:
                     raise self.fail(self.node_key(i), f"topic {topic} is also published by node "
-                                    f"{producers[topic][0]!r}.", "one publisher per topic; "
+                                    f"{producers[topic].name!r}.", "one publisher per topic; "
                                     "rename one with remap.")
-                producers[topic] = (self.model.nodes[i].name, msg)
+                own = own_of[topic]
+                producers[topic] = Producer(self.model.nodes[i].name, i, msg, own in latched,
+                                            classes[i].type_keys.get(own))
         return producers
 
     def node_inputs(self, i: int, spec: NodeSpec, cls: type, params: BaseModel,
-                    producers: dict[str, tuple]) -> list[InputPlan]:
+                    producers: dict[str, Producer]) -> list[InputPlan]:
         """The node's inputs resolved to producers; every input needs a publisher."""
         accepted = cls.accepted_inputs(params)
         plans, seen = [], set()
@@ -546,9 +584,33 @@ class ScenarioContext:
             if graph not in producers:
                 raise self.fail(key, f"no node publishes {graph}.",
                                 f"a published topic: {', '.join(sorted(producers))}.")
-            producer, msg = producers[graph]
-            plans.append(InputPlan(inp.topic, graph, producer, inp.mode, msg))
+            source = producers[graph]
+            if source.latched:
+                raise self.fail(key, f"{graph} is published once, latched, by node "
+                                f"{source.name!r} at its first activation; no tick's sample "
+                                "of it can be scheduled.", "a topic published at every "
+                                "activation (ROS tools and foreign programs read a latched "
+                                "topic with transient-local durability).")
+            self.check_input_type(i, inp.topic, cls, params, graph, source)
+            plans.append(InputPlan(inp.topic, graph, source.name, inp.mode, source.msg))
         return plans
+
+    def check_input_type(self, i: int, topic: str, cls: type, params: BaseModel, graph: str,
+                         source: Producer) -> None:
+        """The producer publishes the message type this node takes on ``topic`` (when it
+        says which), or the error names the parameter that sets this node's type."""
+        wanted = cls.input_types(params).get(topic)
+        if wanted is None or source.msg is wanted:
+            return
+        own_key = cls.type_keys.get(topic)
+        key = self.node_key(i, own_key) if own_key else self.node_key(i, "inputs")
+        producer = self.node_key(source.index)
+        theirs = (f"{producer}.{source.type_key}" if source.type_key
+                  else f"the type {producer} publishes it as")
+        ours = f"this node's {own_key}" if own_key else "this node's input"
+        raise self.fail(key, f"this node takes {topic} as {ros_type(wanted)}, but node "
+                        f"{source.name!r} publishes {graph} as {ros_type(source.msg)}.",
+                        f"the same message type at both ends: change {ours} or {theirs}.")
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
         """A foreign output that cosim nodes consume must carry one message per activation."""

@@ -20,7 +20,7 @@ from nodes.runtime.cdr.encode import encode, encoder_for
 
 PACKAGES = ["std_msgs", "geometry_msgs", "sensor_msgs", "nav_msgs", "diagnostic_msgs",
             "rosgraph_msgs", "builtin_interfaces", "visualization_msgs", "trajectory_msgs",
-            "shape_msgs", "stereo_msgs"]
+            "shape_msgs", "stereo_msgs", "tf2_msgs"]
 
 
 def message_classes() -> list[type]:

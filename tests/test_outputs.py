@@ -85,7 +85,8 @@ def expected_counts(scenario, ticks: int) -> dict[str, int]:
     assert ticks == scenario.schedule.n_ticks, "the run stopped early"
     counts = {"/clock": ticks}
     for topic in scenario.topics:
-        counts[topic] = scenario.schedule.activations(scenario.producer_of(topic))
+        latched = topic in scenario.latched_topics  # once, at the first activation
+        counts[topic] = 1 if latched else scenario.schedule.activations(scenario.producer_of(topic))
     return counts
 
 

@@ -15,8 +15,11 @@
 Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped in odom:
 a pose that differs from the current goal replaces it, reached or not; a zero quaternion
 means stop: no goal, zero velocity until the next one; an empty frame_id, what an external
-source holds before anything arrived, changes nothing). Outputs: /cmd_vel, /plan (frame
-odom). Its metrics tell a NavigateToPose server how the current goal goes (``metrics``).
+source holds before anything arrived, changes nothing). Outputs: /cmd_vel
+(geometry_msgs/Twist, or TwistStamped in ``base_frame`` with ``enable_stamped_cmd_vel``,
+Nav2's parameter of the same name: Jazzy's Nav2 publishes Twist by default, Kilted's
+TwistStamped), /plan (frame odom). Its metrics tell a NavigateToPose server how the current
+goal goes (``metrics``).
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Path
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -46,6 +49,8 @@ class ControlParams(BaseModel):
     base_body: str = "base_link"
     laser_site: str = "laser"
     frame_id: str = "odom"
+    base_frame: str = Field("base_link", description="frame of a stamped /cmd_vel")
+    enable_stamped_cmd_vel: bool = Field(False, description="publish /cmd_vel as TwistStamped")
     robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
     safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
     resolution: float = Field(0.05, gt=0, description="m per map cell")
@@ -78,11 +83,13 @@ class ControlNode(StepNode):
         "rotate_threshold", "turn_gain", "approach_gain", "stop_time", "horizon",
         "safety_margin", "progress_window", "progress_distance", "backup_distance",
         "backup_speed"})  # read at every step; the map and planner's are fixed at set-up
+    type_keys = {"/cmd_vel": "params.enable_stamped_cmd_vel"}
 
     @classmethod
     def outputs(cls, params: ControlParams) -> dict[str, type]:
-        """Velocity command and the current global plan."""
-        return {"/cmd_vel": Twist, "/plan": Path}
+        """Velocity command (Twist or TwistStamped) and the current global plan."""
+        return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist,
+                "/plan": Path}
 
     @classmethod
     def world_problems(cls, params: ControlParams, model, goal) -> list[tuple[str, str, str]]:
@@ -143,8 +150,12 @@ class ControlNode(StepNode):
         self._account(pose, inputs.get("/scan"))
         self._maybe_new_goal(inputs.get("/goal_pose"), pose)
         v, w = self._decide(tick, pose)
-        cmd = Twist()
-        cmd.linear.x, cmd.angular.z = float(v), float(w)
+        twist = Twist()
+        twist.linear.x, twist.angular.z = float(v), float(w)
+        cmd = twist
+        if self.params.enable_stamped_cmd_vel:  # stamped with the tick's time by the runtime
+            cmd = TwistStamped(twist=twist)
+            cmd.header.frame_id = self.params.base_frame
         return {"/cmd_vel": cmd, "/plan": self.plan_msg}
 
     # -- bookkeeping ------------------------------------------------------------------------

@@ -5,7 +5,7 @@ from __future__ import annotations
 import array
 
 import numpy as np
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
@@ -79,8 +79,9 @@ def world_state(qpos: np.ndarray, qvel: np.ndarray) -> Float64MultiArray:
     return msg
 
 
-def twist_of(msg: Twist | None) -> tuple[float, float]:
-    """(linear.x, angular.z) of a Twist; a missing command is a stop."""
+def twist_of(msg: Twist | TwistStamped | None) -> tuple[float, float]:
+    """(linear.x, angular.z) of a Twist or TwistStamped; a missing command is a stop."""
     if msg is None:
         return 0.0, 0.0
-    return float(msg.linear.x), float(msg.angular.z)
+    twist = msg.twist if isinstance(msg, TwistStamped) else msg
+    return float(twist.linear.x), float(twist.angular.z)

@@ -1,11 +1,14 @@
 """The physics node: a MuJoCo world with a differential-drive robot and a pan-tilt head.
 
-Inputs: /cmd_vel (geometry_msgs/Twist, normally a delayed edge; absent means stop),
-/joint_commands (std_msgs/Float64MultiArray of [pan, tilt] positions, optional) and
-/cosim/set_pose (tf2_msgs/TFMessage, optional: SetEntityState from an interactive run's
-clients; the base is put at rest at the last transform's x, y and yaw).
+Inputs: /cmd_vel (geometry_msgs/Twist, or TwistStamped with ``enable_stamped_cmd_vel``;
+normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64MultiArray of
+[pan, tilt] positions, optional) and /cosim/set_pose (tf2_msgs/TFMessage, optional:
+SetEntityState from an interactive run's clients; the base is put at rest at the last
+transform's x, y and yaw).
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
-activation integrates one node period (a whole number of world timesteps) and publishes.
+activation integrates one node period (a whole number of world timesteps) and publishes:
+/odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
+(nodes.physics.imu); /tf_static once, at the first activation, latched.
 """
 
 from __future__ import annotations
@@ -14,15 +17,19 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from pydantic import BaseModel, ConfigDict, Field
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
 
 from nodes.contract import StepNode, Tick
 from nodes.physics import messages as m
 from nodes.physics.contacts import CollisionCounter
 from nodes.physics.drive import DiffDrive
+from nodes.physics.frames import RobotFrames, TfParams, frame_problems
+from nodes.physics.imu import ImuParams, SimulatedImu, imu_problems
 from nodes.physics.world import (
     load_model,
     named_id,
@@ -48,7 +55,7 @@ class Pose2D(BaseModel):
 
 
 class PhysicsParams(BaseModel):
-    """Robot names in the MJCF, the start pose and the drive limits."""
+    """Robot names in the MJCF, the start pose, the drive limits, TF frames and the IMU."""
 
     model_config = ConfigDict(extra="forbid")
     start: Pose2D | None = Field(None, description="where the robot starts; default: as in MJCF")
@@ -63,6 +70,9 @@ class PhysicsParams(BaseModel):
     max_angular_speed: float = Field(2.5, gt=0, description="rad/s")
     max_linear_accel: float = Field(2.0, gt=0, description="m/s^2")
     max_angular_accel: float = Field(6.0, gt=0, description="rad/s^2")
+    enable_stamped_cmd_vel: bool = Field(False, description="take /cmd_vel as TwistStamped")
+    tf: TfParams | None = Field(TfParams(), description="/tf and /tf_static; null: none")
+    imu: ImuParams | None = Field(ImuParams(), description="/imu; null: none")
 
 
 class PhysicsNode(StepNode):
@@ -70,12 +80,28 @@ class PhysicsNode(StepNode):
 
     Params = PhysicsParams
     needs_world = True
+    type_keys = {"/cmd_vel": "params.enable_stamped_cmd_vel"}
 
     @classmethod
     def outputs(cls, params: PhysicsParams) -> dict[str, type]:
-        """Odometry, joint states and the world state that sensor nodes mirror."""
-        return {"/odom": Odometry, "/joint_states": JointState,
-                "/cosim/world_state": Float64MultiArray}
+        """Odometry, joint states, the world state that sensor nodes mirror, /tf and /imu."""
+        out = {"/odom": Odometry, "/joint_states": JointState,
+               "/cosim/world_state": Float64MultiArray}
+        if params.tf is not None:
+            out["/tf"] = TFMessage
+        if params.imu is not None:
+            out["/imu"] = Imu
+        return out
+
+    @classmethod
+    def latched_outputs(cls, params: PhysicsParams) -> dict[str, type]:
+        """/tf_static: the robot's fixed frames, once."""
+        return {"/tf_static": TFMessage} if params.tf is not None else {}
+
+    @classmethod
+    def input_types(cls, params: PhysicsParams) -> dict[str, type]:
+        """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
+        return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist}
 
     @classmethod
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
@@ -102,6 +128,12 @@ class PhysicsNode(StepNode):
                 return [(f"params.{key}", f"the world has no joint {missing[0]!r}; its "
                          f"joints: {', '.join(j for j in joints if j) or 'none'}.",
                          "joint names of the robot in the world.")]
+        if params.imu is not None and (problems := imu_problems(model, params.imu)):
+            return problems
+        if params.tf is not None:
+            imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
+            if problems := frame_problems(model, params.tf, params.base_body, imu_site):
+                return problems
         if params.start is not None:
             radius = robot_footprint_radius(model, params.base_body)
             problem = place_problem(static_obstacles(model), params.start.x, params.start.y,
@@ -148,6 +180,12 @@ class PhysicsNode(StepNode):
         mujoco.mj_forward(self.model, self.data)
         self.collisions.update(self.data)
         self.collisions.events = 0  # touching at the start is not an event
+        self.imu = SimulatedImu(self.model, p.imu, self.rng) if p.imu else None
+        self.frames = None
+        if p.tf is not None:
+            imu_site = {p.imu.site: p.imu.frame_id} if p.imu else {}
+            self.frames = RobotFrames(self.model, p.tf, p.base_body, p.base_frame,
+                                      p.odom_frame, imu_site)
         self.started = False
         self.goal_time_ns: int | None = None
         self.teleported = None  # the last /cosim/set_pose applied
@@ -155,6 +193,7 @@ class PhysicsNode(StepNode):
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Integrate one period (except at the first activation) and publish the state."""
         self._head(inputs.get("/joint_commands"))
+        first = not self.started
         if self.started:
             v, w = m.twist_of(inputs.get("/cmd_vel"))
             ctrl, (left_act, right_act) = self.data.ctrl, self.wheel_act
@@ -162,10 +201,23 @@ class PhysicsNode(StepNode):
                 ctrl[left_act], ctrl[right_act] = self.drive.update(v, w, self.dt)
                 mujoco.mj_step(self.model, self.data)
                 self.collisions.update(self.data)
+            self._derive()
         self.started = True
         self._teleport(inputs.get(SET_POSE_TOPIC))
         self._check_goal(tick)
-        return self._publish()
+        out = self._publish()
+        if first and self.frames is not None:
+            out["/tf_static"] = TFMessage(transforms=self.frames.static)
+        return out
+
+    def _derive(self) -> None:
+        """Bring what mj_step leaves one substep behind (it computes sensors and body poses
+        before integrating) up to the state being published. Neither call changes what
+        the next mj_step computes: that starts with mj_forward of the same state."""
+        if self.imu is not None:
+            mujoco.mj_forward(self.model, self.data)
+        elif self.frames is not None and self.frames.needs_kinematics:
+            mujoco.mj_kinematics(self.model, self.data)
 
     def _teleport(self, msg: Any) -> None:
         """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the
@@ -208,12 +260,17 @@ class PhysicsNode(StepNode):
         base_q = d.qpos[self.qadr:self.qadr + 7]
         base_v = d.qvel[self.vadr:self.vadr + 6]
         effort = d.qfrc_actuator[self.joint_v]
-        return {
+        out = {
             "/odom": m.odometry(base_q, base_v, p.odom_frame, p.base_frame),
             "/joint_states": m.joint_state(self.joint_names, d.qpos[self.joint_q],
                                            d.qvel[self.joint_v], effort),
             "/cosim/world_state": m.world_state(d.qpos, d.qvel),
         }
+        if self.frames is not None:
+            out["/tf"] = TFMessage(transforms=self.frames.dynamic(d, base_q))
+        if self.imu is not None:
+            out["/imu"] = self.imu.measure(d)
+        return out
 
     def metrics(self) -> dict[str, float]:
         """Collision events, the ground-truth planar pose, and whether it reached the goal."""

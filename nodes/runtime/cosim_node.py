@@ -18,7 +18,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                     "an orchestrator's run and acts only when /clock says so.")
     p.add_argument("kind", help="the node's kind (physics, sensors, control, ...) or 'any'")
     p.add_argument("--scenario", required=True, type=Path, help="scenario YAML file")
-    p.add_argument("--node", help="which node of the scenario (default: the only one of KIND)")
+    p.add_argument("--node", action="append",
+                   help="which node of the scenario (default: the only one of KIND); given "
+                        "several times, those nodes share this process (--lockstep only)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--lockstep", action="store_true",
                       help="join a running orchestrator's lockstep run (the default); a node "
@@ -62,17 +64,21 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         scenario = load_scenario(args.scenario, parse_overrides(args.set))
-        name = pick_node(scenario, args.kind, args.node)
+        names = [pick_node(scenario, args.kind, n) for n in args.node or [None]]
+        if len(names) > 1 and args.realtime:
+            raise ValueError("--realtime runs one node; give --node once")
         options = RunOptions.from_node_json(args.run_options)
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     from nodes.runtime.parent import name_this_process
 
-    name_this_process(name)
+    name_this_process("+".join(names))
     if args.realtime:
-        return run_realtime(scenario, name, args.rtf, options)
-    return run_lockstep(scenario, name, args.run_dir, options)
+        return run_realtime(scenario, names[0], args.rtf, options)
+    if len(names) > 1:
+        return run_packed(scenario, names, args.run_dir, options)
+    return run_lockstep(scenario, names[0], args.run_dir, options)
 
 
 def run_realtime(scenario, name: str, rtf: float, options=None) -> int:
@@ -126,7 +132,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     recorder = PartWriter(paths.part(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder)
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, options.pack)
     install_stop_handlers(runtime)
     try:
         runtime.node = make_node(scenario, name, options)
@@ -148,6 +154,60 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         if recorder:
             recorder.close()
         transport.close()
+
+
+def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -> int:
+    """Run several nodes in this process, on one transport session with one wait."""
+    from nodes.runtime.build import make_node
+    from nodes.runtime.lockstep import LockstepRuntime, NodeFailure
+    from nodes.runtime.packed import PackedRuntimes, install_packed_stop_handlers
+    from nodes.runtime.recording import PartWriter
+    from nodes.runtime.shared_transport import SharedTransport
+    from nodes.runtime.transport.factory import create_transport
+    from plan.options import RunOptions, TransportSettings
+    from plan.run_paths import RunPaths
+
+    options = options or RunOptions()
+    paths = RunPaths(run_dir) if run_dir else None
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})  # see run_lockstep
+    try:
+        base = create_transport(TransportSettings.of(scenario, options),
+                                "cosim_" + "_".join(names))
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+    shared = SharedTransport(base)
+    recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
+    runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], options.pack)
+                for n in names]
+    packed = PackedRuntimes(runtimes, shared)
+    install_packed_stop_handlers(packed)
+    failed = None
+    try:
+        for rt in runtimes:
+            failed = rt
+            rt.node = make_node(scenario, rt.name, options)
+        failed = None
+        packed.run()
+        return EXIT_OK
+    except KeyboardInterrupt:
+        return EXIT_OK if packed.stop_requested else EXIT_INTERRUPTED
+    except NodeFailure as exc:
+        culprit = next((rt for rt in runtimes if rt.in_step), failed) or runtimes[0]
+        if exc.__cause__ is None:
+            culprit.report_error(-1, exc)
+        print(f"cosim-node {culprit.name}: {exc}", file=sys.stderr)
+        if exc.__cause__ is not None:
+            import traceback
+
+            traceback.print_exception(exc.__cause__, file=sys.stderr)
+        return EXIT_FAILED
+    finally:
+        for rt in runtimes:
+            _write_timing(rt, paths, rt.name)
+        for recorder in recorders.values():
+            if recorder:
+                recorder.close()
+        shared.close()
 
 
 def _write_timing(runtime, paths, name: str) -> None:

@@ -13,6 +13,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from builtin_interfaces.msg import Time
+from tf2_msgs.msg import TFMessage
 
 from nodes.contract import Tick
 from nodes.runtime.cdr.decode import decode
@@ -31,17 +32,23 @@ def stamp(tick: Tick) -> Time:
 
 
 def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str], tick: Tick,
-                    outputs: dict[str, Any]) -> list[tuple[str, bytes]]:
+                    outputs: dict[str, Any], latched: frozenset[str] = frozenset(),
+                    first: bool = False) -> list[tuple[str, bytes]]:
     """Check, stamp and serialise a step's outputs: [(graph topic, CDR bytes)] sorted by topic.
 
     ``declared`` maps the node's own topic names to message classes and ``names`` maps them
-    to graph topics (after remap). A message with a ``header`` gets the tick's stamp.
+    to graph topics (after remap). ``latched`` outputs (own names) are due at the node's
+    ``first`` activation only, the others at every one. A message with a ``header`` gets
+    the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``.
     """
-    if set(outputs) != set(names):
-        missing = sorted(set(names) - set(outputs))
-        extra = sorted(set(outputs) - set(names))
+    due = set(names) if first else set(names) - latched
+    if set(outputs) != due:
+        missing = sorted(due - set(outputs))
+        extra = sorted(set(outputs) - due)
+        once = sorted(set(extra) & latched)
+        why = f"; {once} are latched: due at the first activation only" if once else ""
         raise StepContractError(f"node {node} at tick {tick.index} returned the wrong topics "
-                                f"(missing {missing}, undeclared {extra})")
+                                f"(missing {missing}, undeclared {extra}{why})")
     items = []
     when = stamp(tick)
     for own, msg in outputs.items():
@@ -51,6 +58,9 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         header = getattr(msg, "header", None)
         if header is not None and hasattr(header, "stamp"):
             header.stamp = when
+        elif isinstance(msg, TFMessage):
+            for transform in msg.transforms:
+                transform.header.stamp = when
         items.append((names[own], encode(msg)))
     items.sort()
     return items

@@ -41,6 +41,7 @@ from nodes.runtime.protocol import (
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.timing import TimeSplit
 from nodes.runtime.transport.base import Received, Transport
+from plan.packing import subscribers
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
@@ -91,8 +92,9 @@ class LockstepRuntime:
     be attached after construction, before ``run``)."""
 
     def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
-                 recorder: PartWriter | None = None):
+                 recorder: PartWriter | None = None, pack: str | None = None):
         self.scenario = scenario
+        self.pack = pack  # the run's packing: consumers packed together share a subscription
         self.name = name
         self.plan = scenario.nodes[name]
         self.sched = scenario.schedule
@@ -109,18 +111,20 @@ class LockstepRuntime:
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
         self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
+        self.first = True  # the next activation is the first since the start or a reset
+        self._last_start_report = -STATUS_PERIOD_S
         self._wire()
 
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
-        consumers = {t: 0 for t in plan.outputs}
         depth = {t: 2 for t in plan.outputs}
         for edge in sched.edges:
             if edge.producer == self.name:
-                consumers[edge.topic] += 1
                 depth[edge.topic] = max(depth[edge.topic], sched.history_depth(edge))
-        self.expected_subscribers = consumers
-        self.publishers = {t: self.transport.publisher(t, msg, depth[t])
+        self.expected_subscribers = subscribers(self.scenario, self.pack, self.name)
+        latched = plan.latched_topics
+        self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
+                                                       latched=t in latched)
                            for t, msg in plan.outputs.items()}
         self.inputs: dict[str, InputChannel] = {}
         self.input_subs = {}
@@ -159,14 +163,8 @@ class LockstepRuntime:
 
     def wait_for_start(self) -> None:
         """Report waiting/ready until the first /clock arrives."""
-        last = 0.0
         while not self.clocks and not self.stop_requested:
-            now = time.monotonic()
-            if now - last >= STATUS_PERIOD_S:
-                missing = self.unmatched()
-                state = WAITING if missing else READY
-                self.report(Status(self.name, state, detail="; ".join(missing)))
-                last = now
+            self.report_start(time.monotonic())
             self.receive(int(STATUS_PERIOD_S * 1e9))
 
     # -- run -------------------------------------------------------------------------------
@@ -200,16 +198,37 @@ class LockstepRuntime:
     def _serve(self) -> None:
         """The run loop: serve the announced ticks, report, wait for more."""
         while not self.stop_requested:
-            while self.clocks and self.try_tick(self.clocks[0]):
-                self.clocks.popleft()
-            self.report_done()
+            self.serve_announced()
             if self.stop_requested:
                 break
             self.receive(POLL_NS)
-            if self.parent_pid and os.getppid() != self.parent_pid:
-                raise NodeFailure("the orchestrator went away; stopping")
-            if not self.clocks and self.upstream_gone():
+            self.check_parent()
+            if self.finished():
                 return  # the run is over (or the orchestrator died): nothing will come
+
+    def serve_announced(self) -> None:
+        """Serve every announced tick whose inputs are here, then report them."""
+        while self.clocks and self.try_tick(self.clocks[0]):
+            self.clocks.popleft()
+        self.report_done()
+
+    def check_parent(self) -> None:
+        """Stop when the orchestrator that started this process is gone."""
+        if self.parent_pid and os.getppid() != self.parent_pid:
+            raise NodeFailure("the orchestrator went away; stopping")
+
+    def finished(self) -> bool:
+        """Nothing is announced and every publisher this node listens to has gone."""
+        return not self.clocks and self.upstream_gone()
+
+    def report_start(self, now: float) -> None:
+        """Before the first tick: report waiting (naming what is unmatched) or ready, at
+        most every STATUS_PERIOD_S."""
+        if now - self._last_start_report >= STATUS_PERIOD_S:
+            missing = self.unmatched()
+            self.report(Status(self.name, WAITING if missing else READY,
+                               detail="; ".join(missing)))
+            self._last_start_report = now
 
     def on_command(self, message: CommandMessage) -> None:
         """Handle the orchestrator's reset handshake (see nodes.runtime.protocol)."""
@@ -222,6 +241,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
+            self.first = True
             self.node.reset(self.scenario.model.seed, self.node.config)
             if self.params_input:
                 self.params_input.forget()
@@ -271,7 +291,9 @@ class LockstepRuntime:
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
-                                    self.plan.output_names, tick, outputs)
+                                    self.plan.output_names, tick, outputs,
+                                    self.plan.latched, self.first)
+            self.first = False
         except Exception as exc:
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc

@@ -41,7 +41,9 @@ class RealtimeRuntime:
         self.publish_clock = publish_clock
         self.latest: dict[str, object] = {}
         self.own_topic = {i.graph_topic: (i.topic, i.msg_type) for i in self.plan.inputs}
-        self.publishers = {t: transport.publisher(t, msg, 10)
+        latched = self.plan.latched_topics
+        self.publishers = {t: transport.publisher(t, msg, 1 if t in latched else 10,
+                                                  latched=t in latched)
                            for t, msg in self.plan.outputs.items()}
         for graph, (_, msg_type) in self.own_topic.items():
             transport.subscription(graph, msg_type, 10)
@@ -99,7 +101,8 @@ class RealtimeRuntime:
         tick = Tick(k, k * self.tick_ns)
         outputs = self.node.step(tick, dict(self.latest))
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
-                                self.plan.output_names, tick, outputs)
+                                self.plan.output_names, tick, outputs, self.plan.latched,
+                                first=self.served < 0)
         for topic, data in items:
             self.publishers[topic].publish(data)
         self.served = k

@@ -233,11 +233,14 @@ class Gate:
             timers.extend(node.timers)
         if not gated:
             return None
+        created = {sub.handle.pointer: i for i, (sub, _) in enumerate(gated)}
         if self.config.callback_order == 'inputs':
             rank = {spec.topic: i for i, spec in enumerate(self.config.inputs, 1)}
             rank[self.config.clock_topic] = 0
             gated.sort(key=lambda item: rank.get(item[1], len(rank)))  # stable
-        return _ExecutorView(self, executor, gated, timers)
+        view = _ExecutorView(self, executor, gated, timers)
+        view.created = created
+        return view
 
     # ----------------------------------------------------------------- acks
     def _ensure_ack_publisher(self, context) -> None:
@@ -349,11 +352,12 @@ class Gate:
                 # Bundle partly taken: hand out the next one, alone, once idle;
                 # program timers stay out until the whole bundle is taken.
                 plan.hold_timers = True
-                head = pending[0].handle
-                if not inflight and any(h.pointer == head.pointer for h in offered_subs):
-                    plan.subs = [head]
-                    plan.hidden = gated_ptrs - {head.pointer}
-                    plan.muted = present - {head.pointer}
+                batch = self._batch(view, pending, offered_subs)
+                if not inflight and batch:
+                    released = {h.pointer for h in batch}
+                    plan.subs = batch
+                    plan.hidden = gated_ptrs - released
+                    plan.muted = present - released
                     self._poll_ns = _POLL_MIN_NS
                 else:
                     plan.cap_ns = self._next_poll()
@@ -368,6 +372,24 @@ class Gate:
             self._released = False
             self._poll_ns = _POLL_MIN_NS
 
+    @staticmethod
+    def _batch(view, pending, offered_subs) -> list:
+        """The handles to release in one wait: the next pending one, and, on an executor
+        that runs one wait's callbacks one after another in subscription creation order
+        (not a MultiThreadedExecutor), the following ones as long as that order is the
+        wanted order too: fewer executor loops per tick, the same callback order."""
+        offered = {h.pointer for h in offered_subs}
+        batch = []
+        for sub in pending:
+            ptr = sub.handle.pointer
+            if ptr not in offered:
+                break
+            if batch and not (view.sequential
+                              and view.created[ptr] > view.created[batch[-1].pointer]):
+                break
+            batch.append(sub.handle)
+        return batch
+
     def _next_poll(self) -> int:
         ns = self._poll_ns
         self._poll_ns = min(ns * 2, _POLL_MAX_NS)
@@ -378,7 +400,7 @@ class _ExecutorView:
     """Gated subscriptions and timers of one executor at one wait."""
 
     __slots__ = ('gate', 'executor', 'gated', 'timers', 'timer_ptrs', 'gated_ptrs',
-                 'event_owner')
+                 'event_owner', 'created', 'sequential')
 
     def __init__(self, gate: Gate, executor, gated, timers) -> None:
         self.gate = gate
@@ -386,6 +408,10 @@ class _ExecutorView:
         self.gated = gated
         self.timers = timers
         self.gated_ptrs = frozenset(sub.handle.pointer for sub, _ in gated)
+        self.created: dict[int, int] = {}  # subscription pointer -> creation order
+        # one wait's callbacks run one at a time, in creation order (not multi-threaded)
+        self.sequential = type(executor).__name__ != 'MultiThreadedExecutor' \
+            and not hasattr(executor, '_executor')
         self.timer_ptrs = frozenset(t.handle.pointer for t in timers)
         # rcl event handle pointer -> pointer of the gated subscription owning it
         self.event_owner: dict[int, int] = {}

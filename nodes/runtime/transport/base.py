@@ -48,8 +48,10 @@ class Transport(ABC):
     """One participant: creates publishers and subscriptions and waits for messages."""
 
     @abstractmethod
-    def publisher(self, topic: str, msg_type: type, depth: int) -> Publisher:
-        """A reliable publisher keeping ``depth`` samples."""
+    def publisher(self, topic: str, msg_type: type, depth: int,
+                  latched: bool = False) -> Publisher:
+        """A reliable publisher keeping ``depth`` samples; ``latched`` (transient-local) keeps
+        them for subscriptions that match later, as /tf_static's publisher does."""
 
     @abstractmethod
     def subscription(self, topic: str, msg_type: type, depth: int,

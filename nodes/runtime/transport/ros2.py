@@ -27,10 +27,12 @@ def use_cosim_dds_profile() -> None:
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(PROFILE)
 
 
-def reliable_qos(depth: int) -> QoSProfile:
-    """Reliable, volatile, keep-last ``depth``: nothing is dropped while depth suffices."""
+def reliable_qos(depth: int, latched: bool = False) -> QoSProfile:
+    """Reliable, keep-last ``depth``: nothing is dropped while depth suffices. Volatile, or
+    transient-local when ``latched`` (a late subscription still gets the last ``depth``)."""
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
-                      history=HistoryPolicy.KEEP_LAST, durability=DurabilityPolicy.VOLATILE)
+                      history=HistoryPolicy.KEEP_LAST, durability=durability)
 
 
 class Ros2Publisher(Publisher):
@@ -81,17 +83,16 @@ class Ros2Transport(Transport):
         self._by_pointer: dict[int, Ros2Subscription] = {}
         self._waitset = None
 
-    def publisher(self, topic: str, msg_type: type, depth: int) -> Ros2Publisher:
-        """A reliable rclpy publisher."""
+    def publisher(self, topic: str, msg_type: type, depth: int,
+                  latched: bool = False) -> Ros2Publisher:
+        """A reliable rclpy publisher (transient-local when ``latched``)."""
         return Ros2Publisher(topic, self.node.create_publisher(msg_type, topic,
-                                                               reliable_qos(depth)))
+                                                               reliable_qos(depth, latched)))
 
     def subscription(self, topic: str, msg_type: type, depth: int,
                      latched: bool = False) -> Ros2Subscription:
         """A reliable rclpy subscription, never spun: the wait set reads it."""
-        qos = reliable_qos(depth)
-        if latched:
-            qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+        qos = reliable_qos(depth, latched)
         sub = self.node.create_subscription(msg_type, topic, _never_called, qos, raw=True)
         wrapped = Ros2Subscription(topic, msg_type, sub)
         self._subs.append(wrapped)

@@ -56,6 +56,7 @@ from functools import cache
 from pathlib import Path
 
 import zenoh
+import zenoh.ext
 
 from nodes.runtime.transport.base import Publisher, Received, Subscription, Transport
 from plan.options import TransportSettings
@@ -157,14 +158,27 @@ def session_config(mode: str, listen: list[str], connect: list[str], shm: bool =
 
 
 class ZenohPublisher(Publisher):
-    """A zenoh publisher numbering its messages in the attachment."""
+    """A zenoh publisher numbering its messages in the attachment. A latched one is an
+    advanced publisher that caches its last ``depth`` samples for late advanced
+    subscriptions, as rmw_zenoh does for transient-local durability."""
 
-    def __init__(self, transport: ZenohTransport, topic: str, msg_type: type):
+    def __init__(self, transport: ZenohTransport, topic: str, msg_type: type, depth: int = 1,
+                 latched: bool = False):
         self.topic = topic
         self._transport = transport
-        self._pub = transport.session.declare_publisher(
-            topic_key(topic, msg_type), reliability=zenoh.Reliability.RELIABLE,
-            congestion_control=zenoh.CongestionControl.BLOCK, express=True)
+        options = {"reliability": zenoh.Reliability.RELIABLE,
+                   "congestion_control": zenoh.CongestionControl.BLOCK, "express": True}
+        key = topic_key(topic, msg_type)
+        if latched:
+            self._pub = zenoh.ext.declare_advanced_publisher(
+                transport.session, key, cache=zenoh.ext.CacheConfig(max_samples=depth),
+                publisher_detection=True,  # sequence numbers: no timestamping needed
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=None,
+                                                                    sporadic_heartbeat=None),
+                **options)
+        else:
+            self._pub = transport.session.declare_publisher(key, **options)
+        self._latched = latched
         self._put = self._pub.put
         self._sequence = 0
         self._token = transport.session.liveliness().declare_token(
@@ -178,15 +192,16 @@ class ZenohPublisher(Publisher):
     def matched(self) -> int:
         """Subscriptions announced for this topic, once zenoh routes data to at least one."""
         count = self._transport.count("sub", self.topic)
-        if count and not self._pub.matching_status.matching:
-            return 0
+        if count and not self._latched and not self._pub.matching_status.matching:
+            return 0  # (an advanced publisher has no matching status; its cache serves late)
         return count
 
 
 class ZenohSubscription(Subscription):
     """A zenoh subscriber delivering into its participant's queue."""
 
-    def __init__(self, transport: ZenohTransport, topic: str, msg_type: type):
+    def __init__(self, transport: ZenohTransport, topic: str, msg_type: type,
+                 latched: bool = False):
         self.topic = topic
         self._transport = transport
         put = transport._inbox.put
@@ -197,8 +212,13 @@ class ZenohSubscription(Subscription):
                          int.from_bytes(attachment.to_bytes(), "little")
                          if attachment is not None else None))
 
-        self._sub = transport.session.declare_subscriber(
-            topic_key(topic, msg_type), zenoh.handlers.Callback(deliver, indirect=False))
+        key, handler = topic_key(topic, msg_type), zenoh.handlers.Callback(deliver, indirect=False)
+        if latched:  # also asks latched (advanced) publishers for what they cached
+            self._sub = zenoh.ext.declare_advanced_subscriber(
+                transport.session, key, handler,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+        else:
+            self._sub = transport.session.declare_subscriber(key, handler)
         self._token = transport.session.liveliness().declare_token(
             liveliness_key("sub", topic, transport.participant))
 
@@ -258,17 +278,19 @@ class ZenohTransport(Transport):
         with self._lock:
             return len(self._alive.get((role, "/" + topic.strip("/")), ()))
 
-    def publisher(self, topic: str, msg_type: type, depth: int) -> ZenohPublisher:
-        """A reliable, blocking-congestion zenoh publisher (nothing is dropped)."""
-        pub = ZenohPublisher(self, topic, msg_type)
+    def publisher(self, topic: str, msg_type: type, depth: int,
+                  latched: bool = False) -> ZenohPublisher:
+        """A reliable, blocking-congestion zenoh publisher (nothing is dropped); ``latched``:
+        one that keeps its last ``depth`` samples for late subscriptions."""
+        pub = ZenohPublisher(self, topic, msg_type, depth, latched)
         self._entities.append(pub)
         return pub
 
     def subscription(self, topic: str, msg_type: type, depth: int,
                      latched: bool = False) -> ZenohSubscription:
-        """A zenoh subscriber; its queue is unbounded, so ``depth`` is never a limit (cosim
-        publishes nothing latched over zenoh)."""
-        sub = ZenohSubscription(self, topic, msg_type)
+        """A zenoh subscriber; its queue is unbounded, so ``depth`` is never a limit.
+        ``latched`` also receives what latched publishers sent before it was declared."""
+        sub = ZenohSubscription(self, topic, msg_type, latched)
         self._entities.append(sub)
         return sub
 

@@ -1,0 +1,63 @@
+"""Which nodes share a process never changes the result: every packing gives the
+in-process digest, and packed nodes share one process."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from orchestrator.inprocess import run_in_process
+from plan.scenario import load_scenario
+from tests.helpers import ROOT, SCENARIOS, orchestrate
+
+PROTOCOL = SCENARIOS / "protocol.yaml"
+NAV = ROOT / "scenarios" / "nav.yaml"
+
+
+def pids(run) -> dict[str, int]:
+    return {name: entry["pid"] for name, entry in run.manifest["nodes"].items()}
+
+
+@pytest.mark.parametrize("pack", ["node", "kind", "robot"])
+def test_every_packing_gives_the_in_process_digest(tmp_path, pack):
+    reference = run_in_process(load_scenario(PROTOCOL)).digest
+    done = orchestrate(PROTOCOL, tmp_path, "--pack", pack, "--quiet")
+    assert done.code == 0, done.stderr
+    assert done.manifest["digest"] == reference
+    by_pid = pids(done)
+    if pack == "node":
+        assert len(set(by_pid.values())) == 5
+    elif pack == "kind":  # counters together, the integrator alone
+        assert by_pid["source"] == by_pid["middle"] == by_pid["sink"] == by_pid["slow"]
+        assert by_pid["loop"] != by_pid["source"]
+    else:
+        assert len(set(by_pid.values())) == 1
+
+
+def test_process_keys_pack_nav_with_the_same_digest(tmp_path):
+    doc = yaml.safe_load(NAV.read_text())
+    doc["duration"] = "3s"
+    doc["world"] = str((NAV.parent / doc["world"]).resolve())
+    for node in doc["nodes"]:
+        node["process"] = "sensing" if node["kind"] == "sensors" else None
+        if node["process"] is None:
+            node.pop("process")
+    path = tmp_path / "nav_packed.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    inproc = orchestrate(path, tmp_path / "i", "--in-process", "--quiet")
+    packed = orchestrate(path, tmp_path / "p", "--quiet")
+    assert packed.code == inproc.code, packed.stderr
+    assert packed.manifest["digest"] == inproc.manifest["digest"]
+    by_pid = pids(packed)
+    assert by_pid["lidar"] == by_pid["camera"] != by_pid["physics"]
+
+
+def test_a_foreign_program_cannot_share_a_process(tmp_path):
+    doc = yaml.safe_load((SCENARIOS / "foreign_echo.yaml").read_text())
+    doc["nodes"][1]["process"] = "together"
+    doc["nodes"][1]["command"][1] = str(SCENARIOS.parent / "programs" / "echo.py")
+    path = tmp_path / "echo.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    done = orchestrate(path, tmp_path / "runs")
+    assert done.code == 2 and "nodes[1] (echo).process" in done.stderr
+    assert "only cosim nodes the orchestrator starts share a process" in done.stderr
