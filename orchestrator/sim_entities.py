@@ -3,9 +3,9 @@ teleports that enter the run at a tick boundary.
 
 The state comes from the physics node's /odom, which the master watches (raw bytes, decoded
 only when asked): the sample of the last tick every node has finished. A teleport
-(SetEntityState) becomes a /cosim/set_pose message (tf2_msgs/TFMessage) put into the run's
-external arrivals: it enters at the external node's next activation, is recorded, and the
-physics node applies it once (plan/interactive.py).
+(SetEntityState) becomes a /cosim/set_pose message (simulation_interfaces/NamedPose) put
+into the run's external arrivals: it enters at the external node's next activation, is
+recorded, and the physics node applies it once (plan/interactive.py).
 """
 
 from __future__ import annotations
@@ -15,11 +15,9 @@ import struct
 import threading
 from collections import deque
 
-from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
-from simulation_interfaces.msg import EntityState, Result
+from simulation_interfaces.msg import EntityState, NamedPose, Result
 from simulation_interfaces.srv import SetEntityState
-from tf2_msgs.msg import TFMessage
 
 from nodes.runtime.cdr.decode import decode
 from nodes.runtime.transport.base import Received
@@ -53,6 +51,7 @@ class RobotEntity:
         self.external_period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
         self._world = (scenario.world, physics.params.base_body)
         self._obstacles = None
+        self.requests = 0  # teleports asked for: each message differs, so each applies once
         control.reset_listeners.append(self.forget)
 
     # -- state ------------------------------------------------------------------------------
@@ -109,9 +108,12 @@ class RobotEntity:
         problem = self._place_problem(p.x, p.y)
         if problem:
             return SetEntityState.Response.INVALID_POSE, f"the robot cannot stand there: {problem}."
-        boundary = self.control.boundary
-        self.arrivals.put(self.teleport_topic, teleport_message(s, self.name,
-                                                                boundary * self.tick_ns))
+        with self._cond:
+            self.requests += 1
+            boundary = self.control.boundary
+            self.arrivals.put(self.teleport_topic, NamedPose(
+                name=self.name, pose=s.pose,
+                description=f"SetEntityState request {self.requests} before tick {boundary}"))
         k = -(-boundary // self.external_period) * self.external_period
         return Result.RESULT_OK, (f"the robot is put at ({p.x:g}, {p.y:g}) at rest at tick {k} "
                                   "(the next tick boundary) or, if the run is past it, the next "
@@ -153,15 +155,3 @@ def _rotate(q: tuple[float, float, float, float], v: tuple[float, float, float]
     return (vx + w * tx + y * tz - z * ty, vy + w * ty + z * tx - x * tz,
             vz + w * tz + x * ty - y * tx)
 
-
-def teleport_message(state: EntityState, base_frame: str, stamp_ns: int) -> TFMessage:
-    """The /cosim/set_pose message: the base's pose in the world, stamped when asked for
-    (the physics node applies each distinct message once)."""
-    t = TransformStamped()
-    t.header.frame_id = "world"
-    t.header.stamp.sec, t.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    t.child_frame_id = base_frame
-    p, q = state.pose.position, state.pose.orientation
-    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = p.x, p.y, p.z
-    t.transform.rotation = q
-    return TFMessage(transforms=[t])

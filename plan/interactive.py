@@ -6,7 +6,8 @@ the inputs that the orchestrator's ROS 2 servers feed through the scenario's ext
 
 - ``/goal_pose`` (geometry_msgs/msg/PoseStamped) into every node that takes it (the
   navigation controller): NavigateToPose goals;
-- ``/cosim/set_pose`` (tf2_msgs/msg/TFMessage) into every node that takes it (physics):
+- ``/cosim/set_pose`` (simulation_interfaces/msg/NamedPose: the entity's name, the pose, and
+  in ``description`` which request it is) into every node that takes it (physics):
   SetEntityState teleports;
 - ``/cosim/params/<node>`` (rcl_interfaces/msg/ParameterEvent) into every node whose class
   has runtime parameters: ROS 2 parameter sets.
@@ -24,7 +25,7 @@ SET_POSE_TOPIC = "/cosim/set_pose"
 PARAMS_PREFIX = "/cosim/params/"
 
 GOAL_TYPE = "geometry_msgs/msg/PoseStamped"
-SET_POSE_TYPE = "tf2_msgs/msg/TFMessage"
+SET_POSE_TYPE = "simulation_interfaces/msg/NamedPose"
 PARAMS_TYPE = "rcl_interfaces/msg/ParameterEvent"
 
 FED_INPUTS = {GOAL_TOPIC: GOAL_TYPE, SET_POSE_TOPIC: SET_POSE_TYPE}

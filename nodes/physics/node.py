@@ -2,9 +2,9 @@
 
 Inputs: /cmd_vel (geometry_msgs/Twist, or TwistStamped with ``enable_stamped_cmd_vel``;
 normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64MultiArray of
-[pan, tilt] positions, optional) and /cosim/set_pose (tf2_msgs/TFMessage, optional:
-SetEntityState from an interactive run's clients; the base is put at rest at the last
-transform's x, y and yaw).
+[pan, tilt] positions, optional) and /cosim/set_pose (simulation_interfaces/NamedPose,
+optional: SetEntityState from an interactive run's clients; the base is put at rest at the
+pose's x, y and yaw).
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -222,15 +222,14 @@ class PhysicsNode(StepNode):
     def _teleport(self, msg: Any) -> None:
         """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the
         floor), so this tick publishes it. The external node publishes its latest message at
-        every activation: each request (its stamp says when it was made) applies once."""
-        if msg is None or not msg.transforms or msg == self.teleported:
+        every activation: each request (its description says which) applies once."""
+        if msg is None or not msg.name or msg == self.teleported:
             return
         self.teleported = msg
-        t = msg.transforms[-1].transform
-        q = t.rotation
+        p, q = msg.pose.position, msg.pose.orientation
         yaw = m.yaw_of(np.array([q.w, q.x, q.y, q.z]))
         base = self.data.qpos[self.qadr:self.qadr + 7]
-        base[:2] = t.translation.x, t.translation.y
+        base[:2] = p.x, p.y
         base[3:] = np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)
         self.data.qvel[:] = 0.0
         self.drive.v = self.drive.w = 0.0
