@@ -45,8 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
     p.add_argument("--paused", action="store_true",
-                   help="start paused: resume or step with the /cosim/pause and /cosim/step "
-                        "ROS 2 services")
+                   help="start paused: play or step with the simulation_interfaces services\n"
+                        "/cosim/set_simulation_state, /cosim/step_simulation (ros2 runs)")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")

@@ -16,6 +16,7 @@ arrivals. Whatever changes the run enters at a tick boundary and is recorded.
 
 from __future__ import annotations
 
+import logging
 import re
 import threading
 import time
@@ -41,35 +42,63 @@ from plan.scenario import EXTERNAL_NAME, Scenario
 PREFIX = "/cosim/"
 THREADS = 8  # requests served at once (several may wait for the run)
 FLUSH_S = 0.3  # after the last answer, before the services go away (replies in flight)
+BUILD_WAIT_S = 30.0
+log = logging.getLogger("cosim")
 STATES = {PLAYING: SimulationState.STATE_PLAYING, PAUSED: SimulationState.STATE_PAUSED}
 RESETS = ResetSimulation.Request.SCOPE_TIME | ResetSimulation.Request.SCOPE_STATE
 F = SimulatorFeatures
 
 
 class SimServices:
-    """The servers, their rclpy context and the thread that spins them."""
+    """The servers, their rclpy context and the thread that builds and spins them (while
+    the nodes start: building them takes a few tenths of a second)."""
 
     def __init__(self, scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
                  master):
+        self.control = control
+        self.last_answer = 0.0
+        self.executor = None
+        self.robot = _robot(scenario, control, arrivals)
+        if self.robot is not None:
+            from nav_msgs.msg import Odometry
+
+            master.watch(self.robot.odom_topic, Odometry, self.robot.take)
+        self._built = threading.Event()
+        self.thread = threading.Thread(target=self._serve, args=(scenario, arrivals),
+                                       name="cosim-ros-interfaces", daemon=True)
+        self.thread.start()
+
+    def _serve(self, scenario: Scenario, arrivals: Arrivals | None) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            self._build(scenario, arrivals)
+        except Exception:  # noqa: BLE001 - the run goes on without its ROS 2 interfaces
+            log.exception("the run's ROS 2 interfaces could not start")
+            self.executor = None
+            return
+        finally:
+            self._built.set()
+        try:
+            self.executor.spin()
+        except ExternalShutdownException:
+            pass
+
+    def _build(self, scenario: Scenario, arrivals: Arrivals | None) -> None:
         import rclpy
+        from rclpy.action import ActionServer, CancelResponse
         from rclpy.callback_groups import ReentrantCallbackGroup
         from rclpy.executors import MultiThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         from orchestrator.param_server import parameter_nodes
 
-        self.control = control
-        self.last_answer = 0.0
+        started = time.monotonic()
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node("cosim_simulation", context=self.context,
                                       start_parameter_services=False, enable_rosout=False)
         group = ReentrantCallbackGroup()
-        self.robot = _robot(scenario, control, arrivals)
-        if self.robot is not None:
-            from nav_msgs.msg import Odometry
-
-            master.watch(self.robot.odom_topic, Odometry, self.robot.take)
         for srv, name, handler in (
                 (GetSimulatorFeatures, "get_simulator_features", self._features),
                 (GetSimulationState, "get_simulation_state", self._get_state),
@@ -81,27 +110,18 @@ class SimServices:
                 (SetEntityState, "set_entity_state", self._set_entity)):
             self.node.create_service(srv, PREFIX + name, self._answering(handler),
                                      callback_group=group)
-        from rclpy.action import ActionServer, CancelResponse
-
         self.steps_server = ActionServer(self.node, SimulateSteps, PREFIX + "simulate_steps",
                                          self._simulate_steps, callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
-        self.navigate = _navigate(self.node, group, scenario, control, arrivals)
-        self.parameters = parameter_nodes(self.context, scenario, arrivals, control)
-        self.executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
+        self.navigate = _navigate(self.node, group, scenario, self.control, arrivals)
+        self.parameters = parameter_nodes(self.context, scenario, arrivals, self.control)
+        executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:
-            self.executor.add_node(node)
-        self.thread = threading.Thread(target=self._spin, name="cosim-ros-interfaces",
-                                       daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
-        try:
-            self.executor.spin()
-        except ExternalShutdownException:
-            pass
+            executor.add_node(node)
+        self.executor = executor
+        log.info("ROS 2 interfaces up in %.3f s: %sget_simulator_features and the rest, "
+                 "%s%d nodes' parameters", time.monotonic() - started, PREFIX,
+                 "/navigate_to_pose, " if self.navigate else "", len(self.parameters))
 
     def close(self) -> None:
         """The run is over: wake every waiting request (it answers), let the answers go
@@ -109,6 +129,9 @@ class SimServices:
         import rclpy
 
         self.control.finished("the orchestrator stopped the run")
+        self._built.wait(BUILD_WAIT_S)
+        if self.executor is None:
+            return
         if time.monotonic() - self.last_answer < 2.0:
             time.sleep(FLUSH_S)
         self.executor.shutdown(timeout_sec=5.0)
