@@ -1,10 +1,10 @@
 """`python -m bench` (make bench): every benchmark, one after the other, in one run."""
 
-from bench import foreign_nav, lockstep, messages, nav, profile, sensors
+from bench import foreign_nav, lockstep, messages, nav, profile, sensors, sweep
 
 
 def main() -> None:
-    """Lockstep (with scaling 1..8), nav, where nav's time goes, messages, sensors."""
+    """Lockstep (with scaling 1..8), nav, where nav's time goes, messages, sensors, sweeps."""
     print("== lockstep: ticks/s, trivial nodes at 1 kHz ==")
     lockstep.main(["--chain-repeats", "3", "--parallel", "1", "2", "3", "4", "5", "6", "7", "8"])
     print("\n== lockstep over zenoh: the same chain ==")
@@ -21,6 +21,8 @@ def main() -> None:
     messages.main()
     print("\n== sensor cost ==")
     sensors.main()
+    print("\n== sweeps: 100 nav seeds in-process on every core, and on Ray ==")
+    sweep.main([])
 
 
 if __name__ == "__main__":

@@ -16,20 +16,17 @@ Nothing heavy is imported until a test uses the fixture.
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
-import random
 import signal
-import tempfile
 import uuid
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-DOMAINS = range(1, 102)
-"""ROS 2 domain ids handed out (0 is everyone's default; above 101 clashes with ports)."""
+from orchestrator.domains import DOMAINS, DomainLease, domains_in_use  # noqa: F401 - also here
+
 TOKEN_ENV = "COSIM_PYTEST_TOKEN"
 """Set in every process a test starts, so the clean-up finds them wherever they went."""
 GOLDEN_SUFFIX = ".golden.json"
@@ -234,61 +231,6 @@ def pytest_runtest_makereport(item: pytest.Item, call):
     if report.failed and runs:
         text = "\n".join(r.summary() for r in runs)
         report.sections.append(("cosim runs", text))
-
-
-class DomainLease:
-    """A ROS domain id no other test or session on this machine uses while it is held.
-
-    A held flock on <tmp>/cosim-ros-domains/<id>.lock reserves it among cosim test sessions;
-    an id in the environment of any running process we can see is skipped too. Successive
-    leases of one session take successive ids, so each test of a session has its own.
-    """
-
-    _order: list[int] = []
-
-    def __init__(self) -> None:
-        self.domain: int | None = None
-        self._file = None
-
-    def __enter__(self) -> int:
-        lock_dir = Path(tempfile.gettempdir()) / "cosim-ros-domains"
-        lock_dir.mkdir(exist_ok=True)
-        used = domains_in_use()
-        if not DomainLease._order:
-            DomainLease._order = list(DOMAINS)
-            random.Random(os.getpid()).shuffle(DomainLease._order)
-        ids = DomainLease._order
-        for domain in (d for d in ids if d not in used):
-            handle = open(lock_dir / f"{domain}.lock", "w")  # noqa: SIM115 - held until exit
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                handle.close()
-                continue
-            self.domain, self._file = domain, handle
-            ids.remove(domain)
-            ids.append(domain)
-            return domain
-        raise RuntimeError(f"cosim: no free ROS domain id in {DOMAINS.start}..{DOMAINS.stop - 1}")
-
-    def __exit__(self, *exc: object) -> None:
-        if self._file is not None:
-            self._file.close()
-
-
-def domains_in_use() -> set[int]:
-    """ROS_DOMAIN_ID values in the environment of the processes we can read (ours included)."""
-    import psutil
-
-    used = set()
-    for proc in psutil.process_iter():
-        try:
-            value = proc.environ().get("ROS_DOMAIN_ID")
-        except (psutil.Error, OSError):
-            continue
-        if value and value.isdigit():
-            used.add(int(value))
-    return used
 
 
 class _environment:
