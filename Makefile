@@ -3,12 +3,15 @@ PYTHON ?= $(shell command -v python3.11 2>/dev/null || echo python3.11)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# The JavaScript clients the tests drive (roslibjs, Foxglove's ws-protocol), from the lock file
+JS := tests/js
+JS_STAMP := $(JS)/node_modules/.installed
 
 .PHONY: install run test lint bench clean
 
 # The ROS interface packages PyPI lacks (interfaces/) are built into the venv; a no-op when
 # nothing changed, and only the changed package is rebuilt (tools/build_interfaces.py).
-install: $(STAMP)
+install: $(STAMP) $(JS_STAMP)
 	@$(BIN)/python tools/build_interfaces.py
 
 $(STAMP): pyproject.toml
@@ -17,6 +20,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	@touch $(STAMP)
+
+$(JS_STAMP): $(JS)/package.json $(JS)/package-lock.json
+	cd $(JS) && npm ci --no-audit --no-fund --loglevel=error
+	@touch $(JS_STAMP)
 
 run: install
 	$(BIN)/cosim-orchestrate scenarios/nav.yaml
@@ -29,4 +36,4 @@ bench: install
 	$(BIN)/python -u -m bench
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) runs .pytest_cache $(JS)/node_modules

@@ -50,6 +50,8 @@ class ControlAsRosNode(Node):
         now = self.get_clock().now()
         tick = Tick(now.nanoseconds // self.tick_ns, now.nanoseconds)
         out = self.controller.step(tick, {"/odom": self.odom, "/scan": msg})
+        for text in self.controller.take_notes():  # why it stands still, when it does
+            self.get_logger().warning(text)
         out["/plan"].header.stamp = now.to_msg()
         self.cmd_pub.publish(out["/cmd_vel"])
         self.plan_pub.publish(out["/plan"])

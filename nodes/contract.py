@@ -56,7 +56,8 @@ class StepNode:
     Subclasses set ``Params`` (a pydantic model, checked when the scenario loads),
     ``needs_world`` and implement ``outputs``, ``step`` and optionally ``setup`` and
     ``metrics``. ``step`` returns one message per declared output topic, and at the first
-    activation also one per ``latched_outputs`` topic.
+    activation also one per ``latched_outputs`` topic. ``note`` tells people something
+    (the runtime has no other way out of a step: a node never logs).
     """
 
     Params: ClassVar[type[BaseModel]] = NoParams
@@ -97,6 +98,15 @@ class StepNode:
         return []
 
     @classmethod
+    def world_warnings(cls, params: BaseModel, model: Any, goal: dict[str, float] | None,
+                       start: dict[str, float] | None) -> list[tuple[str, str]]:
+        """What will likely keep this node from doing its job in the world, though the run
+        can start (a goal its map cannot reach, ...): (key, warning) per problem, keys as in
+        ``world_problems``. ``start`` is the robot's start pose (x, y, yaw) when a node of the
+        scenario sets one (a ``start`` parameter), else None. Nothing by default."""
+        return []
+
+    @classmethod
     def accepted_inputs(cls, params: BaseModel) -> set[str] | None:
         """The input topics this node understands, or None when it takes any topic."""
         return None
@@ -106,6 +116,7 @@ class StepNode:
         self.config = config
         self.params = config.params
         self.rng = np.random.default_rng(node_seed(seed, config.name))
+        self._notes: list[str] = []
         self.setup()
 
     def setup(self) -> None:
@@ -123,3 +134,17 @@ class StepNode:
     def metrics(self) -> dict[str, float]:
         """Numbers this node contributes to the run's outcome (collisions, goal reached, ...)."""
         return {}
+
+    def note(self, text: str) -> None:
+        """Tell people something about this step (why the node stands still, what it could
+        not do). Not an output, not in the digest: the driver takes the notes after the step,
+        with its tick, into the node's log, the run's manifest and its summary."""
+        self.__dict__.setdefault("_notes", []).append(str(text))
+
+    def take_notes(self) -> list[str]:
+        """The notes made since the last call (drivers call it after every step)."""
+        notes = self.__dict__.get("_notes")
+        if not notes:
+            return []
+        self._notes = []
+        return notes

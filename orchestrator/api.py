@@ -154,6 +154,12 @@ class FinishedRun:
         return {k: v for m in self.metrics_by_node.values() for k, v in m.items()}
 
     @property
+    def notes(self) -> list:
+        """What the nodes told people during the run (nodes.runtime.notes.Note: node, tick,
+        time_ns, text), in tick order; e.g. why the controller found no path."""
+        return list(self.outcome.notes)
+
+    @property
     def ticks(self) -> int:
         """How many ticks ran."""
         return self.outcome.result.ticks if self.outcome.result else self.outcome.ticks_done

@@ -44,6 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse a scenario that has warnings (a goal the controller's map\n"
+                        "cannot reach, an output nobody reads, ...): exit 2, nothing started")
     p.add_argument("--paused", action="store_true",
                    help="start paused: play or step with the simulation_interfaces services\n"
                         "/cosim/set_simulation_state, /cosim/step_simulation (ros2 runs)")
@@ -56,6 +59,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a recorded run directory: on a digest mismatch, name the first topic\n"
                         "and tick that differ from it; its digest is expected unless\n"
                         "--expect-digest is given")
+    live = p.add_argument_group("watch and drive the run from outside (loopback unless an "
+                                "address is given)")
+    live.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="ADDR:PORT",
+                      help="a Foxglove WebSocket server streaming every topic (CDR) with sim\n"
+                           "time; pause/step/resume as services and playback controls\n"
+                           "(default 127.0.0.1:8765; the digest is the same with or without)")
+    live.add_argument("--rosbridge", nargs="?", const="127.0.0.1:9090", metavar="ADDR:PORT",
+                      help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
+                           "publish the scenario's external: topics (entering at a tick,\n"
+                           "recorded), call /cosim/* services (default 127.0.0.1:9090)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -84,8 +97,8 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
-                      pack=args.pack,
-                      shuffle_start=args.shuffle_start)
+                      pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict,
+                      live=args.live, rosbridge=args.rosbridge)
 
 
 def overrides_from(args: argparse.Namespace) -> dict:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
+from nodes.runtime.notes import Note, read_notes
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.factory import create_transport
 from orchestrator.external_arrivals import Arrivals, Replay
@@ -55,6 +56,8 @@ class RunOutcome:
     collisions: int = 0
     node_stats: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)  # what nodes told people, in tick order
+    live: dict = field(default_factory=dict)  # what the live endpoints did (--live, --rosbridge)
 
     @property
     def digest(self) -> str | None:
@@ -79,9 +82,12 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     scenario this run cannot serve raises ScenarioError before anything is started or
     written; its warnings are logged and kept in the outcome. ``external`` feeds the
     scenario's external node: live arrivals (servers put messages into it while the run
-    goes) or a replay of recorded ones.
+    goes) or a replay of recorded ones. With ``options.rosbridge`` and no ``external``, the
+    rosbridge clients' messages are the run's arrivals.
     """
     warnings = check_run(scenario, options)
+    if external is None and options.rosbridge:
+        external = _arrivals_for(scenario)
     paths = make_run_dir(options.out, scenario.name)
     run_dir = paths.root
     handler = _log_to(paths.log("orchestrator"))
@@ -93,7 +99,7 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         if options.in_process:
             outcome.start_s = time.monotonic() - started
             outcome.command_to_first_tick_s = _since_process_start()
-            outcome.result = _in_process(scenario, paths, on_tick, external)
+            outcome.result = _in_process(scenario, paths, options, outcome, on_tick, external)
             outcome.loop_s = time.monotonic() - started - outcome.start_s
         else:
             outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick,
@@ -108,6 +114,7 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     finally:
         with signals_ignored():
             outcome.wall_s = time.monotonic() - started
+            outcome.notes = _collect_notes(scenario, paths, outcome)
             outcome.bag = _write_bag_safely(scenario, outcome)
             outcome.report = _write_picture_safely(scenario, outcome)
             if options.export_usd:
@@ -118,6 +125,22 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             logging.getLogger().removeHandler(handler)
             handler.close()
     return outcome
+
+
+def _collect_notes(scenario: Scenario, paths: RunPaths, outcome: RunOutcome) -> list[Note]:
+    """The nodes' notes of the run's ticks (in-process: from the loop; multi-process: from
+    each node's notes file, without what a node ran ahead past the stop), logged here."""
+    if outcome.result is not None and outcome.result.notes:
+        notes = list(outcome.result.notes)
+    else:
+        notes = [n for name in scenario.nodes for n in read_notes(paths.notes(name))]
+    if outcome.result is not None:
+        notes = [n for n in notes if n.tick < outcome.result.ticks]
+    order = {name: i for i, name in enumerate(scenario.schedule.order)}
+    notes.sort(key=lambda n: (n.tick, order.get(n.node, len(order))))
+    for note in notes:
+        log.info("note: %s", note.line())
+    return notes
 
 
 def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
@@ -159,25 +182,63 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     return out
 
 
-def _in_process(scenario: Scenario, paths: RunPaths, on_tick: OnTick | None,
+def _arrivals_for(scenario: Scenario) -> Arrivals | None:
+    """Live arrivals for the scenario's external node, when it has one."""
+    plan = next((p for p in scenario.nodes.values() if p.in_orchestrator), None)
+    return Arrivals(plan.outputs) if plan is not None else None
+
+
+def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
+                outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.inprocess import run_in_process
 
     writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
     arrivals = external.take if isinstance(external, Arrivals) else external
+
+    def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
+        writers[name].write(k, items)
+
+    endpoints = _start_live(scenario, options, external)
+    if endpoints is not None:
+        from orchestrator.live import in_process_observer
+
+        live_observe, live_tick = in_process_observer(endpoints, scenario)
+        observe = _both(observe, live_observe)
+        on_tick = _both(on_tick, live_tick) if on_tick else live_tick
     try:
-        return run_in_process(scenario, lambda k, name, items: writers[name].write(k, items),
-                              on_tick, arrivals)
+        return run_in_process(scenario, observe, on_tick, arrivals)
     finally:
+        if endpoints is not None:
+            outcome.live = endpoints.close()
         for writer in writers.values():
             writer.close()
+
+
+def _both(first: Callable, second: Callable) -> Callable:
+    def both(*args):
+        first(*args)
+        second(*args)
+    return both
+
+
+def _start_live(scenario: Scenario, options: RunOptions, external,
+                control_later: bool = False):
+    """The live endpoints the options ask for, started; a failure to listen fails the run."""
+    from nodes.runtime.live.session import LiveError
+    from orchestrator.live import start_endpoints
+
+    try:
+        return start_endpoints(scenario, options, external, control_later)
+    except LiveError as exc:
+        raise SimulationError(str(exc), node="orchestrator") from exc
 
 
 def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                    outcome: RunOutcome, started: float, on_tick: OnTick | None,
                    external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    master = transport = mirror = None
+    master = transport = mirror = endpoints = tail = None
     participants: dict = {}
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
@@ -203,6 +264,9 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
         if not opens_first:
             transport = _open_transport(settings)
+        # Clients may connect while the nodes start; they see the run once it is ready.
+        endpoints = _start_live(scenario, options, external,
+                                control_later=settings.kind == "ros2")
         participants = {}
         live = None  # the arrivals ROS 2 servers put into (None: a replay, or no external)
         for name, plan in scenario.nodes.items():
@@ -225,13 +289,24 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             outcome.start_s = time.monotonic() - started
             outcome.command_to_first_tick_s = _since_process_start()
             log.info("all nodes ready after %.3f s", outcome.start_s)
+            if endpoints is not None:
+                from orchestrator.live import attach_control, follow_parts
+
+                attach_control(endpoints, services)
+                tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
         finally:
+            if tail is not None:
+                tail.stop()
+            if endpoints is not None:
+                outcome.live, endpoints = endpoints.close(), None
             if services:
                 services.close()
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
+        if endpoints is not None:  # the run failed before its loop
+            outcome.live = endpoints.close()
         if master is not None:
             outcome.ticks_done = max(master.tick, 0)
             outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))

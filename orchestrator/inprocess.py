@@ -9,6 +9,7 @@ from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from nodes.runtime.build import make_node
 from nodes.runtime.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
+from nodes.runtime.notes import Note
 from orchestrator.loop_result import LoopResult, goal_reached
 from plan.errors import SimulationError
 from plan.scenario import Scenario
@@ -20,8 +21,9 @@ Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 def run_in_process(scenario: Scenario, observer: Observer | None = None,
                    on_tick: Callable[[int], None] | None = None,
                    external: Callable[[int], dict] | None = None) -> LoopResult:
-    """Run every node in this process in schedule order; return the digest and metrics.
-    ``external(tick)`` gives what enters from outside at a tick of the external node."""
+    """Run every node in this process in schedule order; return the digest, metrics and
+    the nodes' notes. ``external(tick)`` gives what enters from outside at a tick of the
+    external node."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
     params_inputs = {name: p for name in sched.order
@@ -34,6 +36,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             consumers.setdefault(inp.graph_topic, []).append(histories[(plan.name, inp.topic)])
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
+    notes: list[Note] = []
     stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
     activated: set[str] = set()  # a node's first activation also returns its latched outputs
     for k in range(sched.n_ticks):
@@ -51,6 +54,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 if name in params_inputs:
                     inputs = params_inputs[name].apply(nodes[name], inputs)
                 outputs = nodes[name].step(tick, inputs)
+                notes += [Note(name, k, tick.time_ns, t) for t in nodes[name].take_notes()]
                 items = prepare_outputs(name, plan.declared_outputs, plan.output_names,
                                         tick, outputs, plan.latched, name not in activated)
                 activated.add(name)
@@ -67,8 +71,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
         if on_tick:
             on_tick(k)
         if stop and goal_reached({n: nodes[n].metrics() for n in nodes}, scenario.trailing_nodes):
-            return LoopResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost)
-    return LoopResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost)
+            return LoopResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost, notes)
+    return LoopResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost, notes)
 
 
 def _account(entry: list[int], step_ns: int) -> None:

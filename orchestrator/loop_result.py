@@ -15,6 +15,7 @@ class LoopResult:
     metrics: dict[str, dict[str, float]] = field(default_factory=dict)
     stopped_early: bool = False
     step_ns: dict[str, list[int]] = field(default_factory=dict)  # in-process: [n, total, worst]
+    notes: list = field(default_factory=list)  # in-process: nodes.runtime.notes.Note, in order
 
 
 def goal_reached(metrics: dict[str, dict[str, float]],

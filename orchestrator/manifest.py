@@ -145,6 +145,8 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "outputs": outputs_entry(outcome),
         "options": options.as_dict(),
         "warnings": list(getattr(outcome, "warnings", [])),
+        "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
+        "live": getattr(outcome, "live", None) or None,
     }
 
 

@@ -218,7 +218,23 @@ def nav_figure(scenario, data: BagData, outcome) -> Figure:
     fig.suptitle(title(scenario, outcome, track), fontsize=13)
     fig.text(0.5, 0.925, subtitle(scenario, track, data, outcome), ha="center", fontsize=10,
              color="#444444")
+    notes = notes_text(outcome)
+    if notes:
+        fig.text(0.01, 0.005, notes, ha="left", va="bottom", fontsize=8, color="#8b0000")
     return fig
+
+
+def notes_text(outcome, shown: int = 2, width: int = 125) -> str:
+    """The first notes of the run's nodes, wrapped to the map's half of the picture (why
+    the controller stood still, ...)."""
+    import textwrap
+
+    notes = list(getattr(outcome, "notes", None) or [])
+    lines = [textwrap.fill(f"note: {n.node} at {n.time_ns / 1e9:.2f} s: {n.text}", width)
+             for n in notes[:shown]]
+    if len(notes) > shown:
+        lines.append(f"... {len(notes) - shown} more notes in manifest.json")
+    return "\n".join(lines)
 
 
 def snapshot_scans(scans: list[tuple[int, object]]) -> list[tuple[int, object, str]]:

@@ -21,6 +21,7 @@ METRICS = (("time_to_goal", "time to goal", "{:.2f} s"),
            ("path_length", "path length", "{:.2f} m"),
            ("min_clearance", "min clearance", "{:.3f} m"),
            ("recoveries", "recoveries", "{:g}"))
+NOTES_SHOWN = 5  # the summary shows the first notes; the manifest and logs keep them all
 NODE_COLUMNS = (("ticks", "ticks", "{:d}"), ("step_ms_mean", "mean step ms", "{:.3f}"),
                 ("step_ms_worst", "worst step ms", "{:.3f}"), ("cpu_s", "CPU s", "{:.2f}"),
                 ("peak_rss_mb", "peak MB", "{:.1f}"), ("ready_s", "ready s", "{:.2f}"))
@@ -74,10 +75,21 @@ def outcome_rows(outcome, manifest: dict[str, Any]) -> list[tuple[str, str]]:
         rows.append(("goal reached", "yes" if metrics["goal_reached"] >= 1 else "no"))
     rows += [(label, metric_text(key, metrics[key], fmt))
              for key, label, fmt in METRICS if key in metrics]
+    rows += note_rows(manifest.get("notes")
+                      or [n.as_dict() for n in getattr(outcome, "notes", [])])
     rows.append(("time", timing_text(outcome, manifest)))
     if cost_text(manifest):
         rows.append(("orchestrator", cost_text(manifest)))
     rows.append(("digest", outcome.digest or "-"))
+    return rows
+
+
+def note_rows(notes: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """What the nodes noted ('control at 0.00 s: no path ...'), the first few of them."""
+    rows = [("note", f"{n['node']} at {n['time_s']:.2f} s: {n['text']}")
+            for n in notes[:NOTES_SHOWN]]
+    if len(notes) > NOTES_SHOWN:
+        rows.append(("note", f"... {len(notes) - NOTES_SHOWN} more in manifest.json"))
     return rows
 
 

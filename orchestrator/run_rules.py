@@ -1,19 +1,23 @@
 """The rules a run applies to a checked scenario before it starts anything, whoever starts
 it (the command line, the Python API or the pytest plugin): what this kind of run cannot
 serve is refused as a ScenarioError naming the file and the fix, and what deserves a word
-is returned as warnings."""
+is returned as warnings (refused too in a strict run)."""
 
 from __future__ import annotations
 
 from orchestrator.foreign_launch import is_python, missing_program
-from plan.errors import ScenarioError
+from plan.errors import ScenarioError, ScenarioNotice
+from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
 from plan.packing import packable
 from plan.scenario import Scenario
 
 
 def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
-    """Refuse what this run cannot serve; return the scenario's warnings."""
+    """Refuse what this run cannot serve; return the scenario's warnings (a strict run
+    refuses the first of them) and the run's (a live endpoint reachable from other
+    machines). An address the live view or rosbridge cannot listen on is a ValueError
+    naming the option (the CLI's exit 2)."""
     foreign = [name for name, plan in scenario.nodes.items() if plan.foreign]
     if options.in_process and foreign:
         raise ScenarioError(scenario.file, "", "in-process runs step classes only; node(s) "
@@ -39,7 +43,18 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "cosim cannot gate its executor, and with several inputs its callbacks would "
                 "see samples of different ticks from run to run (not deterministic).",
                 "a Python (rclpy) program, which cosim gates, or a program with one input.")
-    return list(scenario.warnings)
+    problems = address_problems(options.live_address, options.rosbridge_address)
+    if problems:
+        raise ValueError("; ".join(problems))
+    warnings = list(scenario.warnings)
+    if options.strict and warnings:
+        first = warnings[0]
+        why = "refused by --strict (strict=True)" + (
+            f"; {len(warnings) - 1} more warning(s)" if len(warnings) > 1 else "")
+        if isinstance(first, ScenarioNotice):
+            raise first.as_error(why)
+        raise ScenarioError(scenario.file, "", f"{first} ({why})")
+    return [*warnings, *exposure_warnings(options.live_address, options.rosbridge_address)]
 
 
 def _check_processes(scenario: Scenario) -> None:

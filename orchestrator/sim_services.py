@@ -43,6 +43,7 @@ PREFIX = "/cosim/"
 THREADS = 8  # requests served at once (several may wait for the run)
 FLUSH_S = 0.3  # after the last answer, before the services go away (replies in flight)
 BUILD_WAIT_S = 30.0
+RESET_WAIT_S = 120.0
 log = logging.getLogger("cosim")
 STATES = {PLAYING: SimulationState.STATE_PLAYING, PAUSED: SimulationState.STATE_PAUSED}
 RESETS = ResetSimulation.Request.SCOPE_TIME | ResetSimulation.Request.SCOPE_STATE
@@ -110,6 +111,12 @@ class SimServices:
                 (SetEntityState, "set_entity_state", self._set_entity)):
             self.node.create_service(srv, PREFIX + name, self._answering(handler),
                                      callback_group=group)
+        from std_srvs.srv import SetBool, Trigger
+
+        for srv, name, handler in ((SetBool, "/cosim/pause", self._pause),
+                                   (Trigger, "/cosim/step", self._step_one),
+                                   (Trigger, "/cosim/reset", self._reset_soon)):
+            self.node.create_service(srv, name, self._answering(handler), callback_group=group)
         self.steps_server = ActionServer(self.node, SimulateSteps, PREFIX + "simulate_steps",
                                          self._simulate_steps, callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
@@ -122,6 +129,11 @@ class SimServices:
         log.info("ROS 2 interfaces up in %.3f s: %sget_simulator_features and the rest, "
                  "%s%d nodes' parameters", time.monotonic() - started, PREFIX,
                  "/navigate_to_pose, " if self.navigate else "", len(self.parameters))
+
+    def wait_built(self) -> bool:
+        """Wait until the servers are up; False when they could not start."""
+        self._built.wait(BUILD_WAIT_S)
+        return self.executor is not None
 
     def close(self) -> None:
         """The run is over: wake every waiting request (it answers), let the answers go
@@ -227,6 +239,47 @@ class SimServices:
                 params.reset()
         response.result = _from_outcome(out)
         return response
+
+    # -- the std_srvs services: simple types for rosbridge and Foxglove clients -----------
+
+    def _words(self) -> str:
+        """'paused at tick 12 (sim time 0.240000000 s)', or 'running at ...'."""
+        word = "paused" if self.control.state == PAUSED else "running"
+        return f"{word} at {self.control.at()}"
+
+    def _pause(self, request, response):
+        """true pauses before the next tick, false resumes; pausing again only reports."""
+        out = self.control.pause() if request.data else self.control.play()
+        response.success = out.ok or out.code == "state"
+        response.message = self._words() if response.success else out.message
+        return response
+
+    def _step_one(self, request, response):
+        """One tick while paused; answers at once."""
+        before = self._words()
+        out = self.control.add_step()
+        response.success = out.ok
+        response.message = f"{out.message}; {before}" if out.code != "ended" else out.message
+        if out.code == "state":
+            response.message = f"not paused: pause first; {before}"
+        return response
+
+    def _reset_soon(self, request, response):
+        """Back to tick 0 with the same seed; answers at once, the reset follows."""
+        before, epoch = self._words(), self.control.epoch
+        out = self.control.request_reset()
+        response.success = out.ok
+        response.message = f"{out.message}; was {before}" if out.ok else (
+            f"{out.message}; {before}")
+        if out.ok:
+            threading.Thread(target=self._after_reset, args=(epoch,), daemon=True).start()
+        return response
+
+    def _after_reset(self, epoch: int) -> None:
+        """Once a reset asked for through /cosim/reset is done: parameters as at the start."""
+        if self.control.wait_reset(epoch, RESET_WAIT_S):
+            for params in self.parameters:
+                params.reset()
 
     # -- entities ---------------------------------------------------------------------------
 

@@ -146,6 +146,28 @@ class RunControl:
             self._cond.notify_all()
             return Outcome(True, f"playing from {self.at()}")
 
+    def add_step(self) -> Outcome:
+        """One more tick while paused, without waiting for it (the std_srvs /cosim/step)."""
+        with self._cond:
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            if self.state != PAUSED:
+                return Outcome(False, "not paused", "state")
+            self.steps += 1
+            self._cond.notify_all()
+            return Outcome(True, "stepping one tick")
+
+    def request_reset(self) -> Outcome:
+        """Ask for a reset without waiting for it (the std_srvs /cosim/reset)."""
+        with self._cond:
+            if self.cannot_reset is not None:
+                return Outcome(False, f"cannot reset: {self.cannot_reset}", "refused")
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            self._reset_wanted = True
+            self._cond.notify_all()
+            return Outcome(True, "resetting to tick 0 with the same seed")
+
     def stop(self, timeout_s: float = 60.0) -> Outcome:
         """End the run at the next tick boundary, once the ticks in flight are done; wait
         until the tick loop has ended."""
@@ -169,10 +191,15 @@ class RunControl:
             epoch = self.epoch
             self._reset_wanted = True
             self._cond.notify_all()
+        if self.wait_reset(epoch, timeout_s):
+            return Outcome(True, f"reset to tick 0; {self.where()}")
+        return Outcome(False, f"the run ended before the reset: {self.ended}", "ended")
+
+    def wait_reset(self, epoch: int, timeout_s: float) -> bool:
+        """Wait until a reset after ``epoch`` is done (True) or the run is over (False)."""
+        with self._cond:
             self._cond.wait_for(lambda: self.epoch > epoch or self.ended is not None, timeout_s)
-            if self.epoch > epoch:
-                return Outcome(True, f"reset to tick 0; {self.where()}")
-            return Outcome(False, f"the run ended before the reset: {self.ended}", "ended")
+            return self.epoch > epoch
 
     def step(self, n: int, on_step: Callable[[int], None] | None = None,
              cancelled: Callable[[], bool] = lambda: False) -> Outcome:
@@ -233,5 +260,5 @@ class RunControl:
             if stop and settled is not None and settled >= start:
                 return Outcome(False, f"cancelled after {settled - start} of {n} step(s); "
                                f"{self.where()}", "cancelled")
-            if done == n and (settled == target or state != PAUSED):
+            if done == n and ((settled is not None and settled >= target) or state != PAUSED):
                 return Outcome(True, f"{n} step(s) done; {self.where()}")

@@ -18,6 +18,26 @@ class ScenarioError(Exception):
         super().__init__(text)
 
 
+class ScenarioNotice(str):
+    """A scenario warning: its text (worded as a ScenarioError, printed and kept in the
+    manifest as is) that also keeps the file, key, problem and fix, so that a strict run
+    can refuse it as the error it would be (``as_error``)."""
+
+    def __new__(cls, file: str, key: str, problem: str, accepted: str = ""):
+        """The text of ``ScenarioError(file, key, problem, accepted)``, with its parts."""
+        notice = super().__new__(cls, str(ScenarioError(file, key, problem, accepted)))
+        notice.file, notice.key, notice.problem, notice.accepted = (
+            str(file), key, problem, accepted)
+        return notice
+
+    def __getnewargs__(self):
+        return self.file, self.key, self.problem, self.accepted
+
+    def as_error(self, why: str) -> ScenarioError:
+        """The ScenarioError this warning is when ``why`` (e.g. a strict run) refuses it."""
+        return ScenarioError(self.file, self.key, f"{self.problem} ({why})", self.accepted)
+
+
 class SimulationError(Exception):
     """A run failed after it started (CLI exit code 3): names the node and what went wrong."""
 

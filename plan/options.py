@@ -2,7 +2,8 @@
 
 Nothing here changes what a run computes (the digest is the same whatever the options);
 they choose how the work is done: pipelined or strictly in lockstep, forked or fresh
-node processes, zenoh shared memory, the camera's GL warm-up, profiling. The orchestrator
+node processes, zenoh shared memory, the camera's GL warm-up, profiling; and whether a
+scenario's warnings refuse the run (strict). The orchestrator
 hands the node-side fields to every node process on its command line (``to_json``), never
 through the environment.
 """
@@ -13,6 +14,8 @@ import json
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Literal
+
+from plan.listen import LIVE_DEFAULT, ROSBRIDGE_DEFAULT, ListenAddress, parse_listen
 
 SPAWN_MODES = ("fork", "exec")
 PACKINGS = ("node", "robot", "kind")
@@ -34,6 +37,9 @@ class RunOptions:
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
     pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
     shuffle_start: int | None = None  # tests: start node processes in a seeded order
+    strict: bool = False  # refuse a scenario with warnings (ScenarioError: exit 2)
+    live: str | None = None  # ADDR:PORT of a Foxglove WebSocket server watching the run
+    rosbridge: str | None = None  # ADDR:PORT of a rosbridge v2 server (watch and drive)
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:
@@ -45,6 +51,23 @@ class RunOptions:
             raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
                              f"not {self.profile!r}")
         object.__setattr__(self, "out", Path(self.out))
+        for name, default in (("live", LIVE_DEFAULT), ("rosbridge", ROSBRIDGE_DEFAULT)):
+            text = getattr(self, name)
+            if text is not None:
+                try:
+                    object.__setattr__(self, name, str(parse_listen(str(text), default)))
+                except ValueError as exc:
+                    raise ValueError(f"{name}: {exc}") from None
+
+    @property
+    def live_address(self) -> ListenAddress | None:
+        """Where the Foxglove live view listens (None: no live view)."""
+        return parse_listen(self.live, LIVE_DEFAULT) if self.live else None
+
+    @property
+    def rosbridge_address(self) -> ListenAddress | None:
+        """Where the rosbridge server listens (None: no rosbridge)."""
+        return parse_listen(self.rosbridge, ROSBRIDGE_DEFAULT) if self.rosbridge else None
 
     def with_(self, **changes) -> RunOptions:
         """A copy with some fields changed."""

@@ -57,6 +57,10 @@ class RunPaths:
         """A node's run-loop time split."""
         return self.logs / f"{node}.timing.json"
 
+    def notes(self, node: str) -> Path:
+        """What a node told people during the run (nodes.runtime.notes), one JSON a line."""
+        return self.logs / f"{node}.notes.jsonl"
+
     def profile(self, node: str) -> Path:
         """A node's cProfile (run option ``profile``)."""
         return self.logs / f"{node}.prof"

@@ -18,7 +18,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from plan.errors import ScenarioError
+from plan.errors import ScenarioError, ScenarioNotice
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.registry import KINDS, kind_class, load_class
@@ -110,7 +110,7 @@ class Scenario:
     world: Path | None
     sha256: str
     overrides: dict[str, Any] = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # ScenarioNotice texts
 
     @property
     def name(self) -> str:
@@ -306,8 +306,9 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     for i in range(len(model.nodes)):
         where.check_finite(where.node_key(i, "params"), params[i].model_dump())
     world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    world_warnings = []
     if world_model is not None:
-        where.check_world_fit(classes, params, world_model)
+        world_warnings = where.check_world_fit(classes, params, world_model)
     tick_ns = where.tick_ns()
     last_tick = where.last_tick(tick_ns)
     outputs = {i: where.node_outputs(i, spec, classes[i][1], params[i])
@@ -325,17 +326,29 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
-    warnings = unconsumed_remaps(path, nodes, edges)
+    warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
 
 
 def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
     """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it)."""
     consumed = {e.topic for e in edges}
-    return [f"{path}: nodes ({plan.name}).remap.{own}: {graph} is published but no node of "
-            "the scenario consumes it (only ROS tools will see it)."
+    return [ScenarioNotice(path, f"nodes ({plan.name}).remap.{own}", f"{graph} is published "
+                          "but no node of the scenario consumes it (only ROS tools will see "
+                          "it).", "a remap to a topic a node of the scenario consumes.")
             for plan in nodes.values() for own, graph in plan.output_names.items()
             if own != graph and graph not in consumed]
+
+
+def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:
+    """The robot's start pose: the ``start`` parameter (x, y, yaw) that a node of the
+    scenario sets (the physics node's), or None when none does."""
+    for i in sorted(params):
+        start = getattr(params[i], "start", None)
+        if start is not None and hasattr(start, "x") and hasattr(start, "y"):
+            return {"x": float(start.x), "y": float(start.y),
+                    "yaw": float(getattr(start, "yaw", 0.0))}
+    return None
 
 
 class ScenarioContext:
@@ -480,8 +493,10 @@ class ScenarioContext:
                             f"(looked for {world}).", "a path relative to the scenario file.")
         return world, (self.check_world(world) if needed else None)
 
-    def check_world_fit(self, classes: dict, params: dict, world_model) -> None:
-        """Each node's own check of the world (its robot there, start and goal placeable)."""
+    def check_world_fit(self, classes: dict, params: dict, world_model) -> list[str]:
+        """Each node's own check of the world (its robot there, start and goal placeable):
+        problems raise; what only deserves a word (a goal its map cannot reach) is
+        returned as warnings."""
         goal = self.model.goal.model_dump() if self.model.goal else None
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
@@ -489,6 +504,18 @@ class ScenarioContext:
             for key, problem, accepted in cls.world_problems(params[i], world_model, goal):
                 where = key if key.startswith("goal") else self.node_key(i, key)
                 raise self.fail(where, f"{problem} (world {self.model.world})", accepted)
+        start = robot_start(params)
+        warnings = []
+        for i, (_, cls) in classes.items():
+            if not cls.needs_world or not hasattr(cls, "world_warnings"):
+                continue
+            for key, text in cls.world_warnings(params[i], world_model, goal, start):
+                where = key if key.startswith("goal") else self.node_key(i, key)
+                warnings.append(ScenarioNotice(
+                    self.path, where, f"{text} (world {self.model.world})",
+                    "a goal the robot can reach from its start: move the goal, the start or "
+                    "the obstacles named."))
+        return warnings
 
     def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""

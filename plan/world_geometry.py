@@ -42,6 +42,13 @@ class Obstacle:
             return math.hypot(x - self.centre[0], y - self.centre[1]) - self.radius
         return polygon_distance(self.polygon, x, y)
 
+    def distances(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """``distance`` at many points at once (arrays of one shape)."""
+        if self.is_circle:
+            return np.hypot(xs - self.centre[0], ys - self.centre[1]) - self.radius
+        inside = polygon_edge_distances(self.polygon, xs, ys)
+        return np.where(inside >= 0, -inside, polygon_outside_distances(self.polygon, xs, ys))
+
     def bounds(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) of the footprint."""
         if self.is_circle:
@@ -155,6 +162,21 @@ def polygon_edge_distances(polygon: np.ndarray, xs: np.ndarray, ys: np.ndarray) 
         d = ((bx - ax) * (ys - ay) - (by - ay) * (xs - ax)) / length
         np.minimum(out, d, out=out)
     return out
+
+
+def polygon_outside_distances(polygon: np.ndarray, xs: np.ndarray, ys: np.ndarray
+                              ) -> np.ndarray:
+    """Distance of points to a polygon's boundary (its nearest edge segment)."""
+    best = np.full(np.shape(xs), np.inf)
+    n = len(polygon)
+    for i in range(n):
+        ax, ay = polygon[i]
+        bx, by = polygon[(i + 1) % n]
+        dx, dy = bx - ax, by - ay
+        length2 = dx * dx + dy * dy
+        t = 0.0 if length2 == 0 else np.clip(((xs - ax) * dx + (ys - ay) * dy) / length2, 0, 1)
+        np.minimum(best, np.hypot(xs - ax - t * dx, ys - ay - t * dy), out=best)
+    return best
 
 
 def polygon_distance(polygon: np.ndarray, x: float, y: float) -> float:

@@ -22,7 +22,7 @@ from rosbags.typesys import Stores, get_typestore
 from orchestrator.api import run
 from plan.scenario import load_scenario
 from tests.helpers import ORCHESTRATE, ROOT, orchestrate
-from tests.sim_client import OK, SimClient
+from tests.test_sim_control import call, wait_paused_at
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 WORLD = ROOT / "scenarios" / "worlds" / "nav.xml"
@@ -89,7 +89,7 @@ def watched(tmp_path_factory) -> Watched:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import CameraInfo, Image, LaserScan
-    from simulation_interfaces.msg import SimulationState
+    from std_srvs.srv import SetBool, Trigger
     from tf2_msgs.msg import TFMessage
 
     out = tmp_path_factory.mktemp("watched")
@@ -113,19 +113,20 @@ def watched(tmp_path_factory) -> Watched:
             subs.append(node.create_subscription(
                 msg_type, topic, lambda m, t=topic: seen.frame_ids.setdefault(t, set()).add(
                     m.header.frame_id), reliable))
-        sim = SimClient((node, executor))
-        assert sim.state() == SimulationState.STATE_PAUSED  # it is up
+        ros = (node, executor)
+        call(ros, SetBool, "/cosim/pause", SetBool.Request(data=True))  # it is up
         spin_until(executor, lambda: all(s.get_publisher_count() for s in subs), 30)
         spin_until(executor, lambda: False, 0.5)  # let the publishers match us too
-        assert sim.step(1).result == OK  # answered once tick 0 is done
+        assert call(ros, Trigger, "/cosim/step", Trigger.Request()).success
         spin_until(executor, lambda: 0 in seen.odom, 30)
+        assert wait_paused_at(ros, 1)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         node.create_subscription(TFMessage, "/tf_static", seen.static_latched.append, latched)
         node.create_subscription(TFMessage, "/tf_static", seen.static_volatile.append, reliable)
         spin_until(executor, lambda: seen.static_latched, 30)
         spin_until(executor, lambda: False, 0.5)
-        assert sim.set_state(SimulationState.STATE_PLAYING).result == OK
+        call(ros, SetBool, "/cosim/pause", SetBool.Request(data=False))
         spin_until(executor, lambda: proc.poll() is not None, 120)
         spin_until(executor, lambda: False, 0.3)
         stdout, stderr = proc.communicate(timeout=30)
@@ -316,18 +317,17 @@ def test_a_cmd_vel_type_mismatch_exits_2_naming_the_key_and_writes_nothing(tmp_p
 
 
 def test_a_reset_latches_tf_static_again_and_equals_a_fresh_run(tmp_path, ros_node):
-    from simulation_interfaces.msg import SimulationState
-    from simulation_interfaces.srv import ResetSimulation
+    from std_srvs.srv import SetBool, Trigger
 
     proc = subprocess.Popen([*ORCHESTRATE, str(NAV), "--paused", "--duration", "1s",
                              "--quiet", "--out", str(tmp_path / "runs")], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        sim = SimClient(ros_node)
-        assert sim.step(3).result == OK
-        reply = sim.call(ResetSimulation, "/cosim/reset_simulation", ResetSimulation.Request())
-        assert reply.result.result == OK, reply.result.error_message
-        assert sim.set_state(SimulationState.STATE_PLAYING).result == OK
+        for _ in range(3):
+            assert call(ros_node, Trigger, "/cosim/step", Trigger.Request()).success
+        assert wait_paused_at(ros_node, 3)
+        assert call(ros_node, Trigger, "/cosim/reset", Trigger.Request()).success
+        call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=False))
         out, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:

@@ -60,6 +60,31 @@ def arc_clearance(points: np.ndarray, pose: tuple[float, float, float], v: float
     return float(s[hit[0]] - ds) if hit.size else horizon
 
 
+def arc_end(pose: tuple[float, float, float], k: float, s: float) -> tuple[float, float]:
+    """Where driving ``s`` metres forward on curvature ``k`` from ``pose`` ends."""
+    x, y, th = pose
+    if abs(k) < 1e-6:
+        return x + s * math.cos(th), y + s * math.sin(th)
+    return (x + (math.sin(th + k * s) - math.sin(th)) / k,
+            y - (math.cos(th + k * s) - math.cos(th)) / k)
+
+
+def escape_arc(points: np.ndarray, pose: tuple[float, float, float], target: np.ndarray,
+               speed: float, radius: float, reach: float, max_curvature: float
+               ) -> float | None:
+    """The curvature of the forward arc, clear of the scan by ``radius`` for ``reach`` metres,
+    that ends closest to ``target``; None when every arc is blocked."""
+    best, best_gap = None, math.inf
+    for k in np.linspace(-max_curvature, max_curvature, 17).tolist():
+        if arc_clearance(points, pose, speed, speed * k, reach, radius) < reach:
+            continue
+        x, y = arc_end(pose, k, reach)
+        gap = math.hypot(target[0] - x, target[1] - y)
+        if gap < best_gap:
+            best, best_gap = k, gap
+    return best
+
+
 def lookahead_point(path: np.ndarray, index: int, pose: tuple[float, float, float],
                     lookahead: float, window: int = 40) -> tuple[int, np.ndarray]:
     """(closest index, point ``lookahead`` ahead of it) on a (n, 2) path; never goes back."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections import deque
 
 import mujoco
 import numpy as np
@@ -50,19 +51,41 @@ class Grid:
 
     def compute_distance(self, cap: float) -> None:
         """Distance (m) from every cell centre to the nearest occupied one, capped at ``cap``."""
-        n = int(math.ceil(cap / self.res))
-        dist = np.where(self.occ, 0.0, cap)
-        nx, ny = self.occ.shape
-        padded = np.zeros((nx + 2 * n, ny + 2 * n), dtype=bool)
-        padded[n:n + nx, n:n + ny] = self.occ
-        for di in range(-n, n + 1):
-            for dj in range(-n, n + 1):
-                d = math.hypot(di, dj) * self.res
-                if d == 0 or d >= cap:
-                    continue
-                shifted = padded[n + di:n + di + nx, n + dj:n + dj + ny]
-                np.minimum(dist, np.where(shifted, d, cap), out=dist)
-        self.dist = dist
+        self.dist = cell_distance(self.occ, self.res, cap)
+
+    def obstacle_distance(self, cap: float) -> np.ndarray:
+        """Distance (m) from every cell centre to the true footprint of the nearest obstacle
+        in ``obstacles`` (0 inside one), capped at ``cap``: exact, where the distance between
+        occupied cells errs by up to a cell."""
+        dist = np.full(self.occ.shape, cap)
+        xs, ys = self.centres()
+        for o in self.obstacles:
+            x0, y0, x1, y1 = o.bounds()
+            i0, j0 = self.cell(x0 - cap, y0 - cap)
+            i1, j1 = self.cell(x1 + cap, y1 + cap)
+            window = (slice(i0, i1 + 1), slice(j0, j1 + 1))
+            near = np.clip(o.distances(xs[window], ys[window]), 0.0, cap)
+            np.minimum(dist[window], near, out=dist[window])
+        return dist
+
+
+def cell_distance(occ: np.ndarray, res: float, cap: float) -> np.ndarray:
+    """Distance (m) from every cell centre to the nearest ``occ`` cell's centre, capped."""
+    n = int(math.ceil(cap / res))
+    dist = np.where(occ, 0.0, cap)
+    if not occ.any():
+        return dist
+    nx, ny = occ.shape
+    padded = np.zeros((nx + 2 * n, ny + 2 * n), dtype=bool)
+    padded[n:n + nx, n:n + ny] = occ
+    for di in range(-n, n + 1):
+        for dj in range(-n, n + 1):
+            d = math.hypot(di, dj) * res
+            if d == 0 or d >= cap:
+                continue
+            shifted = padded[n + di:n + di + nx, n + dj:n + dj + ny]
+            np.minimum(dist, np.where(shifted, d, cap), out=dist)
+    return dist
 
 
 def world_grid(model: mujoco.MjModel, resolution: float, z_band: tuple[float, float],
@@ -141,6 +164,28 @@ def astar(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
                 counter += 1
                 heapq.heappush(heap, (g + math.hypot(a - gi, b - gj), counter, nxt))
     return None
+
+
+def reachable(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
+    """The cells reachable from ``start`` over ``passable`` ones, 8-connected as A* moves."""
+    nx, ny = passable.shape
+    flat = passable.ravel().tolist()
+    seen = bytearray(nx * ny)
+    first = start[0] * ny + start[1]
+    seen[first] = 1
+    queue = deque([first])
+    steps = [(di, dj, di * ny + dj) for di, dj, _ in NEIGHBOURS]
+    while queue:
+        k = queue.popleft()
+        i, j = divmod(k, ny)
+        for di, dj, dk in steps:
+            a, b = i + di, j + dj
+            if 0 <= a < nx and 0 <= b < ny:
+                m = k + dk
+                if flat[m] and not seen[m]:
+                    seen[m] = 1
+                    queue.append(m)
+    return np.frombuffer(bytes(seen), dtype=np.uint8).reshape(nx, ny).astype(bool)
 
 
 def _unwind(parent: dict, node: tuple[int, int]) -> list[tuple[int, int]]:

@@ -7,10 +7,14 @@
 - Local planner: regulated pure pursuit (rotate in place towards the path when facing
   away; slow down on sharp curvature, near the goal, and before scan points on the arc).
 - Goal checker: position tolerance, then turn in place to the goal heading; once reached
-  the goal stays reached and the node publishes zero velocity for the rest of the run.
+  the goal stays reached and the node publishes zero velocity until it gets a new goal.
 - Progress checker and recovery: if the robot moves less than ``progress_distance`` within
   ``progress_window`` seconds it backs up (when the scan behind is clear) and replans.
-  When a plan finds no path, the node gives up: it stops until it gets a new goal.
+- When no plan exists the robot stands still, the node notes why (``StepNode.note``: the
+  start or goal inside an obstacle's inflated zone, or the obstacles that close the way)
+  and tries again every ``RETRY_S`` seconds; a goal from /goal_pose (NavigateToPose) is
+  given up instead, as Nav2 aborts it: the node stops until a new goal. At load time a goal
+  its map cannot reach is a warning (``world_warnings``).
 
 Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped in odom:
 a pose that differs from the current goal replaces it, reached or not; a zero quaternion
@@ -35,11 +39,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from nodes.contract import StepNode, Tick
 from nodes.control import follow as f
+from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.plan import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
 
 NS = 1_000_000_000
 IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
+RETRY_S = 2.0  # s between plans while none exists (a failed plan searches the whole map)
 
 
 class ControlParams(BaseModel):
@@ -53,6 +59,8 @@ class ControlParams(BaseModel):
     enable_stamped_cmd_vel: bool = Field(False, description="publish /cmd_vel as TwistStamped")
     robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
     safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
+    tight_margin: float = Field(0.01, ge=0, description="m added to the radius on the scan "
+                                "when creeping at min_speed where safety_margin blocks")
     resolution: float = Field(0.05, gt=0, description="m per map cell")
     lethal_distance: float = Field(0.30, gt=0, description="m, plan never closer to obstacles")
     cost_distance: float = Field(0.8, gt=0, description="m, extra cost closer than this")
@@ -81,7 +89,7 @@ class ControlNode(StepNode):
     runtime_params = frozenset({
         "max_speed", "min_speed", "max_turn", "lookahead", "min_turn_radius",
         "rotate_threshold", "turn_gain", "approach_gain", "stop_time", "horizon",
-        "safety_margin", "progress_window", "progress_distance", "backup_distance",
+        "tight_margin", "progress_window", "progress_distance", "backup_distance",
         "backup_speed"})  # read at every step; the map and planner's are fixed at set-up
     type_keys = {"/cmd_vel": "params.enable_stamped_cmd_vel"}
 
@@ -104,6 +112,25 @@ class ControlNode(StepNode):
             return [("goal", f"the goal {problem}.",
                      "a goal inside the world where the robot fits clear of obstacles.")]
         return []
+
+    @classmethod
+    def world_warnings(cls, params: ControlParams, model, goal, start
+                       ) -> list[tuple[str, str]]:
+        """The goal cannot be reached on the static map from the start (from the robot's
+        place in the world when no node sets a start): why, naming the obstacles."""
+        if goal is None:
+            return []
+        if start is None:
+            data = mujoco.MjData(model)
+            mujoco.mj_kinematics(model, data)
+            start = dict(zip("xy", data.xpos[body_id(model, params.base_body), :2].tolist(),
+                             strict=True))
+        planner = Planner(model, params)
+        here, there = (start["x"], start["y"]), (goal["x"], goal["y"])
+        if connected(planner, here, there):
+            return []
+        return [("goal", f"the controller's map has no way to the goal: "
+                 f"{explain_no_path(planner, here, there)}")]
 
     @classmethod
     def accepted_inputs(cls, params: ControlParams) -> set[str]:
@@ -136,8 +163,11 @@ class ControlNode(StepNode):
         self.min_clearance = math.inf
         self.points = np.zeros((0, 2))
         self.recoveries = 0
+        self.retry_ns = 0  # no plan before this time (after a failed one)
+        self.why_no_path: str | None = None  # the last failure's explanation, noted once
         self.active = True  # False after a stop request: no goal
-        self.failed = False  # no path to the goal: stopped until a new goal
+        self.failed = False  # no path to a goal from outside: stopped until a new goal
+        self.outside = False  # the goal came from /goal_pose
         self.pose: tuple[float, float, float] | None = None
         self.tail = np.zeros(0)  # path length from each plan point to its end
 
@@ -188,17 +218,25 @@ class ControlNode(StepNode):
         new = _pose_of(msg.pose)
         if self.active and max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) <= 1e-9:
             return
-        self.goal, self.active, self.failed = new, True, False
+        self.goal, self.active, self.outside = new, True, True
         self.xy_reached, self.reached_ns, self.recovery = False, None, None
         self._replan(pose)
+        self.failed = self.path is None  # no plan for a NavigateToPose goal: give up
 
-    def _replan(self, pose: tuple[float, float, float]) -> None:
+    def _replan(self, pose: tuple[float, float, float], now_ns: int = 0) -> None:
         self.path = self.planner.plan(pose[:2], self.goal[:2])
         self.index = 0
         self.plan_msg = path_message(self.path, self.params.frame_id, self.goal[2])
         if self.path is not None:
             seg = np.hypot(np.diff(self.path[:, 0]), np.diff(self.path[:, 1]))
             self.tail = np.append(np.cumsum(seg[::-1])[::-1], 0.0)
+            self.why_no_path = None
+            return
+        self.retry_ns = now_ns + round(RETRY_S * NS)
+        why = explain_no_path(self.planner, pose[:2], self.goal[:2])
+        if why != self.why_no_path:
+            self.note(f"{why} Standing still; trying again every {RETRY_S:g} s.")
+            self.why_no_path = why
 
     # -- behaviour --------------------------------------------------------------------------
 
@@ -216,9 +254,9 @@ class ControlNode(StepNode):
                 self.reached_ns = tick.time_ns
                 return 0.0, 0.0
             return 0.0, _turn(p.turn_gain * err, p.max_turn)
-        if self.path is None:
-            self._replan(pose)
-            if self.path is None:  # no path to the goal: give up, stopped, until a new one
+        if self.path is None and tick.time_ns >= self.retry_ns:
+            self._replan(pose, tick.time_ns)
+            if self.path is None and self.outside:  # a NavigateToPose goal: give up
                 self.failed = True
                 return 0.0, 0.0
         if self.recovery is not None:
@@ -251,7 +289,24 @@ class ControlNode(StepNode):
                                p.robot_radius + p.safety_margin)
         v = min(v, free / p.stop_time)
         if v < 0.02:
-            return 0.0, 0.0
+            return self._squeeze(pose, target, curv)
+        return v, float(np.clip(v * curv, -p.max_turn, p.max_turn))
+
+    def _squeeze(self, pose: tuple[float, float, float], target: np.ndarray, curv: float
+                 ) -> tuple[float, float]:
+        """Blocked at the safety margin (a narrow passage the plan goes through): creep at
+        min_speed with the tight margin, on the pursuit arc or else the clear arc that ends
+        nearest the target; stand still when every arc is blocked."""
+        p = self.params
+        v, radius = p.min_speed, p.robot_radius + p.tight_margin
+        free = f.arc_clearance(self.points, pose, v, v * curv, p.horizon, radius)
+        if free / p.stop_time < 0.02:
+            curv = f.escape_arc(self.points, pose, target, v, radius, 0.2,
+                                p.max_turn / p.min_speed / 4)
+            if curv is None:
+                return 0.0, 0.0
+            free = 0.2
+        v = max(min(v, free / p.stop_time), 0.02)
         return v, float(np.clip(v * curv, -p.max_turn, p.max_turn))
 
     def _stuck(self, tick: Tick, pose: tuple[float, float, float]) -> bool:
@@ -277,7 +332,7 @@ class ControlNode(StepNode):
             return -p.backup_speed, 0.0
         self.recovery = None
         self.planner.mark(self.points)
-        self._replan(pose)
+        self._replan(pose, tick.time_ns)
         return 0.0, 0.0
 
     def metrics(self) -> dict[str, float]:

@@ -30,6 +30,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                            "from anyone; sensors and control follow /clock")
     p.add_argument("--rtf", type=float, default=1.0,
                    help="real-time factor for --realtime (default 1.0; 2.0 runs twice as fast)")
+    p.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="ADDR:PORT",
+                   help="with --realtime: a Foxglove WebSocket server streaming what the node "
+                        "publishes and receives (default 127.0.0.1:8765)")
+    p.add_argument("--rosbridge", nargs="?", const="127.0.0.1:9090", metavar="ADDR:PORT",
+                   help="with --realtime: a rosbridge v2 server (roslibpy, roslibjs): watch "
+                        "the node's topics, publish its inputs, pause and step a node that "
+                        "publishes /clock (default 127.0.0.1:9090)")
     p.add_argument("--run-dir", type=Path, help="where to record what this node publishes")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, as the orchestrator does (repeatable)")
@@ -68,6 +75,10 @@ def main(argv: list[str] | None = None) -> int:
         if len(names) > 1 and args.realtime:
             raise ValueError("--realtime runs one node; give --node once")
         options = RunOptions.from_node_json(args.run_options)
+        if (args.live or args.rosbridge) and not args.realtime:
+            raise ValueError("--live and --rosbridge serve a --realtime node; a lockstep run "
+                             "gets them from cosim-orchestrate")
+        live = RunOptions(live=args.live, rosbridge=args.rosbridge)
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -75,27 +86,39 @@ def main(argv: list[str] | None = None) -> int:
 
     name_this_process("+".join(names))
     if args.realtime:
-        return run_realtime(scenario, names[0], args.rtf, options)
+        return run_realtime(scenario, names[0], args.rtf, options, live)
     if len(names) > 1:
         return run_packed(scenario, names, args.run_dir, options)
     return run_lockstep(scenario, names[0], args.run_dir, options)
 
 
-def run_realtime(scenario, name: str, rtf: float, options=None) -> int:
-    """Run node ``name`` free-running on wall time until Ctrl-C."""
+def run_realtime(scenario, name: str, rtf: float, options=None, live=None) -> int:
+    """Run node ``name`` free-running on wall time until Ctrl-C; ``live`` (RunOptions with
+    ``live``/``rosbridge``) adds the live endpoints."""
     import signal
 
     from nodes.runtime.build import make_node
     from nodes.runtime.realtime import RealtimeRuntime
     from nodes.runtime.transport.factory import create_transport
+    from plan.listen import address_problems, exposure_warnings
     from plan.options import TransportSettings
 
+    if live is not None and (live.live or live.rosbridge):
+        addresses = (live.live_address, live.rosbridge_address)
+        problems = address_problems(*addresses)
+        if problems:
+            print(f"cosim-node {name}: {'; '.join(problems)}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        for warning in exposure_warnings(*addresses):
+            print(f"cosim-node {name}: warning: {warning}", file=sys.stderr, flush=True)
     transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
+    endpoints = None
     try:
         runtime = RealtimeRuntime(scenario, name, make_node(scenario, name, options),
                                   transport, rtf)
         signal.signal(signal.SIGINT, runtime.request_stop)
         signal.signal(signal.SIGTERM, runtime.request_stop)
+        endpoints = _start_endpoints(scenario, name, runtime, live)
         clock = "publishing /clock" if runtime.publish_clock else "following /clock"
         print(f"cosim-node {name}: running on wall time at rtf {rtf:g}, {clock}; Ctrl-C stops",
               file=sys.stderr, flush=True)
@@ -106,14 +129,48 @@ def run_realtime(scenario, name: str, rtf: float, options=None) -> int:
     except ValueError as exc:
         print(f"cosim-node {name}: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except RuntimeError as exc:  # an endpoint could not listen
+        print(f"cosim-node {name}: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     finally:
+        if endpoints is not None:
+            runtime.observe = None
+            endpoints.close()
         transport.close()
+
+
+def _start_endpoints(scenario, name: str, runtime, live):
+    """The realtime node's live endpoints, when asked for: its outputs, inputs and /clock
+    to watch, its inputs to drive, pause and step when it paces itself."""
+    if live is None or not (live.live or live.rosbridge):
+        return None
+    from rosgraph_msgs.msg import Clock
+
+    from nodes.runtime.live.endpoints import Catalog
+    from nodes.runtime.live.session import LiveEndpoints
+    from nodes.runtime.protocol import CLOCK_TOPIC
+
+    plan = scenario.nodes[name]
+    topics = {CLOCK_TOPIC: Clock, **{i.graph_topic: i.msg_type for i in plan.inputs},
+              **plan.outputs}
+    catalog = Catalog(dict(sorted(topics.items())), inbox=runtime.inbox,
+                      services=runtime.control,
+                      no_inbox_text=f"node {name} has no inputs to drive",
+                      inbox_what=f"an input of node {name}",
+                      latched=frozenset(plan.latched_topics))
+    endpoints = LiveEndpoints(catalog, live.live_address, live.rosbridge_address,
+                              f"cosim-node {name}")
+    for line in endpoints.start():
+        print(f"cosim-node {name}: {line}", file=sys.stderr, flush=True)
+    runtime.observe = endpoints.offer
+    return endpoints
 
 
 def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int:
     """Run node ``name`` under an orchestrator until told to stop."""
     from nodes.runtime.build import make_node
     from nodes.runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
+    from nodes.runtime.notes import NoteWriter
     from nodes.runtime.recording import PartWriter
     from nodes.runtime.transport.factory import create_transport
     from plan.options import RunOptions, TransportSettings
@@ -132,7 +189,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     recorder = PartWriter(paths.part(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder, options.pack)
+    notes = NoteWriter(paths.notes(name)) if paths else None
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
     install_stop_handlers(runtime)
     try:
         runtime.node = make_node(scenario, name, options)
@@ -153,6 +211,8 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         _write_timing(runtime, paths, name)  # also when stopped in the middle of a step
         if recorder:
             recorder.close()
+        if notes:
+            notes.close()
         transport.close()
 
 
@@ -160,6 +220,7 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     """Run several nodes in this process, on one transport session with one wait."""
     from nodes.runtime.build import make_node
     from nodes.runtime.lockstep import LockstepRuntime, NodeFailure
+    from nodes.runtime.notes import NoteWriter
     from nodes.runtime.packed import PackedRuntimes, install_packed_stop_handlers
     from nodes.runtime.recording import PartWriter
     from nodes.runtime.shared_transport import SharedTransport
@@ -177,8 +238,9 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
     shared = SharedTransport(base)
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
-    runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], options.pack)
-                for n in names]
+    notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
+    runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], notes[n],
+                                options.pack) for n in names]
     packed = PackedRuntimes(runtimes, shared)
     install_packed_stop_handlers(packed)
     failed = None
@@ -204,9 +266,9 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     finally:
         for rt in runtimes:
             _write_timing(rt, paths, rt.name)
-        for recorder in recorders.values():
-            if recorder:
-                recorder.close()
+        for writer in [*recorders.values(), *notes.values()]:
+            if writer:
+                writer.close()
         shared.close()
 
 

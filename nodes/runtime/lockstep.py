@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
 import traceback
 from collections import deque
@@ -21,6 +22,7 @@ from std_msgs.msg import String
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from nodes.runtime.exchange import InputHistory, output_digest, prepare_outputs
+from nodes.runtime.notes import Note, NoteWriter
 from nodes.runtime.protocol import (
     CLOCK_TOPIC,
     COMMAND_TOPIC,
@@ -92,7 +94,8 @@ class LockstepRuntime:
     be attached after construction, before ``run``)."""
 
     def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
-                 recorder: PartWriter | None = None, pack: str | None = None):
+                 recorder: PartWriter | None = None, notes: NoteWriter | None = None,
+                 pack: str | None = None):
         self.scenario = scenario
         self.pack = pack  # the run's packing: consumers packed together share a subscription
         self.name = name
@@ -101,6 +104,7 @@ class LockstepRuntime:
         self.node = node
         self.transport = transport
         self.recorder = recorder
+        self.notes = notes
         self.stop_requested = False
         self.in_step = False
         self._next_upstream_check = 0.0
@@ -247,6 +251,8 @@ class LockstepRuntime:
                 self.params_input.forget()
             if self.recorder:
                 self.recorder.truncate()
+            if self.notes:
+                self.notes.truncate()
             self.report(Status(self.name, READY, values={"epoch": epoch}))
 
     def upstream_gone(self) -> bool:
@@ -290,11 +296,13 @@ class LockstepRuntime:
                 inputs = self.params_input.apply(self.node, inputs)
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
+            self.take_notes(tick)
             items = prepare_outputs(self.name, self.plan.declared_outputs,
                                     self.plan.output_names, tick, outputs,
                                     self.plan.latched, self.first)
             self.first = False
         except Exception as exc:
+            self.take_notes(tick)
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
         finally:
@@ -316,6 +324,14 @@ class LockstepRuntime:
                                     {k: float(v) for k, v in self.node.metrics().items()}))
         if len(self.unreported) >= MAX_BATCH:
             self.report_done()
+
+    def take_notes(self, tick: Tick) -> None:
+        """Write what the node noted in this step to its log and its notes file."""
+        for text in self.node.take_notes():
+            note = Note(self.name, tick.index, tick.time_ns, text)
+            print(f"note: {note.line()}", file=sys.stderr, flush=True)
+            if self.notes:
+                self.notes.write(note)
 
     def report_done(self, *_signal) -> None:
         """Report the activations served since the last report, in one message. Also the

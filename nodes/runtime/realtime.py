@@ -5,21 +5,60 @@ Unlike lockstep, nothing waits for anyone: each input holds the latest message r
 its rate. A node without same-tick inputs (physics) paces itself on the wall clock, scaled
 by ``rtf``, and publishes ``/clock`` like Gazebo; the others follow ``/clock``. The step
 classes are the same as in lockstep; only the results are no longer reproducible.
+
+Live endpoints (``cosim-node ... --realtime --rosbridge/--live``) see what the node publishes
+and receives (``observe``), put client messages on its inputs (``inbox``: each enters at the
+node's next step) and, for a node that paces itself, pause and step it (``control``).
 """
 
 from __future__ import annotations
 
+import sys
+import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from nodes.contract import StepNode, Tick
 from nodes.runtime.exchange import prepare_outputs
+from nodes.runtime.notes import Note
 from nodes.runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
+from nodes.runtime.realtime_control import RealtimeControl
 from nodes.runtime.transport.base import Transport
 
 POLL_NS = 50_000_000
+PAUSED_POLL_NS = 10_000_000
+
+
+class InputInbox:
+    """Messages from live clients for the node's inputs, taken at its next step
+    (thread-safe; the latest per input wins, as for messages from the transport)."""
+
+    def __init__(self, topics: dict[str, type], own: dict[str, str]):
+        self.topics = dict(topics)  # graph topic -> message class
+        self._own = own  # graph topic -> the node's own name for it
+        self._lock = threading.Lock()
+        self._waiting: dict[str, Any] = {}
+
+    def put(self, topic: str, msg: Any) -> None:
+        """A client's message for input ``topic``."""
+        if topic not in self.topics:
+            raise KeyError(f"{topic} is not an input of this node "
+                           f"({', '.join(sorted(self.topics))})")
+        if not isinstance(msg, self.topics[topic]):
+            raise TypeError(f"{topic} takes {self.topics[topic].__name__}, "
+                            f"not {type(msg).__name__}")
+        with self._lock:
+            self._waiting[self._own[topic]] = msg
+
+    def take(self) -> dict[str, Any]:
+        """What arrived since the last take, by the node's own input names."""
+        with self._lock:
+            taken, self._waiting = self._waiting, {}
+        return taken
 
 
 class RealtimeRuntime:
@@ -52,6 +91,10 @@ class RealtimeRuntime:
             transport.subscription(CLOCK_TOPIC, Clock, 10)
         self.stop_requested = False
         self.served = -1
+        self.observe: Callable[[str, bytes], None] | None = None  # live endpoints' offer
+        self.inbox = InputInbox({g: m for g, (_, m) in self.own_topic.items()},
+                                {g: own for g, (own, _) in self.own_topic.items()})
+        self.control = RealtimeControl(self.tick_ns) if publish_clock else None
 
     def request_stop(self, *_args) -> None:
         """Signal handler: leave the loop."""
@@ -71,7 +114,14 @@ class RealtimeRuntime:
             due_at = start + int(k * self.tick_ns / self.rtf)
             while (left := due_at - time.monotonic_ns()) > 0 and not self.stop_requested:
                 self._receive(min(left, POLL_NS))
-            self.clock_pub.publish(encode_clock(k * self.tick_ns))
+            if self.control is not None and not self.control.may_tick(k):
+                self._receive(PAUSED_POLL_NS)
+                start = time.monotonic_ns() - int(k * self.tick_ns / self.rtf)  # no catching up
+                continue
+            clock = encode_clock(k * self.tick_ns)
+            self.clock_pub.publish(clock)
+            if self.observe is not None:
+                self.observe(CLOCK_TOPIC, clock)
             if k % self.period == 0:
                 self._step(k)
             k += 1
@@ -95,14 +145,22 @@ class RealtimeRuntime:
             elif rec.topic in self.own_topic:
                 own, msg_type = self.own_topic[rec.topic]
                 self.latest[own] = deserialize_message(rec.data, msg_type)
+            if self.observe is not None:
+                self.observe(rec.topic, rec.data)
         return newest
 
     def _step(self, k: int) -> None:
         tick = Tick(k, k * self.tick_ns)
+        self.latest.update(self.inbox.take())
         outputs = self.node.step(tick, dict(self.latest))
+        for text in self.node.take_notes():
+            print(f"note: {Note(self.plan.name, k, tick.time_ns, text).line()}", file=sys.stderr,
+                  flush=True)
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
                                 self.plan.output_names, tick, outputs, self.plan.latched,
                                 first=self.served < 0)
         for topic, data in items:
             self.publishers[topic].publish(data)
+            if self.observe is not None:
+                self.observe(topic, data)
         self.served = k
