@@ -85,7 +85,7 @@ class RunControl:
         if self._stop_wanted:
             return "stop"
         if self._reset_wanted:
-            self._reset_wanted, self.steps, self.settled = False, 0, None
+            self._reset_wanted, self.settled = False, None
             return "reset"
         if self.state == PLAYING or self.steps:
             self.steps = max(self.steps - 1, 0) if self.state == PAUSED else 0
@@ -164,7 +164,7 @@ class RunControl:
                 return Outcome(False, f"cannot reset: {self.cannot_reset}", "refused")
             if self.ended is not None:
                 return Outcome(False, f"the run has ended: {self.ended}", "ended")
-            self._reset_wanted = True
+            self._reset_wanted, self.steps = True, 0  # steps asked for later run after it
             self._cond.notify_all()
             return Outcome(True, "resetting to tick 0 with the same seed")
 
@@ -189,7 +189,7 @@ class RunControl:
             if self.ended is not None:
                 return Outcome(False, f"the run has ended: {self.ended}", "ended")
             epoch = self.epoch
-            self._reset_wanted = True
+            self._reset_wanted, self.steps = True, 0
             self._cond.notify_all()
         if self.wait_reset(epoch, timeout_s):
             return Outcome(True, f"reset to tick 0; {self.where()}")
