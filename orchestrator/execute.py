@@ -295,6 +295,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 attach_control(endpoints, services)
                 tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
+            outcome.loop_s = time.monotonic() - master.loop_started
         finally:
             if tail is not None:
                 tail.stop()
@@ -302,7 +303,6 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome.live, endpoints = endpoints.close(), None
             if services:
                 services.close()
-        outcome.loop_s = time.monotonic() - master.loop_started
         return result
     finally:
         if endpoints is not None:  # the run failed before its loop

@@ -1,11 +1,15 @@
 """The control node: a small Nav2-style navigator over ground-truth odometry and a 2D scan.
 
-- Global planner: A* over an occupancy grid of the world's static geometry (the MJCF file
-  the physics node loads), with a lethal radius around obstacles and a cost that decays
-  with distance, so paths keep to the middle of free space. Recoveries add what the scan
-  saw to the map before replanning.
+- Global planner: A* over a grid of the world's static geometry (the MJCF file the physics
+  node loads, distances measured to the obstacles' true footprints), with a lethal radius
+  around obstacles and a cost that decays with distance, so paths keep to the middle of
+  free space; where no way keeps the lethal radius, one that keeps robot_radius +
+  safety_margin (``nodes.control.plan``). Recoveries add what the scan saw and the map
+  did not know to the map before replanning.
 - Local planner: regulated pure pursuit (rotate in place towards the path when facing
   away; slow down on sharp curvature, near the goal, and before scan points on the arc).
+  Where scan points within the safety margin block the arc (a narrow passage), creep at
+  min_speed keeping tight_margin, on the pursuit arc or the clear arc nearest its target.
 - Goal checker: position tolerance, then turn in place to the goal heading; once reached
   the goal stays reached and the node publishes zero velocity until it gets a new goal.
 - Progress checker and recovery: if the robot moves less than ``progress_distance`` within
@@ -46,6 +50,8 @@ from nodes.physics.world import body_id, load_model, named_id
 NS = 1_000_000_000
 IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
 RETRY_S = 2.0  # s between plans while none exists (a failed plan searches the whole map)
+ESCAPE_REACH = 0.2  # m of arc a creeping escape must find clear
+ESCAPE_TURN = 0.25  # its sharpest arc turns at this fraction of max_turn at min_speed
 
 
 class ControlParams(BaseModel):
@@ -301,11 +307,11 @@ class ControlNode(StepNode):
         v, radius = p.min_speed, p.robot_radius + p.tight_margin
         free = f.arc_clearance(self.points, pose, v, v * curv, p.horizon, radius)
         if free / p.stop_time < 0.02:
-            curv = f.escape_arc(self.points, pose, target, v, radius, 0.2,
-                                p.max_turn / p.min_speed / 4)
+            curv = f.escape_arc(self.points, pose, target, v, radius, ESCAPE_REACH,
+                                ESCAPE_TURN * p.max_turn / p.min_speed)
             if curv is None:
                 return 0.0, 0.0
-            free = 0.2
+            free = ESCAPE_REACH
         v = max(min(v, free / p.stop_time), 0.02)
         return v, float(np.clip(v * curv, -p.max_turn, p.max_turn))
 

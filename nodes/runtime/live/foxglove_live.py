@@ -115,6 +115,7 @@ class FoxgloveLive:
             stopping.join(STOP_WAIT_S)
             if stopping.is_alive():
                 log.warning("live view: a client does not read; stopped without waiting for it")
+                _keep_runtime_at_exit()
 
     def attach_services(self) -> None:
         """Offer the catalog's services, which came after the server started."""
@@ -223,6 +224,16 @@ class FoxgloveLive:
             else:
                 wanted.pop(topic, None)
             self._wanted = wanted  # replaced whole: offer() reads it without the lock
+
+
+def _keep_runtime_at_exit() -> None:
+    """The SDK drops its runtime at exit, which waits for (or aborts on) the stop still
+    waiting for a stuck client: leave both to the end of the process instead."""
+    import atexit
+
+    from foxglove import _foxglove_py
+
+    atexit.unregister(_foxglove_py.shutdown)
 
 
 def _call_quietly(services, request) -> None:
