@@ -283,7 +283,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
                                 on_tick, paths.parts)
-        control, services = _ros_interfaces(scenario, options, master, live)
+        control, services = _ros_interfaces(scenario, options, paths, live)
         try:
             master.wait_ready(started)
             outcome.start_s = time.monotonic() - started
@@ -373,7 +373,8 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
     return any(p.started == "fork" for p in supervisor.processes())
 
 
-def _ros_interfaces(scenario: Scenario, options: RunOptions, master, live: Arrivals | None):
+def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
+                    live: Arrivals | None):
     """The run's control and its ROS 2 interfaces (orchestrator.sim_services): ros2 runs
     only, where ROS 2 tools can reach them; (None, None) otherwise."""
     if scenario.model.transport != "ros2":
@@ -384,7 +385,7 @@ def _ros_interfaces(scenario: Scenario, options: RunOptions, master, live: Arriv
     foreign = [n for n, p in scenario.nodes.items() if p.foreign]
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
     control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
-    return control, start_services(scenario, control, live, master)
+    return control, start_services(scenario, control, live, paths)
 
 
 def _announce_external(name: str, argv: list[str]) -> None:

@@ -34,7 +34,7 @@ from nodes.runtime.protocol import (
     encode_command,
 )
 from nodes.runtime.recording import read_part
-from nodes.runtime.transport.base import Received, Transport
+from nodes.runtime.transport.base import Transport
 from orchestrator.acks import AckBook
 from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.participants import Participant
@@ -48,7 +48,6 @@ from plan.schedule import PIPELINE_WINDOW
 LIVENESS_PERIOD_S = 0.1
 SAMPLE_PERIOD_S = 1.0
 WAIT_SLICE_NS = 50_000_000
-IDLE_SLICE_NS = 10_000_000  # while paused: how long one wait for messages lasts
 
 
 @dataclass
@@ -116,7 +115,6 @@ class LockstepMaster:
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
         self.control = None  # the run's RunControl, while ``run`` goes
-        self.watchers: dict[str, list[Callable[[Received], None]]] = {}
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -206,14 +204,6 @@ class LockstepMaster:
         return LoopResult(book.hexdigest(), end, self.metrics(),
                           stopped_early=self.end is not None)
 
-    def watch(self, topic: str, msg_type: type, take: Callable[[Received], None],
-              depth: int = 100) -> None:
-        """Hand every message of a run topic to ``take`` (in this thread, as it arrives):
-        what the orchestrator's servers need to see of the run, e.g. the robot's /odom."""
-        if topic not in self.watchers and topic not in self.reader_of:
-            self.transport.subscription(topic, msg_type, depth)
-        self.watchers.setdefault(topic, []).append(take)
-
     def _new_book(self) -> AckBook:
         self.published, self.end = 0, None
         self.decided_metrics: dict[str, dict[str, float]] = {}
@@ -254,14 +244,7 @@ class LockstepMaster:
         self._decide(book)
 
     def _idle(self, k: int) -> Callable[[], None]:
-        """While paused before tick ``k``: take what arrives (watched topics, errors) and
-        watch the processes."""
-        def idle() -> None:
-            for status in self._statuses(IDLE_SLICE_NS):
-                if status.state == ERROR:
-                    self._raise_node_error(status, f"pause before tick {k}")
-            self._check_processes(f"pause before tick {k}")
-        return idle
+        return lambda: self._check_processes(f"pause before tick {k}")
 
     def _reset_nodes(self) -> None:
         """Two-phase reset: every node stops and says what it sent; then all restart at 0."""
@@ -333,20 +316,17 @@ class LockstepMaster:
 
     # -- shared ------------------------------------------------------------------------------
 
-    def _statuses(self, timeout_ns: int = WAIT_SLICE_NS) -> list[Status]:
+    def _statuses(self) -> list[Status]:
         out = []
-        for rec in self.transport.wait(timeout_ns):
+        for rec in self.transport.wait(WAIT_SLICE_NS):
             if rec.topic == STATUS_TOPIC:
                 status = decode_status(rec.data)
                 self.last_status[status.node] = status
                 if status.node in self.participants:
                     self.participants[status.node].see(status)
                 out.append(status)
-                continue
-            if rec.topic in self.reader_of:
+            elif rec.topic in self.reader_of:
                 out += self.reader_of[rec.topic].take(rec, self.tick)
-            for take in self.watchers.get(rec.topic, ()):
-                take(rec)
         for participant in self.drainable:
             out += participant.drain()
         return out

@@ -1,8 +1,10 @@
 """The robot as a simulation_interfaces entity: its state as the run last decided it, and
 teleports that enter the run at a tick boundary.
 
-The state comes from the physics node's /odom, which the master watches (raw bytes, decoded
-only when asked): the sample of the last tick every node has finished. A teleport
+The state comes from the physics node's /odom as the node recorded it (``parts/<node>.rec``,
+flushed at every activation before the node reports it done; read when asked, as the live
+view reads it): the sample of the last tick every node has finished. Nothing is added to
+the transport or to the master's loop. A teleport
 (SetEntityState) becomes a /cosim/set_pose message (simulation_interfaces/NamedPose) put
 into the run's external arrivals: it enters at the external node's next activation, is
 recorded, and the physics node applies it once (plan/interactive.py).
@@ -11,23 +13,21 @@ recorded, and the physics node applies it once (plan/interactive.py).
 from __future__ import annotations
 
 import math
-import struct
 import threading
-from collections import deque
+from pathlib import Path
 
 from nav_msgs.msg import Odometry
 from simulation_interfaces.msg import EntityState, NamedPose, Result
 from simulation_interfaces.srv import SetEntityState
 
 from nodes.runtime.cdr.decode import decode
-from nodes.runtime.transport.base import Received
 from orchestrator.external_arrivals import Arrivals
+from orchestrator.live_tail import PartFollower
 from orchestrator.simcontrol import RunControl
 from plan.interactive import SET_POSE_TOPIC
 from plan.scenario import EXTERNAL_NAME, NodePlan, Scenario
 
 FRAMES = ("", "world", "map", "odom")  # one frame: odometry is ground truth, map = odom
-STATE_WAIT_S = 1.0  # how long a state request waits for the decided tick's /odom
 KEEP = 256  # /odom samples kept: more than the pipeline window runs ahead
 
 
@@ -35,14 +35,15 @@ class RobotEntity:
     """The robot of a scenario's physics node, named after its base body."""
 
     def __init__(self, scenario: Scenario, physics: NodePlan, control: RunControl,
-                 arrivals: Arrivals | None):
+                 arrivals: Arrivals | None, part: Path):
         self.name = physics.params.base_body
         self.control = control
         self.tick_ns = scenario.tick_ns
         self.period = scenario.schedule.periods[physics.name]
         self.odom_topic = physics.output_names["/odom"]
-        self.samples: deque[tuple[int, bytes]] = deque(maxlen=KEEP)
-        self._cond = threading.Condition()
+        self.follower = PartFollower(part, set(physics.outputs))
+        self.samples: dict[int, bytes] = {}  # tick -> /odom bytes, the latest KEEP
+        self._lock = threading.Lock()
         teleport = physics.spec.remap.get(SET_POSE_TOPIC, SET_POSE_TOPIC)
         takes = any(inp.topic == SET_POSE_TOPIC for inp in physics.inputs)
         self.teleport_topic = (teleport if takes and arrivals is not None
@@ -56,17 +57,11 @@ class RobotEntity:
 
     # -- state ------------------------------------------------------------------------------
 
-    def take(self, rec: Received) -> None:
-        """A /odom sample (the master's thread): keep its bytes under its stamp."""
-        sec, nanosec = struct.unpack_from("<iI", rec.data, 4)  # header.stamp after the CDR header
-        with self._cond:
-            self.samples.append((sec * 1_000_000_000 + nanosec, rec.data))
-            self._cond.notify_all()
-
     def forget(self) -> None:
-        """The run was reset: earlier samples are of another run."""
-        with self._cond:
+        """The run was reset (the master's thread): the record starts over."""
+        with self._lock:
             self.samples.clear()
+            self.follower.offset = 0
 
     def state(self) -> tuple[EntityState | None, str]:
         """The robot's ground-truth state at the last decided tick (pose and twist in the
@@ -74,13 +69,21 @@ class RobotEntity:
         decided = self.control.decided
         if decided < 0:
             return None, "the run has not finished a tick yet: step or play first"
-        wanted = (decided - decided % self.period) * self.tick_ns
-        with self._cond:
-            self._cond.wait_for(lambda: any(s == wanted for s, _ in self.samples), STATE_WAIT_S)
-            older = [(s, data) for s, data in self.samples if s <= wanted]
-        if not older:
-            return None, f"no {self.odom_topic} sample of tick {decided} or before it arrived"
-        stamp, data = max(older, key=lambda item: item[0])
+        wanted = decided - decided % self.period
+        with self._lock:
+            records = self.follower.read()
+            if self.follower.restarted:  # the record started over: a reset
+                self.samples.clear()
+                self.follower.restarted = False
+            for tick, topic, data in records:
+                if topic == self.odom_topic:
+                    self.samples[tick] = data
+            for tick in sorted(self.samples)[:-KEEP]:
+                del self.samples[tick]
+            older = [tick for tick in self.samples if tick <= wanted]
+            data = self.samples[max(older)] if older else None
+        if data is None:
+            return None, f"no {self.odom_topic} of tick {wanted} or before it was recorded"
         return entity_state(decode(data, Odometry)), ""
 
     # -- teleport ---------------------------------------------------------------------------
@@ -108,7 +111,7 @@ class RobotEntity:
         problem = self._place_problem(p.x, p.y)
         if problem:
             return SetEntityState.Response.INVALID_POSE, f"the robot cannot stand there: {problem}."
-        with self._cond:
+        with self._lock:
             self.requests += 1
             boundary = self.control.boundary
             self.arrivals.put(self.teleport_topic, NamedPose(

@@ -37,6 +37,7 @@ from simulation_interfaces.srv import (
 from orchestrator.external_arrivals import Arrivals
 from orchestrator.simcontrol import PAUSED, PLAYING, Outcome, RunControl
 from plan.interactive import GOAL_TOPIC
+from plan.run_paths import RunPaths
 from plan.scenario import EXTERNAL_NAME, Scenario
 
 PREFIX = "/cosim/"
@@ -55,15 +56,11 @@ class SimServices:
     the nodes start: building them takes a few tenths of a second)."""
 
     def __init__(self, scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
-                 master):
+                 paths: RunPaths):
         self.control = control
         self.last_answer = 0.0
         self.executor = None
-        self.robot = _robot(scenario, control, arrivals)
-        if self.robot is not None:
-            from nav_msgs.msg import Odometry
-
-            master.watch(self.robot.odom_topic, Odometry, self.robot.take)
+        self.robot = _robot(scenario, control, arrivals, paths)
         self._built = threading.Event()
         self.thread = threading.Thread(target=self._serve, args=(scenario, arrivals),
                                        name="cosim-ros-interfaces", daemon=True)
@@ -325,19 +322,20 @@ class SimServices:
 
 
 def start_services(scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
-                   master) -> SimServices:
+                   paths: RunPaths) -> SimServices:
     """Start a run's ROS 2 interfaces (before its nodes are ready: clients may wait)."""
-    return SimServices(scenario, control, arrivals, master)
+    return SimServices(scenario, control, arrivals, paths)
 
 
-def _robot(scenario: Scenario, control: RunControl, arrivals: Arrivals | None):
+def _robot(scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
+           paths: RunPaths):
     """The robot entity of the scenario's physics node (one with /odom and a base body)."""
     from orchestrator.sim_entities import RobotEntity
 
     for plan in scenario.nodes.values():
         if (not plan.foreign and "/odom" in plan.output_names
                 and isinstance(getattr(plan.params, "base_body", None), str)):
-            return RobotEntity(scenario, plan, control, arrivals)
+            return RobotEntity(scenario, plan, control, arrivals, paths.part(plan.name))
     return None
 
 

@@ -75,7 +75,7 @@ class RunControl:
             with self._cond:
                 action = self._choose(tick)
                 if action is None:
-                    self._cond.wait(0.005)
+                    self._cond.wait(POLL_S)  # a request wakes it at once
                     action = self._choose(tick)
             if action is not None:
                 return action
