@@ -4,6 +4,9 @@
   ``/gzserver/``: ``get_simulator_features``, ``get_simulation_state``,
   ``set_simulation_state``, ``step_simulation``, the ``simulate_steps`` action,
   ``reset_simulation``, ``get_entities``, ``get_entity_state`` and ``set_entity_state``;
+- ``/cosim/pause`` (std_srvs/SetBool), ``/cosim/step`` and ``/cosim/reset``
+  (std_srvs/Trigger): the same state machine with plain types, for rosbridge and Foxglove
+  clients;
 - ``/navigate_to_pose`` (nav2_msgs NavigateToPose) when the scenario feeds /goal_pose to a
   navigation node from outside (``orchestrator.navigate``);
 - every cosim node's parameters (``orchestrator.param_server``).
