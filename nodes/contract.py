@@ -62,6 +62,9 @@ class StepNode:
 
     Params: ClassVar[type[BaseModel]] = NoParams
     needs_world: ClassVar[bool] = False
+    runtime_params: ClassVar[frozenset[str]] = frozenset()
+    """Top-level keys of ``Params`` that may change while the run goes (the node reads them
+    from ``self.params`` at every step); the others are fixed once the node is set up."""
     type_keys: ClassVar[dict[str, str]] = {}  # topic -> the parameter that sets its type
 
     @classmethod
@@ -122,6 +125,11 @@ class StepNode:
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Advance to ``tick`` given the scheduled input messages; return the output messages."""
         raise NotImplementedError
+
+    def set_params(self, params: BaseModel) -> None:
+        """Take checked parameters whose ``runtime_params`` changed, from the next step on
+        (a change from outside, at a tick boundary); a reset goes back to the scenario's."""
+        self.params = params
 
     def metrics(self) -> dict[str, float]:
         """Numbers this node contributes to the run's outcome (collisions, goal reached, ...)."""

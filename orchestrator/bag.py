@@ -53,6 +53,7 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
     if not parts and ticks_run == 0:
         return None
     typestore = get_typestore(Stores.ROS2_JAZZY)
+    register_installed(typestore, scenario.topics.values())
     bag = paths.bag
     rank = {name: i for i, name in enumerate(scenario.schedule.order)}
     streams = [((tick, rank[name], topic, data) for tick, topic, data in read_part(path))
@@ -73,6 +74,46 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
             if tick <= last_tick or (topic != CLOCK_TOPIC and not finished):
                 writer.write(connections[topic], scenario.schedule.time_ns(tick), data)
     return bag
+
+
+IDL_TO_MSG = {"boolean": "bool", "octet": "byte", "double": "float64", "float": "float32",
+              "long double": "float64"}
+
+
+def register_installed(typestore, classes: Iterable[type]) -> None:
+    """Teach ``typestore`` the installed message types it lacks (simulation_interfaces,
+    a foreign program's own package, ...), from the rclpy classes' field lists, so the bag
+    carries their definitions like any other (field names and types; not constants)."""
+    from rosbags.typesys import get_types_from_msg
+
+    todo = [c for c in classes]
+    while todo:
+        cls = todo.pop()
+        name = ros_type_name(cls)
+        if name in typestore.fielddefs:
+            continue
+        lines = []
+        for field, idl in cls.get_fields_and_field_types().items():
+            lines.append(f"{_msg_type(idl, todo)} {field}")
+        typestore.register(get_types_from_msg("\n".join(lines), name))
+
+
+def _msg_type(idl: str, todo: list[type]) -> str:
+    """An rosidl field type ('sequence<double, 3>', 'geometry_msgs/Pose', 'double[9]') as
+    .msg text; a message type it names is queued for registration."""
+    import importlib
+
+    if idl.startswith("sequence<"):
+        inner, _, bound = idl[9:-1].partition(", ")
+        return f"{_msg_type(inner, todo)}[{'<=' + bound if bound else ''}]"
+    if idl.endswith("]"):
+        inner, _, size = idl[:-1].partition("[")
+        return f"{_msg_type(inner, todo)}[{size}]"
+    if "/" in idl:
+        package, _, type_name = idl.partition("/")
+        todo.append(getattr(importlib.import_module(f"{package}.msg"), type_name))
+        return f"{package}/msg/{type_name}"
+    return IDL_TO_MSG.get(idl, idl)
 
 
 class BagReader:

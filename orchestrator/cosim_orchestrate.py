@@ -48,8 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="refuse a scenario that has warnings (a goal the controller's map\n"
                         "cannot reach, an output nobody reads, ...): exit 2, nothing started")
     p.add_argument("--paused", action="store_true",
-                   help="start paused: resume or step with the /cosim/pause and /cosim/step "
-                        "ROS 2 services")
+                   help="start paused: play or step with the simulation_interfaces services\n"
+                        "/cosim/set_simulation_state, /cosim/step_simulation (ros2 runs)")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")

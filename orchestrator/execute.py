@@ -268,29 +268,31 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         endpoints = _start_live(scenario, options, external,
                                 control_later=settings.kind == "ros2")
         participants = {}
+        live = None  # the arrivals ROS 2 servers put into (None: a replay, or no external)
         for name, plan in scenario.nodes.items():
             if plan.foreign:
                 participants[name] = ForeignProxy(plan, scenario.schedule, transport,
                                                   PartWriter(paths.part(name)))
             elif plan.in_orchestrator:
+                source = external if external is not None else Arrivals(plan.outputs)
+                live = source if isinstance(source, Arrivals) else None
                 participants[name] = ExternalSource(scenario, plan, transport,
-                                                    PartWriter(paths.part(name)),
-                                                    external or Arrivals(plan.outputs),
+                                                    PartWriter(paths.part(name)), source,
                                                     options.pack)
             else:
                 participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
                                 on_tick, paths.parts)
-        master.wait_ready(started)
-        outcome.start_s = time.monotonic() - started
-        outcome.command_to_first_tick_s = _since_process_start()
-        log.info("all nodes ready after %.3f s", outcome.start_s)
-        control = _sim_control(scenario, options)
+        control, services = _ros_interfaces(scenario, options, paths, live)
         try:
+            master.wait_ready(started)
+            outcome.start_s = time.monotonic() - started
+            outcome.command_to_first_tick_s = _since_process_start()
+            log.info("all nodes ready after %.3f s", outcome.start_s)
             if endpoints is not None:
                 from orchestrator.live import attach_control, follow_parts
 
-                attach_control(endpoints, control)
+                attach_control(endpoints, services)
                 tail = follow_parts(endpoints, scenario, paths)
             result = master.run(control)
             outcome.loop_s = time.monotonic() - master.loop_started
@@ -299,8 +301,8 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 tail.stop()
             if endpoints is not None:
                 outcome.live, endpoints = endpoints.close(), None
-            if control:
-                control.close()
+            if services:
+                services.close()
         return result
     finally:
         if endpoints is not None:  # the run failed before its loop
@@ -371,15 +373,19 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
     return any(p.started == "fork" for p in supervisor.processes())
 
 
-def _sim_control(scenario: Scenario, options: RunOptions):
-    """The /cosim/* services (ros2 runs only, where ROS 2 tools can reach them)."""
+def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
+                    live: Arrivals | None):
+    """The run's control and its ROS 2 interfaces (orchestrator.sim_services): ros2 runs
+    only, where ROS 2 tools can reach them; (None, None) otherwise."""
     if scenario.model.transport != "ros2":
-        return None
-    from orchestrator.simcontrol import SimControl
+        return None, None
+    from orchestrator.sim_services import start_services
+    from orchestrator.simcontrol import RunControl
 
     foreign = [n for n, p in scenario.nodes.items() if p.foreign]
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
-    return SimControl(scenario.tick_ns, paused=options.paused, can_reset=why)
+    control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
+    return control, start_services(scenario, control, live, paths)
 
 
 def _announce_external(name: str, argv: list[str]) -> None:

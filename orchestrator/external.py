@@ -88,5 +88,7 @@ class ExternalSource(Participant):
         """Back to tick 0 (the run's reset): the node starts over, the record too."""
         self.node.reset(self.scenario.model.seed, self.node.config)
         self.pending.clear()
+        if isinstance(self.arrivals, Arrivals):
+            self.arrivals.take(0)  # what came before the reset is no part of the new run
         if self.recorder:
             self.recorder.truncate()

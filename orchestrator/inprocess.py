@@ -6,6 +6,7 @@ import time
 from collections.abc import Callable
 
 from nodes.contract import StepNode, Tick
+from nodes.live_params import ParamsInput
 from nodes.runtime.build import make_node
 from nodes.runtime.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
 from nodes.runtime.notes import Note
@@ -25,6 +26,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     external node."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
+    params_inputs = {name: p for name in sched.order
+                     if (p := ParamsInput.of(scenario.nodes[name])) is not None}
     histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
                  for plan in scenario.nodes.values() for inp in plan.inputs}
     consumers: dict[str, list[InputHistory]] = {}
@@ -48,6 +51,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 inputs = external(k)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
+                if name in params_inputs:
+                    inputs = params_inputs[name].apply(nodes[name], inputs)
                 outputs = nodes[name].step(tick, inputs)
                 notes += [Note(name, k, tick.time_ns, t) for t in nodes[name].take_notes()]
                 items = prepare_outputs(name, plan.declared_outputs, plan.output_names,

@@ -7,9 +7,10 @@
   their own threads.
 - What clients drive: messages enter through the run's ``Arrivals`` (the scenario's
   ``external:`` topics), at the external node's next tick, recorded and hashed; services
-  reach the run's SimControl (``/cosim/pause``, ``/cosim/step``, ``/cosim/reset`` and any
-  other service on its node), each call served on the master's thread by SimControl's own
-  executor, between ticks, exactly as a ROS 2 client's call is.
+  reach the run's simulation services (``orchestrator.sim_services``: ``/cosim/pause``,
+  ``/cosim/step``, ``/cosim/reset``, the simulation_interfaces services), each call served
+  by their own executor, exactly as a ROS 2 client's call is; what it changes acts between
+  ticks.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ POLL_S = 0.005
 
 
 class SimControlServices:
-    """The services of a SimControl's node, callable from any thread."""
+    """The services of the run's simulation services node, callable from any thread."""
 
     def __init__(self, control):
         self.control = control
@@ -43,8 +44,8 @@ class SimControlServices:
         return {name: srv.srv_type for name, srv in self._services.items()}
 
     def call(self, name: str, request: Any, timeout_s: float) -> Any:
-        """Run the service's callback on the master's thread (SimControl's executor spins
-        there between ticks, and while paused) and wait for its response."""
+        """Run the service's callback on the services' executor and wait for its
+        response."""
         service = self._services.get(name)
         if service is None:
             raise ServiceUnavailable(f"no service {name}")
@@ -82,7 +83,7 @@ def catalog_for(scenario: Scenario, arrivals) -> Catalog:
 def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
                     control_later: bool = False) -> LiveEndpoints | None:
     """Start what the options ask for (None when neither); LiveError when one cannot listen.
-    ``control_later``: the run's SimControl comes once the nodes are ready
+    ``control_later``: the run's simulation services come once the nodes are ready
     (``attach_control``); clients may connect before."""
     if not (options.live or options.rosbridge):
         return None
@@ -95,10 +96,11 @@ def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
     return endpoints
 
 
-def attach_control(endpoints: LiveEndpoints, control) -> None:
-    """Offer the SimControl's services to the endpoints' clients."""
-    if control is not None:
-        endpoints.attach_services(SimControlServices(control))
+def attach_control(endpoints: LiveEndpoints, services) -> None:
+    """Offer the run's simulation services (a SimServices, once built) to the endpoints'
+    clients."""
+    if services is not None and services.wait_built():
+        endpoints.attach_services(SimControlServices(services))
 
 
 def follow_parts(endpoints: LiveEndpoints, scenario: Scenario, paths):

@@ -114,6 +114,7 @@ class LockstepMaster:
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
+        self.control = None  # the run's RunControl, while ``run`` goes
         self._next_liveness = 0.0
         self._next_sample = 0.0
 
@@ -163,22 +164,29 @@ class LockstepMaster:
         (a leaf such as a camera: its period more): a node acts on a tick as soon as the
         inputs the schedule names are there, so outputs cannot depend on how far ahead the
         clock is, and the stop decision is taken tick by tick in order, as in-process.
-        ``control`` (a SimControl) may pause, single-step or reset the run between ticks.
+        ``control`` (a RunControl) may pause, step, stop or reset the run between ticks.
         """
         self.loop_started = time.monotonic()
+        self.control = control
         book = self._new_book()
         n = self.sched.n_ticks
+        requested = False  # a stop asked for through ``control``
         while True:
             self._decide(book)
             k = self.published
             if self.end is None and k < n and book.may_start(k, self.window):
                 if control:
-                    if control.next_action(k, self._idle(k), partial(self._drain, book)) == "reset":
+                    action = control.next_action(k, self._idle(k), partial(self._drain, book))
+                    if action == "reset":
                         self._drain(book)
                         self._reset_nodes()
                         book = self._new_book()
+                        control.reset_done()
                         continue
                     self._decide(book)  # ticks finished before a pause may have met the goal
+                    if action == "stop" and self.end is None:
+                        self.end, requested = k, True
+                        book.close(k)
                     if self.end is not None:
                         continue
                 self._publish(book, k)
@@ -189,6 +197,10 @@ class LockstepMaster:
         end = n if self.end is None else self.end
         book.close(end)
         self._drain(book)
+        if control:
+            control.finished(f"stopped by request before tick {end}" if requested
+                             else f"the goal was reached at tick {end - 1}" if self.end
+                             is not None else f"the run reached its duration ({n} ticks)")
         return LoopResult(book.hexdigest(), end, self.metrics(),
                           stopped_early=self.end is not None)
 
@@ -215,6 +227,8 @@ class LockstepMaster:
                     self.decided_metrics[name] = done.metrics
             if self.on_tick:
                 self.on_tick(tick)
+            if self.control:
+                self.control.tick_decided(tick, reports)
             if self.stop_on_goal and goal_reached(self.decided_metrics, self.trailing):
                 self.end = tick + 1
                 book.close(self.end)

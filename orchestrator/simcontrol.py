@@ -1,114 +1,264 @@
-"""Simulation control over ROS 2 services while a lockstep run goes.
+"""How a run is controlled between ticks: play, pause, step, stop and reset.
 
-- ``/cosim/pause`` (std_srvs/SetBool): true pauses before the next tick, false resumes.
-- ``/cosim/step`` (std_srvs/Trigger): run exactly one tick while paused.
-- ``/cosim/reset`` (std_srvs/Trigger): back to tick 0 with the same seed; the run that
-  follows is identical to a fresh one (same digest).
-
-Every reply's message carries the state: ``running`` or ``paused``, the tick and the sim
-time. The services live on their own rclpy node and context, so they work whatever the
-run's transport; the master polls them between ticks (throttled, off the hot path).
+Requests come from any thread (the ROS 2 servers of ``orchestrator.sim_services``); the
+lockstep master takes them before each tick (``next_action``) and tells what it did
+(``tick_decided`` per tick, ``reset_done``, ``finished``). Requests that wait for the run (a
+step of N ticks, a reset, a stop) block their caller, never the master. No ROS here.
 """
 
 from __future__ import annotations
 
-import time
+import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from std_srvs.srv import SetBool, Trigger
+PLAYING, PAUSED, STOPPED = "playing", "paused", "stopped"
+POLL_S = 0.05
+SETTLE_WAIT_S = 60.0  # how long a step waits for the ticks in flight when a pause begins
 
-POLL_PERIOD_S = 0.02
+Observer = Callable[[int, dict], None]
+"""Called by the master with each decided tick and its reports {node: Done} (keep it short)."""
 
 
-class SimControl:
-    """The services, and the decisions they imply for the master's loop."""
+@dataclass
+class Outcome:
+    """The answer to a request: whether it was done, and the state in words."""
 
-    def __init__(self, tick_ns: int, paused: bool = False, can_reset: str | None = None):
+    ok: bool
+    message: str
+    code: str = ""  # why not: 'state' (wrong state for it), 'ended', 'reset', 'refused'
+
+
+class RunControl:
+    """The requests, and what the master has done, shared between threads."""
+
+    def __init__(self, tick_ns: int, paused: bool = False, cannot_reset: str | None = None):
         self.tick_ns = tick_ns
-        self.paused = paused
-        self.steps = 0
-        self.reset_requested = False
-        self.cannot_reset = can_reset
-        self.tick = 0
-        self._next_poll = 0.0
-        self._context = rclpy.Context()
-        rclpy.init(context=self._context, signal_handler_options=_no_signals())
-        self.node = rclpy.create_node("cosim_control", context=self._context,
-                                      start_parameter_services=False)
-        self.node.create_service(SetBool, "/cosim/pause", self._on_pause)
-        self.node.create_service(Trigger, "/cosim/step", self._on_step)
-        self.node.create_service(Trigger, "/cosim/reset", self._on_reset)
-        self.executor = SingleThreadedExecutor(context=self._context)
-        self.executor.add_node(self.node)
+        self.cannot_reset = cannot_reset
+        self.state = PAUSED if paused else PLAYING
+        self.boundary = 0  # the next tick to run
+        self.decided = -1  # the last tick every node that may not trail has finished
+        self.settled: int | None = None  # the boundary the master waits at, nothing in flight
+        self.epoch = 0  # resets done
+        self.ended: str | None = None  # why the tick loop ended
+        self.steps = 0  # ticks still to hand to the master while paused
+        self.observers: list[Observer] = []
+        self.reset_listeners: list[Callable[[], None]] = []  # master thread, after a reset
+        self._cond = threading.Condition()
+        self._stepping = False
+        self._reset_wanted = False
+        self._stop_wanted = False
 
-    def state(self) -> str:
-        """'paused at tick 12 (sim time 0.240000000 s)'."""
-        word = "paused" if self.paused else "running"
-        ns = self.tick * self.tick_ns
-        return f"{word} at tick {self.tick} (sim time {ns // 10**9}.{ns % 10**9:09d} s)"
+    def where(self) -> str:
+        """'paused at tick 12 (sim time 0.240000000 s)': the state and the next tick."""
+        return f"{self.state} at {self.at()}"
+
+    def at(self) -> str:
+        """'tick 12 (sim time 0.240000000 s)': the next tick to run."""
+        ns = self.boundary * self.tick_ns
+        return f"tick {self.boundary} (sim time {ns // 10**9}.{ns % 10**9:09d} s)"
+
+    # -- the master's side ------------------------------------------------------------------
 
     def next_action(self, tick: int, idle: Callable[[], None],
                     settle: Callable[[], None] = lambda: None) -> str:
-        """Before tick ``tick``: 'tick' to run it, 'reset' to start over; blocks while paused.
-
-        ``settle`` finishes the ticks still in flight; it is called before pausing or
-        resetting, so a paused run has really done every tick before ``tick``."""
-        self.tick = tick
-        now = time.monotonic()
-        if now >= self._next_poll:
-            self._next_poll = now + POLL_PERIOD_S
-            self.executor.spin_once(timeout_sec=0)
-        if self.reset_requested or (self.paused and not self.steps):
+        """Before tick ``tick``: 'tick' to run it, 'reset' to start over, 'stop' to end the
+        run here; blocks while paused, calling ``idle``. ``settle`` finishes the ticks in
+        flight: a paused run has done every tick before ``tick``."""
+        with self._cond:
+            self.boundary = tick
+            must_settle = (self._reset_wanted or self._stop_wanted
+                           or (self.state == PAUSED and not self.steps))
+        if must_settle:
             settle()
         while True:
-            if self.reset_requested:
-                self.reset_requested = False
-                return "reset"
-            if not self.paused:
-                return "tick"
-            if self.steps:
-                self.steps -= 1
-                return "tick"
-            self.executor.spin_once(timeout_sec=0.05)
+            with self._cond:
+                action = self._choose(tick)
+                if action is None:
+                    self._cond.wait(POLL_S)  # a request wakes it at once
+                    action = self._choose(tick)
+            if action is not None:
+                return action
             idle()
 
-    def close(self) -> None:
-        """Remove the services."""
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self._context)
+    def _choose(self, tick: int) -> str | None:
+        if self._stop_wanted:
+            return "stop"
+        if self._reset_wanted:
+            self._reset_wanted, self.settled = False, None
+            return "reset"
+        if self.state == PLAYING or self.steps:
+            self.steps = max(self.steps - 1, 0) if self.state == PAUSED else 0
+            self.settled = None
+            return "tick"
+        if self.settled != tick:
+            self.settled = tick
+            self._cond.notify_all()
+        return None
 
-    def _on_pause(self, request, response):
-        # Pausing again only reports the state (steps already asked for still run).
-        self.paused = bool(request.data)
-        if not self.paused:
-            self.steps = 0
-        response.success = True
-        response.message = self.state()
-        return response
+    def tick_decided(self, tick: int, reports: dict) -> None:
+        """Every node that may not trail has finished ``tick`` (in tick order)."""
+        for observer in self.observers:
+            observer(tick, reports)
+        with self._cond:
+            self.decided = tick
+            self._cond.notify_all()
 
-    def _on_step(self, request, response):
-        response.success = self.paused
-        if self.paused:
+    def reset_done(self) -> None:
+        """The nodes are back at tick 0."""
+        for listener in self.reset_listeners:
+            listener()
+        with self._cond:
+            self.epoch += 1
+            self.boundary, self.decided, self.settled = 0, -1, None
+            self._cond.notify_all()
+
+    def finished(self, why: str) -> None:
+        """The tick loop ended (or failed): nothing more will run."""
+        with self._cond:
+            if self.ended is None:
+                self.ended = why
+            self.state = STOPPED
+            self._cond.notify_all()
+
+    # -- the requests -----------------------------------------------------------------------
+
+    def pause(self) -> Outcome:
+        """Pause before the next tick (steps already asked for still run)."""
+        with self._cond:
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            if self.state == PAUSED:
+                return Outcome(False, f"already {self.where()}", "state")
+            self.state = PAUSED
+            self._cond.notify_all()
+            return Outcome(True, f"pausing before {self.at()} or, with ticks in flight, "
+                           "right after them")
+
+    def play(self) -> Outcome:
+        """Run on."""
+        with self._cond:
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            if self.state == PLAYING:
+                return Outcome(False, f"already {self.where()}", "state")
+            self.state, self.steps = PLAYING, 0
+            self._cond.notify_all()
+            return Outcome(True, f"playing from {self.at()}")
+
+    def add_step(self) -> Outcome:
+        """One more tick while paused, without waiting for it (the std_srvs /cosim/step)."""
+        with self._cond:
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            if self.state != PAUSED:
+                return Outcome(False, "not paused", "state")
             self.steps += 1
-            response.message = f"stepping one tick; {self.state()}"
-        else:
-            response.message = f"not paused: pause first; {self.state()}"
-        return response
+            self._cond.notify_all()
+            return Outcome(True, "stepping one tick")
 
-    def _on_reset(self, request, response):
-        response.success = self.cannot_reset is None
-        if self.cannot_reset is None:
-            self.reset_requested = True
-            response.message = f"resetting to tick 0 with the same seed; was {self.state()}"
-        else:
-            response.message = f"cannot reset: {self.cannot_reset}; {self.state()}"
-        return response
+    def request_reset(self) -> Outcome:
+        """Ask for a reset without waiting for it (the std_srvs /cosim/reset)."""
+        with self._cond:
+            if self.cannot_reset is not None:
+                return Outcome(False, f"cannot reset: {self.cannot_reset}", "refused")
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            self._reset_wanted, self.steps = True, 0  # steps asked for later run after it
+            self._cond.notify_all()
+            return Outcome(True, "resetting to tick 0 with the same seed")
 
+    def stop(self, timeout_s: float = 60.0) -> Outcome:
+        """End the run at the next tick boundary, once the ticks in flight are done; wait
+        until the tick loop has ended."""
+        with self._cond:
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            self._stop_wanted = True
+            self._cond.notify_all()
+            self._cond.wait_for(lambda: self.ended is not None, timeout_s)
+            if self.ended is None:
+                return Outcome(False, "the run did not stop in time", "refused")
+            return Outcome(True, f"stopped: {self.ended}")
 
-def _no_signals():
-    from rclpy.signals import SignalHandlerOptions
+    def reset(self, timeout_s: float = 120.0) -> Outcome:
+        """Back to tick 0 with the same seed (state unchanged); wait until it is done."""
+        with self._cond:
+            if self.cannot_reset is not None:
+                return Outcome(False, f"cannot reset: {self.cannot_reset}", "refused")
+            if self.ended is not None:
+                return Outcome(False, f"the run has ended: {self.ended}", "ended")
+            epoch = self.epoch
+            self._reset_wanted, self.steps = True, 0
+            self._cond.notify_all()
+        if self.wait_reset(epoch, timeout_s):
+            return Outcome(True, f"reset to tick 0; {self.where()}")
+        return Outcome(False, f"the run ended before the reset: {self.ended}", "ended")
 
-    return SignalHandlerOptions.NO
+    def wait_reset(self, epoch: int, timeout_s: float) -> bool:
+        """Wait until a reset after ``epoch`` is done (True) or the run is over (False)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self.epoch > epoch or self.ended is not None, timeout_s)
+            return self.epoch > epoch
+
+    def step(self, n: int, on_step: Callable[[int], None] | None = None,
+             cancelled: Callable[[], bool] = lambda: False) -> Outcome:
+        """Run ``n`` ticks while paused and wait until every node has done them (back at the
+        paused boundary). ``on_step(done)`` is called as each tick is decided (from this
+        thread); ``cancelled()`` is polled: then no further tick starts."""
+        with self._cond:
+            problem = self._cannot_step()
+            if problem:
+                return problem
+            self._stepping = True
+            self._cond.wait_for(lambda: self.settled is not None or self.ended is not None
+                                or self.state != PAUSED, SETTLE_WAIT_S)
+        try:
+            return self._run_steps(n, on_step or (lambda done: None), cancelled)
+        finally:
+            with self._cond:
+                self._stepping = False
+
+    def _cannot_step(self) -> Outcome | None:
+        if self.ended is not None:
+            return Outcome(False, f"the run has ended: {self.ended}", "ended")
+        if self.state != PAUSED:
+            return Outcome(False, f"not paused: pause first; {self.where()}", "state")
+        if self._stepping:
+            return Outcome(False, f"already stepping; {self.where()}", "state")
+        return None
+
+    def _run_steps(self, n: int, on_step: Callable[[int], None],
+                   cancelled: Callable[[], bool]) -> Outcome:
+        with self._cond:
+            if self.settled is None:
+                return Outcome(False, f"not paused: {self.where()}", "state")
+            start, epoch = self.settled, self.epoch
+            target = start + n
+            self.steps += n
+            self._cond.notify_all()
+        told = 0
+        stop = False
+        while True:
+            with self._cond:
+                self._cond.wait(POLL_S)
+                done = min(max(self.decided - start + 1, 0), n)
+                ended, reset = self.ended, self.epoch != epoch
+                settled, state = self.settled, self.state
+                if not stop and cancelled():
+                    stop, self.steps = True, 0
+            for count in range(told + 1, done + 1):
+                on_step(count)
+            told = max(told, done)
+            if reset:
+                return Outcome(False, f"the run was reset after {told} of {n} step(s)", "reset")
+            if ended is not None:
+                if done == n:
+                    return Outcome(True, f"{n} step(s) done; then the run ended: {ended}")
+                return Outcome(False, f"the run ended after {told} of {n} step(s): {ended}",
+                               "ended")
+            if stop and settled is not None and settled >= start:
+                return Outcome(False, f"cancelled after {settled - start} of {n} step(s); "
+                               f"{self.where()}", "cancelled")
+            if done == n and ((settled is not None and settled >= target) or state != PAUSED):
+                return Outcome(True, f"{n} step(s) done; {self.where()}")

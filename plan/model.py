@@ -129,4 +129,8 @@ class ScenarioModel(Strict):
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
     external: ExternalSpec | None = None
+    interactive: bool = Field(False, description="true: ROS 2 clients may change the run "
+                              "(NavigateToPose goals, SetEntityState, parameter sets); each "
+                              "change enters at a tick boundary through the external node "
+                              "and is recorded (see plan/interactive.py)")
     nodes: list[NodeSpec] = Field(min_length=1)

@@ -19,7 +19,8 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from plan.errors import ScenarioError, ScenarioNotice
-from plan.model import NodeSpec, ScenarioModel
+from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
+from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.registry import KINDS, kind_class, load_class
 from plan.schedule import Edge, Schedule, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
@@ -380,21 +381,50 @@ class ScenarioContext:
                 self.check_finite(f"{key}[{n}]", item)
 
     def with_external_node(self) -> ScenarioModel:
-        """The model with its ``external:`` section as a node named 'external' (last)."""
+        """The model with its ``external:`` section as a node named 'external' (last), and,
+        when the scenario is interactive, the inputs clients feed through it
+        (plan/interactive.py); without a section, it runs at the fastest node's rate."""
         spec = self.model.external
-        if spec is None:
+        topics = dict(spec.topics) if spec else {}
+        nodes = list(self.model.nodes)
+        if self.model.interactive:
+            nodes = [self.with_client_inputs(i, node, topics) for i, node in enumerate(nodes)]
+        if not topics:
             return self.model
         for i, node in enumerate(self.model.nodes):
             if node.name == EXTERNAL_NAME:
                 raise self.fail(self.node_key(i, "name"), f"the name {EXTERNAL_NAME!r} is "
                                 "reserved for the node of the scenario's external: section.",
                                 "another name.")
+        period = spec.period_ns if spec else min(node.period_ns for node in nodes)
         node = NodeSpec.model_construct(
-            name=EXTERNAL_NAME, kind=None, module=EXTERNAL, period_ns=spec.period_ns,
-            params={"topics": dict(spec.topics)}, inputs=[], remap={},
+            name=EXTERNAL_NAME, kind=None, module=EXTERNAL, period_ns=period,
+            params={"topics": topics}, inputs=[], remap={},
             debug=NodeSpec.model_fields["debug"].default_factory(), command=None,
             external=False, prefix=None)
-        return self.model.model_copy(update={"nodes": [*self.model.nodes, node]})
+        return self.model.model_copy(update={"nodes": [*nodes, node]})
+
+    def with_client_inputs(self, i: int, spec: NodeSpec, topics: dict[str, str]) -> NodeSpec:
+        """Node ``i`` with the inputs clients feed (goal, teleport, parameter changes) that
+        its class takes; adds their graph topics to the external node's ``topics``."""
+        if spec.command is not None:
+            return spec
+        cls = self.node_class(i, spec)[1]
+        accepted = cls.accepted_inputs(self.node_params(i, spec, cls)) or set()
+        wanted = {own: kind for own, kind in FED_INPUTS.items() if own in accepted}
+        if cls.runtime_params:
+            wanted[params_topic(spec.name)] = PARAMS_TYPE
+        listed = {inp.topic for inp in spec.inputs}
+        added = []
+        for own, type_name in wanted.items():
+            graph = spec.remap.get(own, own)
+            if topics.setdefault(graph, type_name) != type_name:
+                raise self.fail(f"external.topics.{graph}", f"{graph} carries {type_name} "
+                                f"into node {spec.name!r} of this interactive scenario, not "
+                                f"{topics[graph]}.", f"{type_name}, or leave the topic out.")
+            if own not in listed:
+                added.append(InputSpec(topic=own, mode="same_tick"))
+        return spec.model_copy(update={"inputs": [*spec.inputs, *added]}) if added else spec
 
     def check_unique_names(self) -> None:
         """Node names must be unique."""
@@ -573,7 +603,8 @@ class ScenarioContext:
             if inp.topic in seen:
                 raise self.fail(key, f"input {inp.topic} is listed twice.", "each topic once.")
             seen.add(inp.topic)
-            if accepted is not None and inp.topic not in accepted:
+            takes_params = cls.runtime_params and inp.topic == params_topic(spec.name)
+            if accepted is not None and inp.topic not in accepted and not takes_params:
                 raise self.fail(key, f"this node does not take {inp.topic}.",
                                 f"one of {', '.join(sorted(accepted))}.")
             graph = spec.remap.get(inp.topic, inp.topic)

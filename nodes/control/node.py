@@ -11,18 +11,23 @@
   Where scan points within the safety margin block the arc (a narrow passage), creep at
   min_speed keeping tight_margin, on the pursuit arc or the clear arc nearest its target.
 - Goal checker: position tolerance, then turn in place to the goal heading; once reached
-  the goal stays reached and the node publishes zero velocity for the rest of the run.
+  the goal stays reached and the node publishes zero velocity until it gets a new goal.
 - Progress checker and recovery: if the robot moves less than ``progress_distance`` within
   ``progress_window`` seconds it backs up (when the scan behind is clear) and replans.
 - When no plan exists the robot stands still, the node notes why (``StepNode.note``: the
   start or goal inside an obstacle's inflated zone, or the obstacles that close the way)
-  and tries again every ``RETRY_S`` seconds. At load time a goal its map cannot reach is a
-  warning (``world_warnings``).
+  and tries again every ``RETRY_S`` seconds; a goal from /goal_pose (NavigateToPose) is
+  given up instead, as Nav2 aborts it: the node stops until a new goal. At load time a goal
+  its map cannot reach is a warning (``world_warnings``).
 
-Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped,
-replaces the goal while it is not yet reached). Outputs: /cmd_vel (geometry_msgs/Twist, or
-TwistStamped in ``base_frame`` with ``enable_stamped_cmd_vel``, Nav2's parameter of the same
-name: Jazzy's Nav2 publishes Twist by default, Kilted's TwistStamped), /plan (frame odom).
+Inputs: /odom and /scan (same_tick), optional /goal_pose (geometry_msgs/PoseStamped in odom:
+a pose that differs from the current goal replaces it, reached or not; a zero quaternion
+means stop: no goal, zero velocity until the next one; an empty frame_id, what an external
+source holds before anything arrived, changes nothing). Outputs: /cmd_vel
+(geometry_msgs/Twist, or TwistStamped in ``base_frame`` with ``enable_stamped_cmd_vel``,
+Nav2's parameter of the same name: Jazzy's Nav2 publishes Twist by default, Kilted's
+TwistStamped), /plan (frame odom). Its metrics tell a NavigateToPose server how the current
+goal goes (``metrics``).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from nodes.control.plan import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
 
 NS = 1_000_000_000
+IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
 RETRY_S = 2.0  # s between plans while none exists (a failed plan searches the whole map)
 ESCAPE_REACH = 0.2  # m of arc a creeping escape must find clear
 ESCAPE_TURN = 0.25  # its sharpest arc turns at this fraction of max_turn at min_speed
@@ -86,6 +92,11 @@ class ControlNode(StepNode):
 
     Params = ControlParams
     needs_world = True
+    runtime_params = frozenset({
+        "max_speed", "min_speed", "max_turn", "lookahead", "min_turn_radius",
+        "rotate_threshold", "turn_gain", "approach_gain", "stop_time", "horizon",
+        "tight_margin", "progress_window", "progress_distance", "backup_distance",
+        "backup_speed"})  # read at every step; the map and planner's are fixed at set-up
     type_keys = {"/cmd_vel": "params.enable_stamped_cmd_vel"}
 
     @classmethod
@@ -160,13 +171,18 @@ class ControlNode(StepNode):
         self.recoveries = 0
         self.retry_ns = 0  # no plan before this time (after a failed one)
         self.why_no_path: str | None = None  # the last failure's explanation, noted once
+        self.active = True  # False after a stop request: no goal
+        self.failed = False  # no path to a goal from outside: stopped until a new goal
+        self.outside = False  # the goal came from /goal_pose
+        self.pose: tuple[float, float, float] | None = None
+        self.tail = np.zeros(0)  # path length from each plan point to its end
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One control cycle: read odom and scan, then decide the velocity command."""
         odom = inputs.get("/odom")
         if odom is None:
             raise ValueError("the control node needs /odom at every activation (same_tick)")
-        pose = _pose(odom)
+        pose = self.pose = _pose(odom)
         self._account(pose, inputs.get("/scan"))
         self._maybe_new_goal(inputs.get("/goal_pose"), pose)
         v, w = self._decide(tick, pose)
@@ -195,21 +211,31 @@ class ControlNode(StepNode):
                                     scan.range_min, self.laser, pose)
 
     def _maybe_new_goal(self, msg: Any, pose: tuple[float, float, float]) -> None:
-        # an external source holds a default message (no frame) until a goal arrives
-        if msg is None or self.reached_ns is not None or not msg.header.frame_id:
+        # An external source holds a default message (no frame) until a goal arrives, then
+        # publishes the latest one at every activation: only a change is a request.
+        if msg is None or not msg.header.frame_id:
+            return
+        q = msg.pose.orientation
+        if q.x == q.y == q.z == q.w == 0.0:  # stop
+            if self.active:
+                self.active, self.path, self.recovery = False, None, None
+                self.plan_msg = path_message(None, self.params.frame_id, 0.0)
             return
         new = _pose_of(msg.pose)
-        if max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) > 1e-9:
-            self.goal = new
-            self.xy_reached = False
-            self.retry_ns = 0
-            self._replan(pose)
+        if self.active and max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) <= 1e-9:
+            return
+        self.goal, self.active, self.outside = new, True, True
+        self.xy_reached, self.reached_ns, self.recovery = False, None, None
+        self._replan(pose)
+        self.failed = self.path is None  # no plan for a NavigateToPose goal: give up
 
     def _replan(self, pose: tuple[float, float, float], now_ns: int = 0) -> None:
         self.path = self.planner.plan(pose[:2], self.goal[:2])
         self.index = 0
         self.plan_msg = path_message(self.path, self.params.frame_id, self.goal[2])
         if self.path is not None:
+            seg = np.hypot(np.diff(self.path[:, 0]), np.diff(self.path[:, 1]))
+            self.tail = np.append(np.cumsum(seg[::-1])[::-1], 0.0)
             self.why_no_path = None
             return
         self.retry_ns = now_ns + round(RETRY_S * NS)
@@ -222,7 +248,7 @@ class ControlNode(StepNode):
 
     def _decide(self, tick: Tick, pose: tuple[float, float, float]) -> tuple[float, float]:
         p = self.params
-        if self.reached_ns is not None:
+        if self.reached_ns is not None or not self.active or self.failed:
             return 0.0, 0.0
         dist = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         if not self.xy_reached and dist < 0.5 * self.pos_tol:
@@ -236,6 +262,9 @@ class ControlNode(StepNode):
             return 0.0, _turn(p.turn_gain * err, p.max_turn)
         if self.path is None and tick.time_ns >= self.retry_ns:
             self._replan(pose, tick.time_ns)
+            if self.path is None and self.outside:  # a NavigateToPose goal: give up
+                self.failed = True
+                return 0.0, 0.0
         if self.recovery is not None:
             return self._recover(tick, pose)
         if self._stuck(tick, pose):
@@ -313,13 +342,36 @@ class ControlNode(StepNode):
         return 0.0, 0.0
 
     def metrics(self) -> dict[str, float]:
-        """goal_reached (latched), time_to_goal (s, -1 before), path_length, min_clearance."""
-        done = self.reached_ns is not None
-        return {"goal_reached": 1.0 if done else 0.0,
-                "time_to_goal": self.reached_ns / NS if done else -1.0,
-                "path_length": self.path_length,
-                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
-                "recoveries": float(self.recoveries)}
+        """goal_reached (latched until a new goal), time_to_goal (s, -1 before),
+        path_length, min_clearance, recoveries; and for a NavigateToPose server: nav_state
+        (0 idle, 1 active, 2 reached, 3 failed: no path), the pose (nav_x, nav_y, nav_yaw),
+        the goal (nav_goal_x, nav_goal_y, nav_goal_yaw), nav_distance_remaining (m along
+        the plan)."""
+        done = self.reached_ns is not None and self.active
+        out = {"goal_reached": 1.0 if done else 0.0,
+               "time_to_goal": self.reached_ns / NS if done else -1.0,
+               "path_length": self.path_length,
+               "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
+               "recoveries": float(self.recoveries)}
+        if self.pose is None:
+            return out
+        state = (IDLE if not self.active else REACHED if done else FAILED if self.failed
+                 else ACTIVE)
+        x, y, yaw = self.pose
+        out.update(nav_state=state, nav_x=x, nav_y=y, nav_yaw=yaw, nav_goal_x=self.goal[0],
+                   nav_goal_y=self.goal[1], nav_goal_yaw=self.goal[2],
+                   nav_distance_remaining=self._remaining(self.pose))
+        return out
+
+    def _remaining(self, pose: tuple[float, float, float]) -> float:
+        """Distance left along the plan from its point nearest the robot (straight to the
+        goal without a plan)."""
+        if self.path is None or len(self.path) == 0:
+            return math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
+        ahead = self.path[self.index:]
+        d = np.hypot(ahead[:, 0] - pose[0], ahead[:, 1] - pose[1])
+        i = int(np.argmin(d))
+        return float(d[i] + self.tail[self.index + i])
 
 
 def _turn(w: float, limit: float, floor: float = 0.25) -> float:

@@ -1,8 +1,10 @@
 """The physics node: a MuJoCo world with a differential-drive robot and a pan-tilt head.
 
 Inputs: /cmd_vel (geometry_msgs/Twist, or TwistStamped with ``enable_stamped_cmd_vel``;
-normally a delayed edge; absent means stop) and /joint_commands
-(std_msgs/Float64MultiArray of [pan, tilt] positions, optional).
+normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64MultiArray of
+[pan, tilt] positions, optional) and /cosim/set_pose (simulation_interfaces/NamedPose,
+optional: SetEntityState from an interactive run's clients; the base is put at rest at the
+pose's x, y and yaw).
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -36,6 +38,7 @@ from nodes.physics.world import (
     timestep_ns,
     wheel_geometry,
 )
+from plan.interactive import SET_POSE_TOPIC
 from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
@@ -142,8 +145,8 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
-        """Velocity commands and pan-tilt position commands."""
-        return {"/cmd_vel", "/joint_commands"}
+        """Velocity commands, pan-tilt position commands and teleports."""
+        return {"/cmd_vel", "/joint_commands", SET_POSE_TOPIC}
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robot."""
@@ -185,6 +188,7 @@ class PhysicsNode(StepNode):
                                       p.odom_frame, imu_site)
         self.started = False
         self.goal_time_ns: int | None = None
+        self.teleported = None  # the last /cosim/set_pose applied
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Integrate one period (except at the first activation) and publish the state."""
@@ -199,6 +203,7 @@ class PhysicsNode(StepNode):
                 self.collisions.update(self.data)
             self._derive()
         self.started = True
+        self._teleport(inputs.get(SET_POSE_TOPIC))
         self._check_goal(tick)
         out = self._publish()
         if first and self.frames is not None:
@@ -213,6 +218,22 @@ class PhysicsNode(StepNode):
             mujoco.mj_forward(self.model, self.data)
         elif self.frames is not None and self.frames.needs_kinematics:
             mujoco.mj_kinematics(self.model, self.data)
+
+    def _teleport(self, msg: Any) -> None:
+        """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the
+        floor), so this tick publishes it. The external node publishes its latest message at
+        every activation: each request (its description says which) applies once."""
+        if msg is None or not msg.name or msg == self.teleported:
+            return
+        self.teleported = msg
+        p, q = msg.pose.position, msg.pose.orientation
+        yaw = m.yaw_of(np.array([q.w, q.x, q.y, q.z]))
+        base = self.data.qpos[self.qadr:self.qadr + 7]
+        base[:2] = p.x, p.y
+        base[3:] = np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)
+        self.data.qvel[:] = 0.0
+        self.drive.v = self.drive.w = 0.0
+        mujoco.mj_forward(self.model, self.data)
 
     def _check_goal(self, tick: Tick) -> None:
         """Ground truth: the robot is within the scenario goal's tolerances (sticky)."""

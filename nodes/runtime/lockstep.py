@@ -20,6 +20,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
+from nodes.live_params import ParamsInput
 from nodes.runtime.exchange import InputHistory, output_digest, prepare_outputs
 from nodes.runtime.notes import Note, NoteWriter
 from nodes.runtime.protocol import (
@@ -113,6 +114,7 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
         self.first = True  # the next activation is the first since the start or a reset
         self._last_start_report = -STATUS_PERIOD_S
         self._wire()
@@ -245,6 +247,8 @@ class LockstepRuntime:
             self.clocks.clear()
             self.first = True
             self.node.reset(self.scenario.model.seed, self.node.config)
+            if self.params_input:
+                self.params_input.forget()
             if self.recorder:
                 self.recorder.truncate()
             if self.notes:
@@ -288,6 +292,8 @@ class LockstepRuntime:
         start = time.perf_counter_ns()
         self.in_step = True
         try:
+            if self.params_input:
+                inputs = self.params_input.apply(self.node, inputs)
             outputs = self.node.step(tick, inputs)
             stepped = self.timing.add("step", start)
             self.take_notes(tick)

@@ -1,0 +1,37 @@
+"""What an interactive scenario adds: the topics through which ROS 2 clients change a run.
+
+With ``interactive: true`` the loader wires, for every cosim node (not foreign programs),
+the inputs that the orchestrator's ROS 2 servers feed through the scenario's external node
+(which it creates when the scenario has no ``external:`` section):
+
+- ``/goal_pose`` (geometry_msgs/msg/PoseStamped) into every node that takes it (the
+  navigation controller): NavigateToPose goals;
+- ``/cosim/set_pose`` (simulation_interfaces/msg/NamedPose: the entity's name, the pose, and
+  in ``description`` which request it is) into every node that takes it (physics):
+  SetEntityState teleports;
+- ``/cosim/params/<node>`` (rcl_interfaces/msg/ParameterEvent) into every node whose class
+  has runtime parameters: ROS 2 parameter sets.
+
+Whatever a client sends enters at the external node's next activation and is recorded and
+hashed like any message, so a run replays. The wiring is part of the plan, whatever the
+transport or driver, so an interactive scenario gives one digest multi-process and
+in-process; it differs from the same scenario without ``interactive``.
+"""
+
+from __future__ import annotations
+
+GOAL_TOPIC = "/goal_pose"
+SET_POSE_TOPIC = "/cosim/set_pose"
+PARAMS_PREFIX = "/cosim/params/"
+
+GOAL_TYPE = "geometry_msgs/msg/PoseStamped"
+SET_POSE_TYPE = "simulation_interfaces/msg/NamedPose"
+PARAMS_TYPE = "rcl_interfaces/msg/ParameterEvent"
+
+FED_INPUTS = {GOAL_TOPIC: GOAL_TYPE, SET_POSE_TOPIC: SET_POSE_TYPE}
+"""Inputs a node takes from clients when its class accepts them, with their types."""
+
+
+def params_topic(node: str) -> str:
+    """The topic that carries parameter changes of ``node``: /cosim/params/<node>."""
+    return PARAMS_PREFIX + node
