@@ -199,14 +199,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
     except KeyboardInterrupt:  # a step cut short by the orchestrator's stop is a clean end
         return EXIT_OK if runtime.stop_requested else EXIT_INTERRUPTED
     except NodeFailure as exc:
-        if exc.__cause__ is None:
-            runtime.report_error(-1, exc)
-        print(f"cosim-node {name}: {exc}", file=sys.stderr)
-        if exc.__cause__ is not None:
-            import traceback
-
-            traceback.print_exception(exc.__cause__, file=sys.stderr)
-        return EXIT_FAILED
+        return _failed(runtime, exc)
     finally:
         _write_timing(runtime, paths, name)  # also when stopped in the middle of a step
         if recorder:
@@ -254,15 +247,7 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     except KeyboardInterrupt:
         return EXIT_OK if packed.stop_requested else EXIT_INTERRUPTED
     except NodeFailure as exc:
-        culprit = next((rt for rt in runtimes if rt.in_step), failed) or runtimes[0]
-        if exc.__cause__ is None:
-            culprit.report_error(-1, exc)
-        print(f"cosim-node {culprit.name}: {exc}", file=sys.stderr)
-        if exc.__cause__ is not None:
-            import traceback
-
-            traceback.print_exception(exc.__cause__, file=sys.stderr)
-        return EXIT_FAILED
+        return _failed(next((rt for rt in runtimes if rt.in_step), failed) or runtimes[0], exc)
     finally:
         for rt in runtimes:
             _write_timing(rt, paths, rt.name)
@@ -270,6 +255,19 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
             if writer:
                 writer.close()
         shared.close()
+
+
+def _failed(runtime, exc) -> int:
+    """A node's runtime could not go on: report the error unless the step already did (it
+    reports its own exception with the tick), print why, return the exit code."""
+    if exc.__cause__ is None:
+        runtime.report_error(-1, exc)
+    print(f"cosim-node {runtime.name}: {exc}", file=sys.stderr)
+    if exc.__cause__ is not None:
+        import traceback
+
+        traceback.print_exception(exc.__cause__, file=sys.stderr)
+    return EXIT_FAILED
 
 
 def _write_timing(runtime, paths, name: str) -> None:
