@@ -20,8 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from nodes.runtime.arrivals import Arrivals, Replay
 from orchestrator.execute import RunOutcome, execute
-from orchestrator.external_arrivals import Arrivals, Replay
 from plan.errors import ScenarioError, ScenarioWarning, SimulationError
 from plan.options import RunOptions
 from plan.scenario import Scenario, load_scenario

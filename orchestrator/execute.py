@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
+from nodes.runtime.arrivals import Arrivals, Replay
 from nodes.runtime.notes import Note, read_notes
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.factory import create_transport
-from orchestrator.external_arrivals import Arrivals, Replay
 from orchestrator.loop_result import LoopResult, goal_reached
 from orchestrator.manifest import write_manifest
 from orchestrator.run_rules import check_run

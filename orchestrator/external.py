@@ -11,12 +11,12 @@ activation done, like a node process would. A replay feeds recorded arrivals ins
 from __future__ import annotations
 
 from nodes.contract import Tick
+from nodes.runtime.arrivals import Arrivals, Replay
 from nodes.runtime.build import make_node
 from nodes.runtime.exchange import output_digest, prepare_outputs
 from nodes.runtime.protocol import DONE, Done, Status
 from nodes.runtime.recording import PartWriter
 from nodes.runtime.transport.base import Transport
-from orchestrator.external_arrivals import Arrivals, Replay
 from orchestrator.participants import Participant
 from plan.packing import subscribers
 from plan.scenario import NodePlan, Scenario

@@ -27,7 +27,7 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile
 
-from orchestrator.external_arrivals import Arrivals
+from nodes.runtime.arrivals import Arrivals
 from orchestrator.simcontrol import RunControl
 
 FRAMES = ("map", "odom")

@@ -21,7 +21,7 @@ from pydantic import BaseModel, ValidationError
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 
 from nodes.live_params import change_message, flatten, with_changes
-from orchestrator.external_arrivals import Arrivals
+from nodes.runtime.arrivals import Arrivals
 from orchestrator.simcontrol import RunControl
 from plan.interactive import params_topic
 from plan.scenario import EXTERNAL_NAME, NodePlan

@@ -20,8 +20,8 @@ from nav_msgs.msg import Odometry
 from simulation_interfaces.msg import EntityState, NamedPose, Result
 from simulation_interfaces.srv import SetEntityState
 
+from nodes.runtime.arrivals import Arrivals
 from nodes.runtime.cdr.decode import decode
-from orchestrator.external_arrivals import Arrivals
 from orchestrator.live_tail import PartFollower
 from orchestrator.simcontrol import RunControl
 from plan.interactive import SET_POSE_TOPIC

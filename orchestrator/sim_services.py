@@ -37,7 +37,7 @@ from simulation_interfaces.srv import (
     StepSimulation,
 )
 
-from orchestrator.external_arrivals import Arrivals
+from nodes.runtime.arrivals import Arrivals
 from orchestrator.simcontrol import PAUSED, PLAYING, Outcome, RunControl
 from plan.interactive import GOAL_TOPIC
 from plan.run_paths import RunPaths

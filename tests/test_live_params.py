@@ -10,7 +10,7 @@ from rclpy.parameter import Parameter
 
 from nodes.control.node import ControlParams
 from nodes.live_params import ParamsInput, change_message, changes_in, flatten, with_changes
-from orchestrator.external_arrivals import Arrivals
+from nodes.runtime.arrivals import Arrivals
 from orchestrator.simcontrol import RunControl
 from plan.errors import ScenarioError
 from plan.scenario import load_scenario

@@ -14,15 +14,14 @@ node's next step) and, for a node that paces itself, pause and step it (``contro
 from __future__ import annotations
 
 import sys
-import threading
 import time
 from collections.abc import Callable
-from typing import Any
 
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from nodes.contract import StepNode, Tick
+from nodes.runtime.arrivals import Arrivals
 from nodes.runtime.exchange import prepare_outputs
 from nodes.runtime.notes import Note
 from nodes.runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
@@ -31,34 +30,6 @@ from nodes.runtime.transport.base import Transport
 
 POLL_NS = 50_000_000
 PAUSED_POLL_NS = 10_000_000
-
-
-class InputInbox:
-    """Messages from live clients for the node's inputs, taken at its next step
-    (thread-safe; the latest per input wins, as for messages from the transport)."""
-
-    def __init__(self, topics: dict[str, type], own: dict[str, str]):
-        self.topics = dict(topics)  # graph topic -> message class
-        self._own = own  # graph topic -> the node's own name for it
-        self._lock = threading.Lock()
-        self._waiting: dict[str, Any] = {}
-
-    def put(self, topic: str, msg: Any) -> None:
-        """A client's message for input ``topic``."""
-        if topic not in self.topics:
-            raise KeyError(f"{topic} is not an input of this node "
-                           f"({', '.join(sorted(self.topics))})")
-        if not isinstance(msg, self.topics[topic]):
-            raise TypeError(f"{topic} takes {self.topics[topic].__name__}, "
-                            f"not {type(msg).__name__}")
-        with self._lock:
-            self._waiting[self._own[topic]] = msg
-
-    def take(self) -> dict[str, Any]:
-        """What arrived since the last take, by the node's own input names."""
-        with self._lock:
-            taken, self._waiting = self._waiting, {}
-        return taken
 
 
 class RealtimeRuntime:
@@ -92,8 +63,9 @@ class RealtimeRuntime:
         self.stop_requested = False
         self.served = -1
         self.observe: Callable[[str, bytes], None] | None = None  # live endpoints' offer
-        self.inbox = InputInbox({g: m for g, (_, m) in self.own_topic.items()},
-                                {g: own for g, (own, _) in self.own_topic.items()})
+        # client messages for the node's inputs (graph topics), taken at its next step
+        self.inbox = Arrivals({g: m for g, (_, m) in self.own_topic.items()},
+                              what="an input of this node")
         self.control = RealtimeControl(self.tick_ns) if publish_clock else None
 
     def request_stop(self, *_args) -> None:
@@ -151,7 +123,7 @@ class RealtimeRuntime:
 
     def _step(self, k: int) -> None:
         tick = Tick(k, k * self.tick_ns)
-        self.latest.update(self.inbox.take())
+        self.latest.update({self.own_topic[g][0]: msg for g, msg in self.inbox.take(k).items()})
         outputs = self.node.step(tick, dict(self.latest))
         for text in self.node.take_notes():
             print(f"note: {Note(self.plan.name, k, tick.time_ns, text).line()}", file=sys.stderr,

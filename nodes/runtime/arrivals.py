@@ -1,5 +1,7 @@
-"""Messages that arrive from outside a run, waiting for the external node's next tick (no
-ROS import here: the orchestrator creates them before it forks its node processes)."""
+"""Messages that arrive from outside a run (a client, a real robot), waiting for the next
+step that takes them: the external node's next tick in a lockstep run, a realtime node's
+next step. No ROS import here: the orchestrator creates them before it forks its node
+processes."""
 
 from __future__ import annotations
 
@@ -11,8 +13,9 @@ from typing import Any
 class Arrivals:
     """Messages from outside, per topic, waiting for the next activation (thread-safe)."""
 
-    def __init__(self, topics: dict[str, type]):
+    def __init__(self, topics: dict[str, type], what: str = "an external topic of this run"):
         self.topics = dict(topics)
+        self.what = what  # what the topics are, for the error naming an unknown one
         self._lock = threading.Lock()
         self._waiting: dict[str, Any] = {}
         self.count = 0
@@ -20,7 +23,7 @@ class Arrivals:
     def put(self, topic: str, msg: Any) -> None:
         """A message arrived; it enters at the node's next activation (the last per topic)."""
         if topic not in self.topics:
-            raise KeyError(f"{topic} is not an external topic of this run "
+            raise KeyError(f"{topic} is not {self.what} "
                            f"({', '.join(sorted(self.topics))})")
         if not isinstance(msg, self.topics[topic]):
             raise TypeError(f"{topic} takes {self.topics[topic].__name__}, "
@@ -29,7 +32,7 @@ class Arrivals:
             self._waiting[topic] = msg
             self.count += 1
 
-    def take(self, tick: int) -> dict[str, Any]:
+    def take(self, tick: int | None = None) -> dict[str, Any]:
         """Everything that arrived since the last take (enters at ``tick``)."""
         with self._lock:
             taken, self._waiting = self._waiting, {}
