@@ -37,10 +37,7 @@ class ExternalSource(Participant):
         self.node = make_node(scenario, plan.name)
         self.arrivals = arrivals
         self.recorder = recorder
-        depth: dict[str, int] = {t: 2 for t in plan.outputs}
-        for edge in self.schedule.edges:
-            if edge.producer == self.name:
-                depth[edge.topic] = max(depth[edge.topic], self.schedule.history_depth(edge))
+        depth = self.schedule.output_depths(self.name, plan.outputs)
         self.expected = subscribers(scenario, pack, self.name)
         self.publishers = {t: transport.publisher(t, cls, depth[t])
                            for t, cls in plan.outputs.items()}

@@ -193,6 +193,15 @@ class Schedule:
         ratio = -(-self.periods[edge.consumer] // self.periods[edge.producer])
         return 2 * ratio + 64 + PIPELINE_WINDOW
 
+    def output_depths(self, producer: str, topics) -> dict[str, int]:
+        """The history to keep on each output topic of ``producer`` (``topics``): the
+        deepest its consumers need (``history_depth``), 2 where nobody consumes it."""
+        depth = {topic: 2 for topic in topics}
+        for edge in self.edges:
+            if edge.producer == producer:
+                depth[edge.topic] = max(depth[edge.topic], self.history_depth(edge))
+        return depth
+
     def driving_edge(self, node: str) -> Edge | None:
         """A same_tick input whose samples tell the node every tick it is due, or None.
 

@@ -121,10 +121,7 @@ class LockstepRuntime:
 
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
-        depth = {t: 2 for t in plan.outputs}
-        for edge in sched.edges:
-            if edge.producer == self.name:
-                depth[edge.topic] = max(depth[edge.topic], sched.history_depth(edge))
+        depth = sched.output_depths(self.name, plan.outputs)
         self.expected_subscribers = subscribers(self.scenario, self.pack, self.name)
         latched = plan.latched_topics
         self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
