@@ -3,8 +3,8 @@
     python -m bench.messages
 
 For each: serialise with rclpy (+ zeroing the padding) and with cosim's generated encoder
-(``nodes.runtime.cdr.encode``, same bytes), deserialise with rclpy and with the generated decoder
-(``nodes.runtime.cdr.decode``, same objects), then a round trip of the CDR bytes to a second process
+(``runtime.cdr.encode``, same bytes), deserialise with rclpy and with the generated decoder
+(``runtime.cdr.decode``, same objects), then a round trip of the CDR bytes to a second process
 and back over the transport, beside the round trip of an 8-byte message measured in the
 same run. The nav scenario's busiest messages (odometry, a 360-beam scan, a 123-pose plan)
 are measured beside the images. Also the cost of handing rclpy a Python list
@@ -25,9 +25,9 @@ from sensor_msgs.msg import Image, LaserScan, PointCloud2, PointField
 from std_msgs.msg import Int64
 
 from bench.common import bench_env
-from nodes.runtime.cdr.canonical import canonical_cdr
-from nodes.runtime.cdr.decode import decode
-from nodes.runtime.cdr.encode import encode
+from runtime.cdr.canonical import canonical_cdr
+from runtime.cdr.decode import decode
+from runtime.cdr.encode import encode
 
 ECHO_TOPICS = ("/bench_msg_ping", "/bench_msg_pong")
 
@@ -87,7 +87,7 @@ def round_trip_ms(transport, pub, data: bytes, repeats: int) -> float:
 
 def echo(count: int) -> None:
     """The second process: send back every message received."""
-    from nodes.runtime.transport.ros2 import Ros2Transport
+    from runtime.transport.ros2 import Ros2Transport
 
     t = Ros2Transport("bench_echo")
     pub = t.publisher(ECHO_TOPICS[1], Image, 10)
@@ -104,7 +104,7 @@ def echo(count: int) -> None:
 
 def main() -> list[tuple]:
     """Print the table; returns its rows (message, then the ms of each column)."""
-    from nodes.runtime.transport.ros2 import Ros2Transport
+    from runtime.transport.ros2 import Ros2Transport
 
     repeats = 30
     msgs = payloads()

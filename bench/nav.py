@@ -14,7 +14,7 @@ from pathlib import Path
 import yaml
 
 from bench.common import ROOT, run_manifest
-from nodes.runtime.timing import PARTS
+from runtime.timing import PARTS
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 

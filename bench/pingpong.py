@@ -8,7 +8,7 @@ import time
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Int64
 
-from nodes.runtime.transport.ros2 import Ros2Transport
+from runtime.transport.ros2 import Ros2Transport
 
 
 def main() -> None:

@@ -80,8 +80,8 @@ def payload_round_trips(transport: str, size: int, count: int, shm: bool = True)
     """Round trips/s of an Image of ``size`` bytes out and back between two processes."""
     from sensor_msgs.msg import Image
 
-    from nodes.runtime.transport.factory import create_transport
     from plan.options import TransportSettings
+    from runtime.transport.factory import create_transport
 
     settings = TransportSettings(kind=transport, zenoh_shm=shm)
     t = create_transport(settings, "bench_ping")
@@ -118,8 +118,8 @@ def echo(transport: str, count: int, shm: bool = True) -> None:
     """The far end of payload_round_trips: send back every message received."""
     from sensor_msgs.msg import Image
 
-    from nodes.runtime.transport.factory import create_transport
     from plan.options import TransportSettings
+    from runtime.transport.factory import create_transport
 
     t = create_transport(TransportSettings(kind=transport, zenoh_shm=shm), "bench_pong")
     pub = t.publisher("/bench/pong", Image, 10)

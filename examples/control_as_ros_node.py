@@ -22,8 +22,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 from nodes.contract import Tick
-from nodes.runtime.build import make_node
 from plan.scenario import load_scenario
+from runtime.build import make_node
 
 
 class ControlAsRosNode(Node):

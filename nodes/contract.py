@@ -2,7 +2,7 @@
 
 A step node never reads a clock, never sleeps and never touches a transport. It draws
 every random number from ``self.rng``, seeded from the scenario seed and the node name.
-The runtime (``nodes.runtime.lockstep``) or the in-process driver calls it.
+The runtime (``runtime.lockstep``) or the in-process driver calls it.
 """
 
 from __future__ import annotations

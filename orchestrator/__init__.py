@@ -1,4 +1,5 @@
-"""cosim orchestrator: scenario checking, schedule, lockstep master, supervision, outputs."""
+"""cosim orchestrator: the run. Entry points (CLI, API, pytest plugin), ``execute`` and the run
+rules at the top; the lockstep loop, proxies, ROS 2 surface, live side and outputs in folders."""
 
 from plan.errors import ScenarioError, SimulationError
 

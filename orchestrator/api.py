@@ -20,11 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from nodes.runtime.arrivals import Arrivals, Replay
 from orchestrator.execute import RunOutcome, execute
 from plan.errors import ScenarioError, ScenarioWarning, SimulationError
 from plan.options import RunOptions
 from plan.scenario import Scenario, load_scenario
+from runtime.arrivals import Arrivals, Replay
 
 __all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "RunOptions", "ScenarioError",
            "ScenarioWarning", "SimulationError", "load", "overrides_for", "run"]
@@ -155,7 +155,7 @@ class FinishedRun:
 
     @property
     def notes(self) -> list:
-        """What the nodes told people during the run (nodes.runtime.notes.Note: node, tick,
+        """What the nodes told people during the run (runtime.notes.Note: node, tick,
         time_ns, text), in tick order; e.g. why the controller found no path."""
         return list(self.outcome.notes)
 
@@ -185,7 +185,7 @@ class FinishedRun:
 
         The messages are the classes nodes publish (nav_msgs.msg.Odometry for /odom, ...).
         """
-        from orchestrator.bag import BagReader
+        from orchestrator.outputs.bag import BagReader
 
         if self.bag is None:
             return

@@ -122,7 +122,7 @@ def _interrupt(signum, _frame):
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
     args = build_parser().parse_args(argv)
-    from orchestrator.diff import digest_mismatch, expected_digest
+    from orchestrator.outputs.diff import digest_mismatch, expected_digest
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
     from plan.scenario import load_scenario
@@ -139,8 +139,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
     from orchestrator.execute import execute
+    from orchestrator.outputs.report import print_outcome
     from orchestrator.progress import Progress
-    from orchestrator.report import print_outcome
 
     progress = Progress(scenario.schedule.n_ticks, scenario.tick_ns,
                         enabled=not args.quiet and sys.stderr.isatty())

@@ -20,18 +20,18 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from nodes.runtime.arrivals import Arrivals, Replay
-from nodes.runtime.notes import Note, read_notes
-from nodes.runtime.recording import PartWriter
-from nodes.runtime.transport.factory import create_transport
-from orchestrator.loop_result import LoopResult, goal_reached
-from orchestrator.manifest import write_manifest
+from orchestrator.lockstep.loop_result import LoopResult, goal_reached
+from orchestrator.lockstep.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
+from orchestrator.outputs.manifest import write_manifest
 from orchestrator.run_rules import check_run
-from orchestrator.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
 from plan.run_paths import RunPaths, make_run_dir
 from plan.scenario import Scenario
+from runtime.arrivals import Arrivals, Replay
+from runtime.notes import Note, read_notes
+from runtime.recording import PartWriter
+from runtime.transport.factory import create_transport
 
 log = logging.getLogger("cosim")
 
@@ -147,7 +147,7 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     """Write the bag from what was recorded; a failure here must not hide the run's own."""
     ticks = outcome.result.ticks if outcome.result else outcome.ticks_done
     try:
-        from orchestrator.bag import write_bag
+        from orchestrator.outputs.bag import write_bag
 
         return write_bag(scenario, outcome.run_dir, ticks, finished=outcome.result is not None)
     except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
@@ -157,7 +157,7 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
 def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     try:
-        from orchestrator.picture import write_report_png
+        from orchestrator.outputs.picture import write_report_png
 
         return write_report_png(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
@@ -170,7 +170,7 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     if outcome.bag is None or scenario.world is None:
         log.error("no USD export: the run has no bag or no world")
         return None
-    from orchestrator.usd_export import export_run_usd
+    from orchestrator.outputs.usd_export import export_run_usd
 
     started = time.monotonic()
     try:
@@ -191,7 +191,7 @@ def _arrivals_for(scenario: Scenario) -> Arrivals | None:
 def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.lockstep.inprocess import run_in_process
 
     writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
     arrivals = external.take if isinstance(external, Arrivals) else external
@@ -201,7 +201,7 @@ def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
     endpoints = _start_live(scenario, options, external)
     if endpoints is not None:
-        from orchestrator.live import in_process_observer
+        from orchestrator.live.view import in_process_observer
 
         live_observe, live_tick = in_process_observer(endpoints, scenario)
         observe = _both(observe, live_observe)
@@ -225,8 +225,8 @@ def _both(first: Callable, second: Callable) -> Callable:
 def _start_live(scenario: Scenario, options: RunOptions, external,
                 control_later: bool = False):
     """The live endpoints the options ask for, started; a failure to listen fails the run."""
-    from nodes.runtime.live.session import LiveError
-    from orchestrator.live import start_endpoints
+    from orchestrator.live.view import start_endpoints
+    from runtime.live.session import LiveError
 
     try:
         return start_endpoints(scenario, options, external, control_later)
@@ -248,7 +248,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         if opens_first:
             transport = _open_transport(settings)
             if settings.mirror_to_dds:  # its publishers are discovered while nodes start
-                from orchestrator.dds_mirror import DdsMirror
+                from orchestrator.live.dds_mirror import DdsMirror
 
                 mirror = DdsMirror(transport.session, transport.domain,
                                    list(settings.mirror_to_dds), scenario.topics,
@@ -256,11 +256,11 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         if not _start_nodes(scenario, paths, options, supervisor):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
-            import orchestrator.picture  # noqa: F401
-        from orchestrator.external import ExternalSource
-        from orchestrator.foreign_proxy import ForeignProxy
-        from orchestrator.master import LockstepMaster
-        from orchestrator.participants import CosimNode
+            import orchestrator.outputs.picture  # noqa: F401
+        from orchestrator.lockstep.master import LockstepMaster
+        from orchestrator.lockstep.participants import CosimNode
+        from orchestrator.proxies.external import ExternalSource
+        from orchestrator.proxies.foreign_proxy import ForeignProxy
 
         if not opens_first:
             transport = _open_transport(settings)
@@ -290,7 +290,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             outcome.command_to_first_tick_s = _since_process_start()
             log.info("all nodes ready after %.3f s", outcome.start_s)
             if endpoints is not None:
-                from orchestrator.live import attach_control, follow_parts
+                from orchestrator.live.view import attach_control, follow_parts
 
                 attach_control(endpoints, services)
                 tail = follow_parts(endpoints, scenario, paths)
@@ -338,9 +338,9 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
     from this process when that is safe (and no launch prefix wraps them), fresh
     interpreters otherwise; foreign programs by their command; external nodes are announced
     for the user to start. True when any node was forked."""
-    from nodes.runtime.cosim_node import run_lockstep, run_packed
-    from orchestrator.foreign_launch import foreign_argv, foreign_env
+    from orchestrator.proxies.foreign_launch import foreign_argv, foreign_env
     from plan.packing import process_groups
+    from runtime.cosim_node import run_lockstep, run_packed
 
     groups = process_groups(scenario, options.pack)
     if options.shuffle_start is not None:
@@ -375,12 +375,12 @@ def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
 def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
                     live: Arrivals | None):
-    """The run's control and its ROS 2 interfaces (orchestrator.sim_services): ros2 runs
+    """The run's control and its ROS 2 interfaces (orchestrator.ros_surface.sim_services): ros2 runs
     only, where ROS 2 tools can reach them; (None, None) otherwise."""
     if scenario.model.transport != "ros2":
         return None, None
-    from orchestrator.sim_services import start_services
-    from orchestrator.simcontrol import RunControl
+    from orchestrator.ros_surface.sim_services import start_services
+    from orchestrator.ros_surface.simcontrol import RunControl
 
     foreign = [n for n, p in scenario.nodes.items() if p.foreign]
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None

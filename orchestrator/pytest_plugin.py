@@ -159,7 +159,7 @@ class GoldenStore:
     def check(self, file: Path, key: str, result) -> str | None:
         """Record (when updating) or compare a run with its golden entry; a message when the
         digest changed, else None."""
-        from orchestrator.diff import fingerprint, run_dir_entries
+        from orchestrator.outputs.diff import fingerprint, run_dir_entries
 
         entries = self.entries(file)
         if self.update:
@@ -188,7 +188,7 @@ class GoldenStore:
 
 def mismatch_message(file: Path, key: str, golden: dict[str, Any], result) -> str:
     """The failure text of a changed digest, naming the first topic and tick that differ."""
-    from orchestrator.diff import fingerprint_entries, first_difference, run_dir_entries
+    from orchestrator.outputs.diff import fingerprint_entries, first_difference, run_dir_entries
 
     actual, tick_ns = run_dir_entries(result.run_dir) if result.bag else ([], None)
     diff = first_difference(fingerprint_entries(golden.get("messages", {})), actual, tick_ns)

@@ -5,7 +5,7 @@ is returned as warnings (refused too in a strict run)."""
 
 from __future__ import annotations
 
-from orchestrator.foreign_launch import is_python, missing_program
+from orchestrator.proxies.foreign_launch import is_python, missing_program
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions

@@ -58,7 +58,7 @@ class RunPaths:
         return self.logs / f"{node}.timing.json"
 
     def notes(self, node: str) -> Path:
-        """What a node told people during the run (nodes.runtime.notes), one JSON a line."""
+        """What a node told people during the run (runtime.notes), one JSON a line."""
         return self.logs / f"{node}.notes.jsonl"
 
     def profile(self, node: str) -> Path:

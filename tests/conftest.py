@@ -20,7 +20,7 @@ def run_processes() -> list[psutil.Process]:
     found = {p.pid: p for p in me.children(recursive=True)}
     for proc in psutil.process_iter(["cmdline"]):
         cmdline = " ".join(proc.info["cmdline"] or [])
-        if any(mark in cmdline for mark in ("nodes.runtime.cosim_node", "cosim-node",
+        if any(mark in cmdline for mark in ("runtime.cosim_node", "cosim-node",
                                             "orchestrator.cosim_orchestrate")):
             try:
                 if proc.environ().get("ROS_DOMAIN_ID") == DOMAIN and proc.pid != me.pid:

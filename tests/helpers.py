@@ -10,7 +10,7 @@ from pathlib import Path
 
 ORCHESTRATE = [sys.executable, "-m", "orchestrator.cosim_orchestrate"]
 """The cosim-orchestrate command, run with this interpreter."""
-COSIM_NODE = [sys.executable, "-m", "nodes.runtime.cosim_node"]
+COSIM_NODE = [sys.executable, "-m", "runtime.cosim_node"]
 """The cosim-node command, run with this interpreter."""
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
@@ -49,7 +49,7 @@ def node_process(orchestrator_pid: int, name: str):
     name every node gives itself, whether forked or started as a fresh interpreter)."""
     import psutil
 
-    from nodes.runtime.parent import process_name
+    from runtime.parent import process_name
 
     for child in psutil.Process(orchestrator_pid).children():
         if child.name() == process_name(name):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import random
 
-from nodes.runtime.exchange import RunDigest
-from nodes.runtime.protocol import Done
-from orchestrator.acks import AckBook
+from orchestrator.lockstep.acks import AckBook
 from plan.schedule import SAME_TICK, Edge, Schedule
+from runtime.exchange import RunDigest
+from runtime.protocol import Done
 
 
 def schedule() -> Schedule:

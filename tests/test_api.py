@@ -7,7 +7,7 @@ from std_msgs.msg import Float64, Int64
 
 from orchestrator.api import EXIT_CODES, FinishedRun, load, overrides_for, run
 from orchestrator.cosim_orchestrate import main
-from orchestrator.diff import (
+from orchestrator.outputs.diff import (
     _expand,
     _runs,
     fingerprint,

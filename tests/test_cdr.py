@@ -13,7 +13,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan, PointCloud2, PointField
 from std_msgs.msg import Empty, Float64MultiArray, MultiArrayDimension, String
 
-from nodes.runtime.cdr.canonical import canonical_cdr
+from runtime.cdr.canonical import canonical_cdr
 
 
 def messages():

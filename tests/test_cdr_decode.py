@@ -10,8 +10,8 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Int64
 
-from nodes.runtime.cdr.decode import decode, decoder_for
-from nodes.runtime.cdr.encode import encode
+from runtime.cdr.decode import decode, decoder_for
+from runtime.cdr.encode import encode
 from tests.test_cdr_encode import fill, message_classes
 
 

@@ -15,8 +15,8 @@ from rosidl_parser import definition as d
 from sensor_msgs.msg import JointState, LaserScan
 
 from nodes.control.plan import path_message
-from nodes.runtime.cdr.canonical import canonical_cdr
-from nodes.runtime.cdr.encode import encode, encoder_for
+from runtime.cdr.canonical import canonical_cdr
+from runtime.cdr.encode import encode, encoder_for
 
 PACKAGES = ["std_msgs", "geometry_msgs", "sensor_msgs", "nav_msgs", "diagnostic_msgs",
             "rosgraph_msgs", "builtin_interfaces", "visualization_msgs", "trajectory_msgs",

@@ -167,7 +167,7 @@ def test_each_geom_type_covers_its_own_footprint(tmp_path, geom, inside, outside
 
 
 def test_report_picture_draws_cylinders_as_circles(tmp_path):
-    from orchestrator.picture import load_world
+    from orchestrator.outputs.picture import load_world
 
     world = load_world(write_world(tmp_path, PILLAR_ROW + WALLS))
     assert sorted(r for _, _, r in world.circles) == [0.29] * 6

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from nodes.runtime.protocol import DONE, Done, decode_status, done_status, encode_status
+from runtime.protocol import DONE, Done, decode_status, done_status, encode_status
 from tests.helpers import SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
@@ -27,8 +27,8 @@ def test_status_bytes_are_what_rclpy_writes_and_read_back_from_rclpy_bytes():
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     from rclpy.serialization import serialize_message
 
-    from nodes.runtime.cdr.canonical import canonical_cdr
-    from nodes.runtime.protocol import ERROR, Status
+    from runtime.cdr.canonical import canonical_cdr
+    from runtime.protocol import ERROR, Status
 
     status = Status("cam\u00e9ra", ERROR, 7, "d1", "d\u00e9tail \u20ac", {"k": "v\u00e9", "ab": ""})
     msg = DiagnosticStatus(level=DiagnosticStatus.ERROR, name=status.node, message=status.detail,

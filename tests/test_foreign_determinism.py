@@ -13,7 +13,7 @@ import time
 import pytest
 import yaml
 
-from orchestrator.bag import BagReader
+from orchestrator.outputs.bag import BagReader
 from tests.helpers import SCENARIOS, orchestrate
 
 FUSION = SCENARIOS / "foreign_fusion.yaml"

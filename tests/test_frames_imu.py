@@ -14,9 +14,9 @@ from std_msgs.msg import Float64MultiArray
 
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
-from nodes.runtime.exchange import StepContractError, prepare_outputs
 from plan.errors import ScenarioError
 from plan.scenario import load_scenario
+from runtime.exchange import StepContractError, prepare_outputs
 from tests.helpers import ROOT
 from tests.worlds import write_world
 

@@ -15,13 +15,13 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, LaserScan
 from std_srvs.srv import SetBool
 
-from nodes.runtime.live.channels import BoundedChannels
-from nodes.runtime.live.convert import MessageError, from_json, to_json
-from nodes.runtime.live.schemas import message_schema, service_schemas
 from orchestrator.api import load, run
 from orchestrator.run_rules import check_run
 from plan.listen import parse_listen
 from plan.options import RunOptions
+from runtime.live.channels import BoundedChannels
+from runtime.live.convert import MessageError, from_json, to_json
+from runtime.live.schemas import message_schema, service_schemas
 from tests.live_helpers import (
     finish,
     free_port,

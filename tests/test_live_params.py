@@ -10,10 +10,10 @@ from rclpy.parameter import Parameter
 
 from nodes.control.node import ControlParams
 from nodes.live_params import ParamsInput, change_message, changes_in, flatten, with_changes
-from nodes.runtime.arrivals import Arrivals
-from orchestrator.simcontrol import RunControl
+from orchestrator.ros_surface.simcontrol import RunControl
 from plan.errors import ScenarioError
 from plan.scenario import load_scenario
+from runtime.arrivals import Arrivals
 from tests.helpers import ROOT, SCENARIOS
 
 NAV = ROOT / "scenarios" / "nav.yaml"
@@ -78,7 +78,7 @@ def test_changes_are_checked_cumulative_and_applied_once():
 def parameters(ros_node):
     """The control node's parameters of an interactive nav run, served on the test's
     context, with the arrivals they put changes into."""
-    from orchestrator.param_server import NodeParameters
+    from orchestrator.ros_surface.param_server import NodeParameters
     from plan.registry import load_class
 
     node, executor = ros_node
@@ -132,7 +132,7 @@ def test_node_parameters_over_the_standard_services(parameters, ros_node):
 
 
 def test_parameters_are_fixed_when_the_scenario_is_not_interactive(ros_node):
-    from orchestrator.param_server import NodeParameters
+    from orchestrator.ros_surface.param_server import NodeParameters
     from plan.registry import load_class
 
     node, _ = ros_node

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from rclpy.serialization import deserialize_message
 
-from orchestrator.inprocess import run_in_process
+from orchestrator.lockstep.inprocess import run_in_process
 from plan.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"

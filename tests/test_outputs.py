@@ -15,11 +15,11 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from nodes.runtime.timing import PARTS
-from orchestrator.picture import write_report_png
+from orchestrator.outputs.picture import write_report_png
+from orchestrator.outputs.report import print_outcome
 from orchestrator.progress import REDRAW_S, Progress
-from orchestrator.report import print_outcome
 from plan.scenario import load_scenario
+from runtime.timing import PARTS
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from orchestrator.inprocess import run_in_process
+from orchestrator.lockstep.inprocess import run_in_process
 from plan.scenario import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 

@@ -19,8 +19,8 @@ from simulation_interfaces.srv import (
     SetEntityState,
 )
 
-from orchestrator.bag import BagReader, message_class
-from orchestrator.inprocess import run_in_process
+from orchestrator.lockstep.inprocess import run_in_process
+from orchestrator.outputs.bag import BagReader, message_class
 from plan.scenario import load_scenario
 from tests.helpers import ROOT
 from tests.sim_client import OK, SimClient, orchestrate
@@ -206,7 +206,7 @@ def _collect(into: dict):
     """An in-process observer that keeps /cmd_vel's linear.x per tick."""
     from geometry_msgs.msg import Twist
 
-    from nodes.runtime.cdr.decode import decode
+    from runtime.cdr.decode import decode
 
     def observe(tick, node, items):
         for topic, data in items:

@@ -16,7 +16,7 @@ import roslibpy
 from websockets.sync.client import connect
 
 from orchestrator.api import load, run
-from orchestrator.bag import BagReader
+from orchestrator.outputs.bag import BagReader
 from tests.live_helpers import (
     NAV,
     cosim_node,

@@ -16,7 +16,7 @@ from simulation_interfaces.srv import (
     SetSimulationState,
 )
 
-from orchestrator.inprocess import run_in_process
+from orchestrator.lockstep.inprocess import run_in_process
 from plan.scenario import load_scenario
 from tests.helpers import SCENARIOS
 from tests.sim_client import OK, SimClient, orchestrate

@@ -345,9 +345,9 @@ def test_a_reset_latches_tf_static_again_and_equals_a_fresh_run(tmp_path, ros_no
 def test_a_latched_publisher_serves_subscriptions_made_after_it_published(kind):
     from std_msgs.msg import Int64
 
-    from nodes.runtime.cdr.encode import encode
-    from nodes.runtime.transport.factory import create_transport
     from plan.options import TransportSettings
+    from runtime.cdr.encode import encode
+    from runtime.transport.factory import create_transport
 
     settings = TransportSettings(kind=kind)
     publisher_side = create_transport(settings, f"latch_pub_{kind}")

@@ -14,8 +14,8 @@ from std_msgs.msg import Float64MultiArray
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
 from nodes.sensors.node import SensorsNode
-from orchestrator.inprocess import run_in_process
-from orchestrator.usd_export import world_states
+from orchestrator.lockstep.inprocess import run_in_process
+from orchestrator.outputs.usd_export import world_states
 from plan.errors import ScenarioError
 from plan.scenario import load_scenario
 from plan.worldfile import WorldError, load_world_model

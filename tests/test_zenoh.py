@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from nodes.runtime.transport.zenoh import liveliness_key, topic_key, type_hash
-from orchestrator.inprocess import run_in_process
+from orchestrator.lockstep.inprocess import run_in_process
 from plan.scenario import load_scenario
+from runtime.transport.zenoh import liveliness_key, topic_key, type_hash
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
@@ -165,7 +165,7 @@ def test_mirror_to_dds_lets_ros2_tools_watch_a_zenoh_run(tmp_path):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Int64
 
-    from nodes.runtime.transport.ros2 import use_cosim_dds_profile
+    from runtime.transport.ros2 import use_cosim_dds_profile
 
     use_cosim_dds_profile()
     context = rclpy.Context()

@@ -15,7 +15,7 @@
   registered to the colour one.
 
 Stamps are left to the runtime, which stamps every transform of a TFMessage with the tick's
-time (nodes.runtime.exchange.prepare_outputs).
+time (runtime.exchange.prepare_outputs).
 """
 
 from __future__ import annotations

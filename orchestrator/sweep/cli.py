@@ -137,7 +137,7 @@ def _close(backend) -> None:
 
 def _sweep(args: argparse.Namespace, checked, backend) -> int:
     """Run what is left of the plan, then write the table and the picture."""
-    from orchestrator.supervisor import signals_ignored
+    from orchestrator.lockstep.supervisor import signals_ignored
     from orchestrator.sweep.checks import PLAN_NAME
     from orchestrator.sweep.progress import SweepProgress
     from orchestrator.sweep.results import RunRecords, to_skip

@@ -31,10 +31,10 @@ from typing import Any
 
 import psutil
 
-from nodes.runtime.parent import die_with_parent
-from orchestrator.supervisor import signals_ignored
+from orchestrator.lockstep.supervisor import signals_ignored
 from orchestrator.sweep.one_run import base_record, find_run_dir, last_log_line, run_logged
 from orchestrator.sweep.plan import RunSpec
+from runtime.parent import die_with_parent
 
 OnRecord = Callable[[dict[str, Any]], None]
 POLL_S = 0.1

@@ -23,7 +23,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from orchestrator.supervisor import signals_ignored
+from orchestrator.lockstep.supervisor import signals_ignored
 from orchestrator.sweep.one_run import base_record, find_run_dir, last_log_line, run_logged
 from orchestrator.sweep.plan import RunSpec
 

@@ -1,0 +1,128 @@
+"""The run's live endpoints (``--live``, ``--rosbridge``), wired to the orchestrator.
+
+- What clients see: every topic of the run and /clock. In a multi-process run a thread
+  reads what the nodes record as they record it (``orchestrator.live.live_tail``): nothing is
+  added to the transport or to the master's loop; an in-process run offers what its
+  observer sees. ``offer`` never blocks: the endpoints keep bounded queues and serve from
+  their own threads.
+- What clients drive: messages enter through the run's ``Arrivals`` (the scenario's
+  ``external:`` topics), at the external node's next tick, recorded and hashed; services
+  reach the run's simulation services (``orchestrator.ros_surface.sim_services``: ``/cosim/pause``,
+  ``/cosim/step``, ``/cosim/reset``, the simulation_interfaces services), each call served
+  by their own executor, exactly as a ROS 2 client's call is; what it changes acts between
+  ticks.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+from rosgraph_msgs.msg import Clock
+
+from plan.options import RunOptions
+from plan.scenario import Scenario
+from runtime.live.endpoints import Catalog, ServiceUnavailable
+from runtime.live.session import LiveEndpoints
+from runtime.protocol import CLOCK_TOPIC, encode_clock
+
+POLL_S = 0.005
+
+
+class SimControlServices:
+    """The services of the run's simulation services node, callable from any thread."""
+
+    def __init__(self, control):
+        self.control = control
+        # rclpy's own type-description service is no simulation control
+        self._services = {srv.srv_name: srv for srv in control.node.services
+                          if not srv.srv_type.__module__.startswith("type_description")}
+
+    def types(self) -> dict[str, type]:
+        """Service name -> service class."""
+        return {name: srv.srv_type for name, srv in self._services.items()}
+
+    def call(self, name: str, request: Any, timeout_s: float) -> Any:
+        """Run the service's callback on the services' executor and wait for its
+        response."""
+        service = self._services.get(name)
+        if service is None:
+            raise ServiceUnavailable(f"no service {name}")
+        try:
+            task = self.control.executor.create_task(service.callback, request,
+                                                     service.srv_type.Response())
+        except Exception as exc:  # noqa: BLE001 - the executor is shut down: the run is over
+            raise ServiceUnavailable(f"the run takes no more calls ({exc})") from None
+        deadline = time.monotonic() + timeout_s
+        while not task.done():
+            if time.monotonic() > deadline:
+                task.cancel()
+                raise ServiceUnavailable(f"{name}: the run did not take the call within "
+                                         f"{timeout_s:g} s (it may be over)")
+            time.sleep(POLL_S)
+        if task.exception() is not None:
+            raise ServiceUnavailable(f"{name} failed: {task.exception()}")
+        return task.result()
+
+
+def catalog_for(scenario: Scenario, arrivals) -> Catalog:
+    """What the endpoints of this run offer: its topics and /clock, its external topics
+    (when ``arrivals`` is live); services come with ``attach_control``."""
+    topics = {CLOCK_TOPIC: Clock, **dict(sorted(scenario.topics.items()))}
+    if arrivals is None:
+        why = ("this run takes no messages from outside: give the scenario an external: "
+               "section, e.g. external: {rate: 10, topics: {/cmd_vel: geometry_msgs/msg/Twist}}")
+    else:
+        why = "this run replays recorded inputs and takes none from outside"
+    inbox = arrivals if hasattr(arrivals, "put") else None
+    return Catalog(topics, inbox=inbox, no_inbox_text=why,
+                   latched=frozenset(scenario.latched_topics))
+
+
+def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
+                    control_later: bool = False) -> LiveEndpoints | None:
+    """Start what the options ask for (None when neither); LiveError when one cannot listen.
+    ``control_later``: the run's simulation services come once the nodes are ready
+    (``attach_control``); clients may connect before."""
+    if not (options.live or options.rosbridge):
+        return None
+    end_ns = scenario.schedule.time_ns(max(scenario.schedule.n_ticks - 1, 0))
+    endpoints = LiveEndpoints(catalog_for(scenario, arrivals), options.live_address,
+                              options.rosbridge_address, f"cosim {scenario.name}", end_ns,
+                              control_later)
+    for line in endpoints.start():
+        print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
+    return endpoints
+
+
+def attach_control(endpoints: LiveEndpoints, services) -> None:
+    """Offer the run's simulation services (a SimServices, once built) to the endpoints'
+    clients."""
+    if services is not None and services.wait_built():
+        endpoints.attach_services(SimControlServices(services))
+
+
+def follow_parts(endpoints: LiveEndpoints, scenario: Scenario, paths):
+    """Start offering what the run's nodes record (a multi-process run); the follower."""
+    from orchestrator.live.live_tail import PartsTail
+
+    tail = PartsTail({name: paths.part(name) for name in scenario.nodes},
+                     set(scenario.topics), scenario.tick_ns, endpoints.offer)
+    tail.start()
+    return tail
+
+
+def in_process_observer(endpoints: LiveEndpoints, scenario: Scenario):
+    """(observer, on_tick) for ``run_in_process``: offer each activation's outputs, and
+    /clock once a tick is done (an in-process run has no /clock of its own)."""
+    sched = scenario.schedule
+
+    def observe(_tick: int, _name: str, items: list[tuple[str, bytes]]) -> None:
+        for topic, data in items:
+            endpoints.offer(topic, data)
+
+    def on_tick(tick: int) -> None:
+        endpoints.offer(CLOCK_TOPIC, encode_clock(sched.time_ns(tick)))
+
+    return observe, on_tick

@@ -1,0 +1,184 @@
+"""Where two runs part: the first (tick, topic) whose recorded message differs.
+
+The run digest says *whether* two runs differ; this module says *where*. Every message of a
+run's bag is hashed (its serialised bytes are canonical: equal messages give equal bytes) and
+the two runs are walked side by side in (tick, topic) order. ``/clock`` is left out: it is not
+part of the digest and depends only on how many ticks ran.
+
+A run can also be kept as a compact *fingerprint* (per topic: its ticks as arithmetic runs and
+a short hash prefix per message, base64) so a golden file can name the first difference
+without keeping the golden run's bag.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from plan.run_paths import RunPaths
+
+CLOCK_TOPIC = "/clock"
+FINGERPRINT_HASH_BYTES = 3
+"""Bytes of sha256 kept per message in a fingerprint: 4 base64 characters, a chance of
+1 in 16.7 million that one changed message goes unnoticed (the next one then names it)."""
+
+Entry = tuple[int, str, bytes]
+"""(tick, topic, sha256 of the message's serialised bytes, or a prefix of it)."""
+
+
+@dataclass(frozen=True)
+class Difference:
+    """The first place two runs differ: a tick, a topic and what is different there."""
+
+    tick: int
+    topic: str
+    kind: str  # differs | missing (only in the reference) | extra (only in this run)
+    tick_ns: int | None = None
+
+    def describe(self) -> str:
+        """'topic /odom at tick 37 (t = 0.740 s): the message differs'."""
+        when = f" (t = {self.tick * self.tick_ns / 1e9:.3f} s)" if self.tick_ns else ""
+        what = {"differs": "the message differs",
+                "missing": "the reference run has a message here, this run has none",
+                "extra": "this run has a message here, the reference run has none"}[self.kind]
+        return f"topic {self.topic} at tick {self.tick}{when}: {what}"
+
+
+def bag_entries(bag: Path, tick_ns: int) -> list[Entry]:
+    """Every message of a rosbag2 directory but /clock as (tick, topic, sha256), sorted."""
+    from orchestrator.outputs.bag import BagReader
+
+    with BagReader(Path(bag)) as reader:
+        entries = [(stamp // tick_ns, topic, hashlib.sha256(raw).digest())
+                   for topic, stamp, raw in reader.raw(exclude=[CLOCK_TOPIC])]
+    entries.sort(key=lambda e: (e[0], e[1]))
+    return entries
+
+
+def run_dir_entries(run_dir: Path) -> tuple[list[Entry], int]:
+    """A run directory's messages (see ``bag_entries``) and its tick in ns, from the manifest."""
+    manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
+    bag = manifest.get("outputs", {}).get("bag") or "bag"
+    tick_ns = int(manifest["tick_ns"])
+    return bag_entries(Path(run_dir) / bag, tick_ns), tick_ns
+
+
+def first_difference(reference: Iterable[Entry], actual: Iterable[Entry],
+                     tick_ns: int | None = None) -> Difference | None:
+    """The first (tick, topic) where two sorted entry lists differ; None when they agree.
+
+    Hashes of different lengths (a fingerprint's prefix against a full hash) are compared on
+    the shorter length.
+    """
+    ref, act = _keyed(reference), _keyed(actual)
+    for key in sorted(set(ref) | set(act)):
+        tick, topic, _ = key
+        if key not in act:
+            return Difference(tick, topic, "missing", tick_ns)
+        if key not in ref:
+            return Difference(tick, topic, "extra", tick_ns)
+        a, b = ref[key], act[key]
+        n = min(len(a), len(b))
+        if a[:n] != b[:n]:
+            return Difference(tick, topic, "differs", tick_ns)
+    return None
+
+
+def _keyed(entries: Iterable[Entry]) -> dict[tuple[int, str, int], bytes]:
+    """Entries keyed by (tick, topic, occurrence within that tick and topic)."""
+    out: dict[tuple[int, str, int], bytes] = {}
+    for tick, topic, digest in entries:
+        n = 0
+        while (tick, topic, n) in out:
+            n += 1
+        out[(tick, topic, n)] = digest
+    return out
+
+
+def fingerprint(entries: Iterable[Entry]) -> dict[str, dict]:
+    """A compact per-topic form of entries: {topic: {'ticks': 'start:step:count ...' (runs
+    of evenly spaced ticks), 'hashes': base64 of FINGERPRINT_HASH_BYTES per message}}."""
+    by_topic: dict[str, tuple[list[int], bytearray]] = {}
+    for tick, topic, digest in entries:
+        ticks, hashes = by_topic.setdefault(topic, ([], bytearray()))
+        ticks.append(tick)
+        hashes += digest[:FINGERPRINT_HASH_BYTES]
+    return {topic: {"ticks": _runs(ticks), "hashes": base64.b64encode(bytes(hashes)).decode()}
+            for topic, (ticks, hashes) in sorted(by_topic.items())}
+
+
+def fingerprint_entries(print_: dict[str, dict]) -> list[Entry]:
+    """The entries a fingerprint stands for (hashes shortened to the fingerprint's prefix)."""
+    entries: list[Entry] = []
+    for topic, item in print_.items():
+        hashes = base64.b64decode(item["hashes"])
+        ticks = _expand(item["ticks"])
+        size = len(hashes) // max(len(ticks), 1)
+        entries += [(tick, topic, hashes[i * size:(i + 1) * size]) for i, tick in enumerate(ticks)]
+    entries.sort(key=lambda e: (e[0], e[1]))
+    return entries
+
+
+def _runs(ticks: list[int]) -> str:
+    """[0, 2, 4, 6, 7] -> '0:2:4 7:1:1': arithmetic runs start:step:count."""
+    runs: list[list[int]] = []
+    for tick in ticks:
+        if runs and runs[-1][2] == 1 and tick > runs[-1][0]:
+            runs[-1][1], runs[-1][2] = tick - runs[-1][0], 2
+        elif runs and runs[-1][0] + runs[-1][1] * runs[-1][2] == tick:
+            runs[-1][2] += 1
+        else:
+            runs.append([tick, 1, 1])
+    return " ".join(f"{start}:{step}:{count}" for start, step, count in runs)
+
+
+def _expand(runs: str) -> list[int]:
+    """The inverse of ``_runs``: '0:2:3 7:1:1' -> [0, 2, 4, 7]."""
+    triples = [tuple(map(int, run.split(":"))) for run in runs.split()]
+    return [start + step * i for start, step, count in triples for i in range(count)]
+
+
+def expected_digest(given: str | None, against: Path | None) -> str | None:
+    """The digest a run must have (--expect-digest, else --against DIR's); ValueError when
+    the hex is malformed or DIR is not a recorded run with a digest and a bag."""
+    if against is not None:
+        manifest = RunPaths(Path(against)).manifest
+        if not manifest.is_file():
+            raise ValueError(f"--against {against}: not a run directory (no manifest.json)")
+        recorded = json.loads(manifest.read_text())
+        if not (Path(against) / (recorded.get("outputs", {}).get("bag") or "bag")).is_dir():
+            raise ValueError(f"--against {against}: the run has no bag to compare with")
+        given = given or recorded.get("digest")
+        if not given:
+            raise ValueError(f"--against {against}: the run has no digest (it did not finish); "
+                             "give --expect-digest HEX")
+    if given is None:
+        return None
+    text = given.strip().lower()
+    if len(text) != 64 or any(c not in "0123456789abcdef" for c in text):
+        raise ValueError(f"--expect-digest {given!r}: expected 64 hex digits (a sha256 digest "
+                         "as printed by cosim-orchestrate)")
+    return text
+
+
+def digest_mismatch(expected: str, digest: str, run_dir: Path,
+                    against: Path | None) -> str | None:
+    """None when the digest is the expected one, else a message naming the first topic and
+    tick that differ from the run directory ``against`` (when given)."""
+    if digest == expected:
+        return None
+    text = f"digest mismatch: expected {expected}, got {digest}."
+    if against is None:
+        return text + (" Give --against DIR (a recorded run with the expected digest) to "
+                       "name the first topic and tick that differ.")
+    reference, tick_ns = run_dir_entries(Path(against))
+    actual, _ = run_dir_entries(Path(run_dir))
+    diff = first_difference(reference, actual, tick_ns)
+    if diff is None:
+        return text + (f" Every recorded message equals {against}'s; the runs differ in what "
+                       "the digest covers beyond the messages (nodes, schedule).")
+    return text + f" First difference from {against}: {diff.describe()}."

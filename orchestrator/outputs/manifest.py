@@ -1,0 +1,156 @@
+"""manifest.json: what ran, with which software, what came out, and what it cost."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import resource
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from plan.run_paths import RunPaths
+from runtime.timing import read_summary
+
+
+def software_versions() -> dict[str, str]:
+    """Versions of python and the packages a result depends on."""
+    out = {"python": platform.python_version()}
+    for name, dist in (("mujoco", "mujoco"), ("rclpy", "ros-jazzy-rclpy"),
+                       ("zenoh", "eclipse-zenoh"), ("cosim", "cosim")):
+        try:
+            out[name] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def startup_entry(outcome) -> dict[str, Any]:
+    """Start-up: from the orchestrator process's creation (the command) to the first tick,
+    from the run's start (scenario checked) to it, and how node processes were started."""
+    spawned = {proc.started for _, proc in outcome.node_stats.values() if proc}
+    first = outcome.command_to_first_tick_s
+    return {"command_to_first_tick_s": round(first, 3) if first is not None else None,
+            "run_start_to_first_tick_s": (round(outcome.start_s, 3)
+                                          if outcome.start_s is not None else None),
+            "node_processes": "/".join(sorted(spawned)) or None}
+
+
+def node_entry(stats, proc) -> dict[str, Any]:
+    """Per-node cost: CPU, peak memory, ticks served, mean and worst step time, and where
+    the node's run loop spent its wall time (``time_s``, written by the node at its end)."""
+    entry: dict[str, Any] = {"ticks": stats.ticks}
+    if stats.ticks:
+        entry["step_ms_mean"] = round(stats.step_ns_total / stats.ticks / 1e6, 4)
+        entry["step_ms_worst"] = round(stats.step_ns_worst / 1e6, 4)
+    if stats.ready_s is not None:
+        entry["ready_s"] = round(stats.ready_s, 3)
+    if proc is not None:
+        entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
+                     cpu_s=round(proc.cpu_s, 3),
+                     peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
+        split = read_summary(RunPaths(proc.log_path.parent.parent).timing(proc.name))
+        if split is not None:
+            entry["time_s"] = split
+    return entry
+
+
+def in_process_entries(scenario, ticks: int, result=None) -> dict[str, Any]:
+    """Per-node entries of an in-process run: activations served, mean and worst step time
+    (CPU and memory are the one process's, under 'orchestrator')."""
+    out = {}
+    for name in scenario.schedule.order:
+        entry: dict[str, Any] = {
+            "ticks": (ticks - 1) // scenario.schedule.periods[name] + 1 if ticks else 0}
+        n, total, worst = (result.step_ns.get(name) if result else None) or (0, 0, 0)
+        if n:
+            entry.update(step_ms_mean=round(total / n / 1e6, 4),
+                         step_ms_worst=round(worst / 1e6, 4))
+        out[name] = entry
+    return out
+
+
+def own_cost() -> dict[str, float]:
+    """This process's CPU time and peak memory (all of an in-process run's nodes)."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return {"cpu_s": round(usage.ru_utime + usage.ru_stime, 3),
+            "peak_rss_mb": round(usage.ru_maxrss / 1024, 1)}
+
+
+def relative(path: Path | None, run_dir: Path) -> str | None:
+    """A path inside the run directory as a relative text, None when there is none."""
+    if path is None:
+        return None
+    try:
+        return str(Path(path).relative_to(run_dir))
+    except ValueError:
+        return str(path)
+
+
+def file_entry(path: Path | None) -> dict[str, Any] | None:
+    """A file's name and sha256 (the world a run loaded)."""
+    if path is None or not Path(path).is_file():
+        return None
+    return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
+
+
+def scenario_entry(scenario) -> dict[str, Any]:
+    """Which scenario ran: name, file, hash, overrides, world, planned length."""
+    return {"name": scenario.name, "file": str(scenario.file), "sha256": scenario.sha256,
+            "overrides": scenario.overrides, "world": file_entry(scenario.world),
+            "planned_ticks": scenario.schedule.n_ticks}
+
+
+def outputs_entry(outcome) -> dict[str, Any]:
+    """Where the outputs are, relative to the run directory (None: not written)."""
+    run_dir = outcome.run_dir
+    parts = RunPaths(run_dir).parts
+    return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
+            "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
+            "parts": "parts" if parts.exists() else None}
+
+
+def build_manifest(scenario, outcome, options) -> dict[str, Any]:
+    """The manifest as a dict."""
+    result = outcome.result
+    ticks = result.ticks if result else 0
+    sim_s = max(ticks - 1, 0) * scenario.tick_ns / 1e9
+    metrics = {k: v for m in (result.metrics.values() if result else []) for k, v in m.items()}
+    nodes = {name: node_entry(stats, proc) for name, (stats, proc) in outcome.node_stats.items()}
+    if options.in_process and not nodes:
+        nodes = in_process_entries(scenario, ticks, result)
+    return {
+        "scenario": scenario_entry(scenario),
+        "seed": scenario.model.seed,
+        "transport": "in-process" if options.in_process else scenario.model.transport,
+        "versions": software_versions(),
+        "digest": result.digest if result else None,
+        "outcome": {"status": outcome.status, "success": outcome.success,
+                    "collisions": outcome.collisions, "error": outcome.error,
+                    "metrics": metrics, "stopped_early": bool(result and result.stopped_early),
+                    "metrics_by_node": result.metrics if result else {}},
+        "ticks": ticks,
+        "tick_ns": scenario.tick_ns,
+        "sim_time_s": sim_s,
+        "wall_time_s": round(outcome.wall_s, 3),
+        "start_s": round(outcome.start_s, 3) if outcome.start_s is not None else None,
+        "startup": startup_entry(outcome),
+        "loop_s": round(outcome.loop_s, 4) if outcome.loop_s is not None else None,
+        "ticks_per_s": round(ticks / outcome.loop_s, 1) if outcome.loop_s else None,
+        "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,
+        "loop_real_time_factor": round(sim_s / outcome.loop_s, 2) if outcome.loop_s else None,
+        "orchestrator": own_cost(),
+        "nodes": nodes,
+        "outputs": outputs_entry(outcome),
+        "options": options.as_dict(),
+        "warnings": list(getattr(outcome, "warnings", [])),
+        "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
+        "live": getattr(outcome, "live", None) or None,
+    }
+
+
+def write_manifest(scenario, outcome, options) -> None:
+    """Write manifest.json into the run directory."""
+    manifest = build_manifest(scenario, outcome, options)
+    RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")

@@ -1,0 +1,97 @@
+"""A finished run as an OpenUSD stage (``run.usda``) that usdview and Omniverse play back.
+
+Built after the run from the bag, never during it, so writing cannot change the digest: every
+``/cosim/world_state`` message (the whole model's qpos at a physics tick) poses a kinematic copy
+of the world (``mj_kinematics``), and MuJoCo's ``mujoco.usd.writer.UsdWriter`` with a
+``mujoco.usd.layer_sink.LayerSink`` writes each body's transform as a time sample.
+
+Time codes are tick indices and ``timeCodesPerSecond`` is the tick rate, so time code ``k`` is
+sim time ``k * tick``. The stage is the world itself (a USD world is composed in metres, Z up,
+and flattened into the file; an MJCF world is written from scratch by the writer), plus
+every body MuJoCo knows that the world file does not describe in USD (an MJCF robot:
+geometry, joints, actuators, camera) under the default prim, e.g. ``/World/base_link``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from plan.worldfile import compile_world, is_usd, load_world_spec, open_stage
+
+WORLD_STATE = "/cosim/world_state"
+NS_PER_S = 1_000_000_000
+
+
+def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path) -> Path:
+    """Write ``out`` (a .usda/.usdc) from the bag's world states; returns the path."""
+    from mujoco.usd import layer_sink, writer
+
+    spec = load_world_spec(world)
+    for light in [li for li in spec.lights if li.name.startswith("/")]:
+        spec.delete(light)  # added from UsdLux prims the stage already has
+    stage, samples = _stage_for(world, spec)
+    model = compile_world(spec, world)
+    data = mujoco.MjData(model)
+    usd_writer = writer.UsdWriter(stage, spec, model)
+    usd_writer.add_sink(layer_sink.LayerSink(stage).update)
+    ticks = []
+    for tick, qpos in world_states(bag, tick_ns, model.nq):
+        data.qpos[:] = qpos
+        data.time = float(tick)  # LayerSink: time code = data.time * the layer's rate (1)
+        mujoco.mj_kinematics(model, data)
+        usd_writer.update(data)
+        ticks.append(tick)
+    _set_timing(stage, samples, tick_ns, ticks)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage.Export(str(out))
+    return out
+
+
+def _stage_for(world: Path, spec: mujoco.MjSpec):
+    """The stage to write into and its (empty, strongest) sample layer as the edit target."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    if is_usd(world):
+        stage = open_stage(world)
+    else:
+        stage = Usd.Stage.CreateInMemory()
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+        stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    spec.modelname = stage.GetDefaultPrim().GetName()
+    samples = Sdf.Layer.CreateAnonymous("cosim-samples.usda")
+    samples.timeCodesPerSecond = 1.0
+    stage.GetRootLayer().subLayerPaths.insert(0, samples.identifier)
+    stage.SetEditTarget(samples)
+    return stage, samples
+
+
+def _set_timing(stage, samples, tick_ns: int, ticks: list[int]) -> None:
+    """Time code = tick index; rate = ticks per second (both layers agree: no retiming)."""
+    rate = NS_PER_S / tick_ns
+    root = stage.GetRootLayer()
+    for layer in (root, samples):
+        layer.timeCodesPerSecond = rate
+        layer.framesPerSecond = rate
+    if ticks:
+        root.startTimeCode, root.endTimeCode = float(ticks[0]), float(ticks[-1])
+    root.documentation = (f"cosim run: body transforms sampled at every physics tick; time code "
+                          f"k = tick k = {tick_ns} ns * k of sim time.")
+
+
+def world_states(bag: Path, tick_ns: int, nq: int) -> Iterator[tuple[int, np.ndarray]]:
+    """(tick, qpos) of every /cosim/world_state message in the bag, in order."""
+    from orchestrator.outputs.bag import BagReader
+
+    with BagReader(Path(bag)) as reader:
+        for _, stamp, raw in reader.raw([WORLD_STATE]):
+            msg = reader.deserialize(raw, WORLD_STATE)
+            dims = msg.layout.dim
+            if not dims or dims[0].label != "qpos" or dims[0].size != nq:
+                raise ValueError(f"{bag}: {WORLD_STATE} at {stamp} ns does not carry the "
+                                 f"world's qpos ({nq} values first)")
+            yield stamp // tick_ns, np.asarray(msg.data[:nq], dtype=np.float64)

@@ -1,0 +1,121 @@
+"""How a foreign program is started (kept apart from ``orchestrator.proxies.foreign_proxy``, which
+loads rclpy: the orchestrator builds the command before it forks its own node processes).
+
+A Python program (its command runs ``python``/``python3`` or a ``.py`` file) is *gated*: its
+inputs and its ``/clock`` are remapped onto private feed topics that the orchestrator alone
+publishes, one tick's bundle at a time, and cosim's gate (``runtime/foreign_gate``,
+injected through ``sitecustomize`` on its ``PYTHONPATH``) holds the program's executor until
+a whole bundle is in its readers (see the README's delivery contract). Any other program
+reads the run's topics directly: deterministic only with a single input, so the run rules
+refuse it with more.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from plan.scenario import NodePlan
+from plan.schedule import DELAYED, Schedule
+
+GATE_DIR = Path(__file__).resolve().parents[2] / "runtime" / "foreign_gate"
+GATE_ENV = "COSIM_GATE"
+PYTHONS = ("python", "python3")
+
+
+def feed_prefix(name: str) -> str:
+    """The private topic prefix of a foreign program's feed: '/cosim/feed/<node>/'."""
+    return f"/cosim/feed/{name}/"
+
+
+def feed_topic(name: str, own_topic: str) -> str:
+    """Where the program's input ``own_topic`` (its own name, e.g. /scan) is fed."""
+    return feed_prefix(name) + own_topic.lstrip("/")
+
+
+def clock_topic(name: str) -> str:
+    """The program's /clock, fed with the ticks it is due at."""
+    return feed_prefix(name) + "clock"
+
+
+def ack_topic(name: str) -> str:
+    """Where the gate acknowledges each bundle taken (std_msgs/Int64; -1: ready)."""
+    return feed_prefix(name) + "taken"
+
+
+def is_python(plan: NodePlan) -> bool:
+    """Whether the program runs on a Python interpreter (and so can carry the gate)."""
+    first = plan.spec.command[0]
+    return (first in PYTHONS or Path(first).name.startswith("python")
+            or first.endswith(".py") or first == sys.executable)
+
+
+def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
+    """Why the program's command cannot start (its executable or script is not there), or
+    None."""
+    argv = plan.spec.command
+    first = argv[0]
+    if first in PYTHONS:
+        script = next((a for a in argv[1:] if not a.startswith("-")), None)
+        if script and script.endswith(".py") and not (scenario_dir / script).is_file():
+            return f"the script {script!r} does not exist (looked for {scenario_dir / script})"
+        return None
+    if "/" in first:
+        path = scenario_dir / first
+        if not path.is_file():
+            return f"{first!r} does not exist (looked for {path})"
+        if not os.access(path, os.X_OK):
+            return f"{first!r} is not executable ({path})"
+        return None
+    if shutil.which(first) is None:
+        return f"no program {first!r} on PATH"
+    return None
+
+
+def gate_config(plan: NodePlan, schedule: Schedule) -> dict:
+    """The gate's configuration: the feed prefix, the program's period and, per input, the
+    ticks its sample comes with (a delayed input has none at tick 0)."""
+    period = plan.period_ticks
+    inputs = []
+    for inp, edge in zip(plan.inputs, schedule.inputs_of[plan.name], strict=True):
+        entry = {"topic": inp.topic.lstrip("/")}
+        if edge.mode == DELAYED:
+            entry["first"] = period  # the first activation with an earlier sample
+        inputs.append(entry)
+    return {"prefix": feed_prefix(plan.name), "node": plan.name, "tick_ns": schedule.tick_ns,
+            "period": period, "start": 0, "inputs": inputs, "reliable_clock": True,
+            "callback_order": "inputs"}
+
+
+def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
+    """The program's command line: 'python' means this interpreter; use_sim_time and the
+    remaps (the scenario's, and for a gated program its inputs and /clock onto the feed)
+    are appended as a ROS arguments block of their own."""
+    argv = list(plan.spec.command)
+    if argv[0] in PYTHONS:
+        argv[0] = sys.executable
+    argv += ["--ros-args", "-p", "use_sim_time:=true"]
+    fed = {inp.topic for inp in plan.inputs} if is_python(plan) else set()
+    for own, graph in plan.spec.remap.items():
+        if own not in fed:
+            argv += ["-r", f"{own}:={graph}"]
+    for own in sorted(fed):
+        argv += ["-r", f"{own}:={feed_topic(plan.name, own)}"]
+    if fed or is_python(plan):
+        argv += ["-r", f"/clock:={clock_topic(plan.name)}"]
+    return argv
+
+
+def foreign_env(plan: NodePlan, schedule: Schedule) -> dict[str, str] | None:
+    """The environment of a gated program (the gate on PYTHONPATH, its configuration), or
+    None for an ungated one (it inherits the orchestrator's)."""
+    if not is_python(plan):
+        return None
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
+    env[GATE_ENV] = json.dumps(gate_config(plan, schedule))
+    return env

@@ -1,0 +1,134 @@
+"""What every driver of a step node shares: stamping, serialising and hashing outputs.
+
+Both the multi-process runtime and the in-process reference go through these functions,
+so the bytes (and hence the digest) cannot differ between them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import struct
+from collections import deque
+from collections.abc import Iterable
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from tf2_msgs.msg import TFMessage
+
+from nodes.contract import Tick
+from runtime.cdr.decode import decode
+from runtime.cdr.encode import encode
+
+NS_PER_S = 1_000_000_000
+
+
+class StepContractError(RuntimeError):
+    """A step returned something other than one message of the declared type per output."""
+
+
+def stamp(tick: Tick) -> Time:
+    """The builtin_interfaces/Time of a tick."""
+    return Time(sec=tick.time_ns // NS_PER_S, nanosec=tick.time_ns % NS_PER_S)
+
+
+def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str], tick: Tick,
+                    outputs: dict[str, Any], latched: frozenset[str] = frozenset(),
+                    first: bool = False) -> list[tuple[str, bytes]]:
+    """Check, stamp and serialise a step's outputs: [(graph topic, CDR bytes)] sorted by topic.
+
+    ``declared`` maps the node's own topic names to message classes and ``names`` maps them
+    to graph topics (after remap). ``latched`` outputs (own names) are due at the node's
+    ``first`` activation only, the others at every one. A message with a ``header`` gets
+    the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``.
+    """
+    due = set(names) if first else set(names) - latched
+    if set(outputs) != due:
+        missing = sorted(due - set(outputs))
+        extra = sorted(set(outputs) - due)
+        once = sorted(set(extra) & latched)
+        why = f"; {once} are latched: due at the first activation only" if once else ""
+        raise StepContractError(f"node {node} at tick {tick.index} returned the wrong topics "
+                                f"(missing {missing}, undeclared {extra}{why})")
+    items = []
+    when = stamp(tick)
+    for own, msg in outputs.items():
+        if not isinstance(msg, declared[own]):
+            raise StepContractError(f"node {node} returned {type(msg).__name__} on {own}, "
+                                    f"declared {declared[own].__name__}")
+        header = getattr(msg, "header", None)
+        if header is not None and hasattr(header, "stamp"):
+            header.stamp = when
+        elif isinstance(msg, TFMessage):
+            for transform in msg.transforms:
+                transform.header.stamp = when
+        items.append((names[own], encode(msg)))
+    items.sort()
+    return items
+
+
+def output_digest(tick: int, items: Iterable[tuple[str, bytes]]) -> bytes:
+    """sha256 over (topic, tick, length, bytes) of one activation's outputs, in topic order."""
+    h = hashlib.sha256()
+    for topic, data in items:
+        h.update(topic.encode())
+        h.update(struct.pack("<qQ", tick, len(data)))
+        h.update(data)
+    return h.digest()
+
+
+class RunDigest:
+    """The run digest: sha256 over (tick, node, output digest) in schedule order."""
+
+    def __init__(self) -> None:
+        self._hash = hashlib.sha256()
+
+    def add(self, tick: int, node: str, node_digest: bytes) -> None:
+        """Fold in one node's activation; call in schedule order."""
+        self._hash.update(struct.pack("<q", tick))
+        self._hash.update(node.encode())
+        self._hash.update(node_digest)
+
+    def hexdigest(self) -> str:
+        """The digest so far, as hex."""
+        return self._hash.hexdigest()
+
+
+class InputHistory:
+    """Samples of one input (producer tick, message), from which the schedule's pick is made."""
+
+    def __init__(self, topic: str, msg_type: type):
+        self.topic = topic
+        self.msg_type = msg_type
+        self.samples: deque[tuple[int, Any]] = deque()
+
+    def push_bytes(self, tick: int, data: bytes) -> None:
+        """Add a serialised sample; it is deserialised only if a step ever takes it (slow
+        consumers skip most samples of a fast producer)."""
+        self.samples.append((tick, data))
+
+    def has(self, tick: int) -> bool:
+        """Whether the sample of ``tick`` (or a later one) has arrived."""
+        return bool(self.samples) and self.samples[-1][0] >= tick
+
+    def take_raw(self, tick: int) -> bytes:
+        """The CDR bytes of the sample of exactly ``tick`` (it must never have been decoded),
+        dropping older ones: what a feeder forwards unchanged."""
+        while self.samples and self.samples[0][0] < tick:
+            self.samples.popleft()
+        if not self.samples or self.samples[0][0] != tick:
+            have = [t for t, _ in self.samples]
+            raise LookupError(f"{self.topic}: no sample of tick {tick} (have {have})")
+        return self.samples[0][1]
+
+    def take(self, tick: int) -> Any:
+        """The sample of exactly ``tick``, dropping older ones (they can never be needed again)."""
+        while self.samples and self.samples[0][0] < tick:
+            self.samples.popleft()
+        if not self.samples or self.samples[0][0] != tick:
+            have = [t for t, _ in self.samples]
+            raise LookupError(f"{self.topic}: no sample of tick {tick} (have {have})")
+        sample = self.samples[0][1]
+        if isinstance(sample, bytes):  # the same bytes every transport delivers
+            sample = decode(sample, self.msg_type)
+            self.samples[0] = (tick, sample)
+        return sample

@@ -1,0 +1,371 @@
+"""The lockstep node runtime: wraps one step node for a transport.
+
+At each tick the orchestrator publishes on /clock, this runtime waits for exactly the
+input samples the schedule names, calls ``step``, publishes the outputs stamped with the
+tick's time, records them, and reports ``done`` with the digest of what it published.
+Only this module (and the transports) touch the network.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+import traceback
+from collections import deque
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from nodes.contract import StepNode, Tick
+from nodes.live_params import ParamsInput
+from plan.packing import subscribers
+from runtime.exchange import InputHistory, output_digest, prepare_outputs
+from runtime.notes import Note, NoteWriter
+from runtime.protocol import (
+    CLOCK_TOPIC,
+    COMMAND_TOPIC,
+    ERROR,
+    READY,
+    RESETTING,
+    STATUS_TOPIC,
+    WAITING,
+    Command,
+    CommandMessage,
+    Done,
+    Status,
+    decode_clock,
+    decode_command,
+    done_status,
+    encode_status,
+)
+from runtime.recording import PartWriter
+from runtime.timing import TimeSplit
+from runtime.transport.base import Received, Transport
+
+POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
+MAX_BATCH = 64  # activations per 'done' report, at most
+REPORT_LATEST_S = 0.05  # a step running this long first reports the activations before it
+STATUS_PERIOD_S = 0.05
+
+
+class NodeFailure(RuntimeError):
+    """The runtime cannot go on (sequence gap, step error); the message says why."""
+
+
+class InputChannel:
+    """One subscribed input: tick bookkeeping by sequence number, and its sample history."""
+
+    def __init__(self, topic: str, graph_topic: str, msg_type: type, producer_period: int,
+                 drives: int | None = None):
+        self.topic = topic
+        self.drives = drives  # consumer period, when this input announces the consumer's ticks
+        self.graph_topic = graph_topic
+        self.history = InputHistory(graph_topic, msg_type)
+        self.period = producer_period
+        self.received = 0
+        self.base = 0  # the producer's messages sent before the last reset
+
+    def accept(self, rec: Received) -> int:
+        """Store a sample; return its producer tick (n-th message = n-th activation)."""
+        if rec.sequence is not None:
+            if rec.sequence <= self.base:
+                return -1  # sent before a reset, still in flight: not part of this run
+            if rec.sequence != self.base + self.received + 1:
+                raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
+                                  f"{self.base + self.received + 1}, got {rec.sequence} "
+                                  "(a message was lost)")
+        tick = self.received * self.period
+        self.history.push_bytes(tick, rec.data)
+        self.received += 1
+        return tick
+
+    def rebase(self, sent_before: int) -> None:
+        """Start over after a reset: the producer had sent ``sent_before`` messages."""
+        self.base = sent_before
+        self.received = 0
+        self.history.samples.clear()
+
+
+class LockstepRuntime:
+    """Runs one node of a scenario in lockstep with the orchestrator (its step ``node`` may
+    be attached after construction, before ``run``)."""
+
+    def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
+                 recorder: PartWriter | None = None, notes: NoteWriter | None = None,
+                 pack: str | None = None):
+        self.scenario = scenario
+        self.pack = pack  # the run's packing: consumers packed together share a subscription
+        self.name = name
+        self.plan = scenario.nodes[name]
+        self.sched = scenario.schedule
+        self.node = node
+        self.transport = transport
+        self.recorder = recorder
+        self.notes = notes
+        self.stop_requested = False
+        self.in_step = False
+        self._next_upstream_check = 0.0
+        self.parent_pid = int(os.environ.get("COSIM_PARENT_PID", "0")) or None
+        self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
+        self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
+        self.unreported: list[Done] = []  # activations served since the last 'done' report
+        self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
+        self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
+        self.first = True  # the next activation is the first since the start or a reset
+        self._last_start_report = -STATUS_PERIOD_S
+        self._wire()
+
+    def _wire(self) -> None:
+        sched, plan = self.sched, self.plan
+        depth = sched.output_depths(self.name, plan.outputs)
+        self.expected_subscribers = subscribers(self.scenario, self.pack, self.name)
+        latched = plan.latched_topics
+        self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
+                                                       latched=t in latched)
+                           for t, msg in plan.outputs.items()}
+        self.inputs: dict[str, InputChannel] = {}
+        self.input_subs = {}
+        driver = sched.driving_edge(self.name)
+        for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
+            period = sched.periods[inp.producer]
+            drives = sched.periods[self.name] if edge == driver else None
+            self.inputs[inp.graph_topic] = InputChannel(inp.topic, inp.graph_topic,
+                                                        inp.msg_type, period, drives)
+            self.input_subs[inp.graph_topic] = self.transport.subscription(
+                inp.graph_topic, inp.msg_type, sched.history_depth(edge))
+        # A node told of its ticks by a same_tick input does not wake for /clock.
+        self.clock_sub = (self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
+                          if driver is None else None)
+        self.command_sub = self.transport.subscription(COMMAND_TOPIC, String, 10)
+        self.sent = {t: 0 for t in self.publishers}
+        self.status_pub = self.transport.publisher(STATUS_TOPIC, DiagnosticStatus, 1000)
+
+    # -- start ---------------------------------------------------------------------------
+
+    def unmatched(self) -> list[str]:
+        """Topics whose discovery is not complete, e.g. '/scan (0/1 subscriptions)'."""
+        out = []
+        for topic, pub in self.publishers.items():
+            if (n := pub.matched()) < self.expected_subscribers[topic]:
+                out.append(f"{topic} ({n}/{self.expected_subscribers[topic]} subscriptions)")
+        subs = [*self.input_subs.items(), (COMMAND_TOPIC, self.command_sub)]
+        if self.clock_sub is not None:
+            subs.append((CLOCK_TOPIC, self.clock_sub))
+        for topic, sub in subs:
+            if sub.matched() < 1:
+                out.append(f"{topic} (0/1 publishers)")
+        if self.status_pub.matched() < 1:
+            out.append(f"{STATUS_TOPIC} (0/1 subscriptions)")
+        return out
+
+    def wait_for_start(self) -> None:
+        """Report waiting/ready until the first /clock arrives."""
+        while not self.clocks and not self.stop_requested:
+            self.report_start(time.monotonic())
+            self.receive(int(STATUS_PERIOD_S * 1e9))
+
+    # -- run -------------------------------------------------------------------------------
+
+    def receive(self, timeout_ns: int) -> None:
+        """Take everything the transport has within the timeout and file it."""
+        waited = time.perf_counter_ns()
+        received = self.transport.wait(timeout_ns)
+        self.timing.add("wait", waited)
+        for rec in received:
+            if rec.topic == CLOCK_TOPIC:
+                self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
+                continue
+            if rec.topic == COMMAND_TOPIC:
+                self.on_command(decode_command(rec.data))
+                continue
+            channel = self.inputs[rec.topic]
+            tick = channel.accept(rec)
+            if channel.drives and tick >= 0 and tick % channel.drives == 0:
+                self.clocks.append(tick)
+
+    def run(self) -> None:
+        """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""
+        self.wait_for_start()
+        self.timing.start()
+        try:
+            self._serve()
+        finally:
+            self.timing.stop()
+
+    def _serve(self) -> None:
+        """The run loop: serve the announced ticks, report, wait for more."""
+        while not self.stop_requested:
+            self.serve_announced()
+            if self.stop_requested:
+                break
+            self.receive(POLL_NS)
+            self.check_parent()
+            if self.finished():
+                return  # the run is over (or the orchestrator died): nothing will come
+
+    def serve_announced(self) -> None:
+        """Serve every announced tick whose inputs are here, then report them."""
+        while self.clocks and self.try_tick(self.clocks[0]):
+            self.clocks.popleft()
+        self.report_done()
+
+    def check_parent(self) -> None:
+        """Stop when the orchestrator that started this process is gone."""
+        if self.parent_pid and os.getppid() != self.parent_pid:
+            raise NodeFailure("the orchestrator went away; stopping")
+
+    def finished(self) -> bool:
+        """Nothing is announced and every publisher this node listens to has gone."""
+        return not self.clocks and self.upstream_gone()
+
+    def report_start(self, now: float) -> None:
+        """Before the first tick: report waiting (naming what is unmatched) or ready, at
+        most every STATUS_PERIOD_S."""
+        if now - self._last_start_report >= STATUS_PERIOD_S:
+            missing = self.unmatched()
+            self.report(Status(self.name, WAITING if missing else READY,
+                               detail="; ".join(missing)))
+            self._last_start_report = now
+
+    def on_command(self, message: CommandMessage) -> None:
+        """Handle the orchestrator's reset handshake (see runtime.protocol)."""
+        epoch = str(message.epoch)
+        if message.command is Command.RESET:
+            self.report_done()
+            values = {"epoch": epoch, **{f"sent:{t}": str(n) for t, n in self.sent.items()}}
+            self.report(Status(self.name, RESETTING, values=values))
+        elif message.command is Command.RESTART:
+            for topic, channel in self.inputs.items():
+                channel.rebase(message.sent.get(topic, 0))
+            self.clocks.clear()
+            self.first = True
+            self.node.reset(self.scenario.model.seed, self.node.config)
+            if self.params_input:
+                self.params_input.forget()
+            if self.recorder:
+                self.recorder.truncate()
+            if self.notes:
+                self.notes.truncate()
+            self.report(Status(self.name, READY, values={"epoch": epoch}))
+
+    def upstream_gone(self) -> bool:
+        """Whether every publisher this node listens to has disappeared (checked twice a second)."""
+        now = time.monotonic()
+        if now < self._next_upstream_check:
+            return False
+        self._next_upstream_check = now + 0.5
+        subs = list(self.input_subs.values())
+        if self.clock_sub is not None:
+            subs.append(self.clock_sub)
+        return bool(subs) and all(sub.matched() == 0 for sub in subs)
+
+    def try_tick(self, k: int) -> bool:
+        """Act at tick ``k`` if due and its inputs are all here; True when the tick is served."""
+        if not self.sched.is_due(self.name, k):
+            return True
+        wanted = {}
+        for index, r in self.sched.inputs_at(self.name, k):
+            inp = self.plan.inputs[index]
+            if not self.inputs[inp.graph_topic].history.has(r):
+                return False
+            wanted[inp.topic] = (inp.graph_topic, r)
+        taken = time.perf_counter_ns()
+        inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
+        self.timing.add("deserialise", taken)
+        self.activate(Tick(k, self.sched.time_ns(k)), inputs)
+        return True
+
+    def activate(self, tick: Tick, inputs: dict) -> None:
+        """Step, publish, record and report one activation."""
+        if self.step_delay_s:
+            time.sleep(self.step_delay_s)  # test-only slowdown; must not change any output
+        armed = self.alarm and bool(self.unreported)
+        if armed:  # a slow or hung step must not hide the ticks served before it
+            signal.setitimer(signal.ITIMER_REAL, REPORT_LATEST_S)
+        start = time.perf_counter_ns()
+        self.in_step = True
+        try:
+            if self.params_input:
+                inputs = self.params_input.apply(self.node, inputs)
+            outputs = self.node.step(tick, inputs)
+            stepped = self.timing.add("step", start)
+            self.take_notes(tick)
+            items = prepare_outputs(self.name, self.plan.declared_outputs,
+                                    self.plan.output_names, tick, outputs,
+                                    self.plan.latched, self.first)
+            self.first = False
+        except Exception as exc:
+            self.take_notes(tick)
+            self.report_error(tick.index, exc)
+            raise NodeFailure(f"step failed at tick {tick.index}") from exc
+        finally:
+            self.in_step = False
+            if armed:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+        now = self.timing.add("serialise", stepped)
+        step_ns = now - start
+        for topic, data in items:
+            self.publishers[topic].publish(data)
+            self.sent[topic] += 1
+        now = self.timing.add("publish", now)
+        if self.recorder:
+            self.recorder.write(tick.index, items)
+            now = self.timing.add("record", now)
+        digest = output_digest(tick.index, items).hex()
+        self.timing.add("digest", now)
+        self.unreported.append(Done(self.name, tick.index, digest, step_ns,
+                                    {k: float(v) for k, v in self.node.metrics().items()}))
+        if len(self.unreported) >= MAX_BATCH:
+            self.report_done()
+
+    def take_notes(self, tick: Tick) -> None:
+        """Write what the node noted in this step to its log and its notes file."""
+        for text in self.node.take_notes():
+            note = Note(self.name, tick.index, tick.time_ns, text)
+            print(f"note: {note.line()}", file=sys.stderr, flush=True)
+            if self.notes:
+                self.notes.write(note)
+
+    def report_done(self, *_signal) -> None:
+        """Report the activations served since the last report, in one message. Also the
+        SIGALRM handler of a slow step."""
+        batch, self.unreported = self.unreported, []
+        if batch:
+            self.report(done_status(self.name, batch))
+
+    def report(self, status: Status) -> None:
+        """Publish a status message."""
+        start = time.perf_counter_ns()
+        self.status_pub.publish(encode_status(status))
+        self.timing.add("report", start)
+
+    def report_error(self, tick: int, exc: BaseException) -> None:
+        """Report an exception with a traceback excerpt, and make sure it is delivered
+        (after the activations served before it)."""
+        self.report_done()
+        excerpt = "".join(traceback.format_exception(exc)[-6:])
+        detail = f"{type(exc).__name__}: {exc}\n{excerpt}"
+        self.report(Status(self.name, ERROR, tick, detail=detail))
+        flush = getattr(self.status_pub, "flush", None)
+        if flush:
+            flush(2.0)
+
+    def request_stop(self, *_args) -> None:
+        """Signal handler: leave the loop after the current wait; interrupt a step in progress
+        (a step that never returns must not hold shutdown up until SIGKILL)."""
+        self.stop_requested = True
+        if self.in_step:
+            raise KeyboardInterrupt
+
+
+def install_stop_handlers(runtime: LockstepRuntime) -> None:
+    """SIGINT and SIGTERM end the run loop cleanly (exit code 0, no traceback); SIGALRM
+    reports the activations served before a step that runs long."""
+    signal.signal(signal.SIGINT, runtime.request_stop)
+    signal.signal(signal.SIGTERM, runtime.request_stop)
+    signal.signal(signal.SIGALRM, runtime.report_done)
+    runtime.alarm = True
