@@ -128,3 +128,32 @@ def test_cli_expect_digest(reference, tmp_path, capsys):
     assert main([str(PROTOCOL), "--out", str(tmp_path), "--against", str(tmp_path / "no")]) == 2
     assert "not a run directory" in capsys.readouterr().err
     assert set(tmp_path.iterdir()) == before
+
+
+def test_cli_ignore_rendered_leaves_the_camera_images_out_and_says_so(tmp_path):
+    """A change that reaches only the rendered topics (the depth image's range) fails
+    --against, naming them as the only difference and --ignore-rendered; with
+    --ignore-rendered it passes and the topics left out are named. A change elsewhere still
+    fails with --ignore-rendered, at its topic."""
+    nav = ROOT / "scenarios" / "nav.yaml"
+    short = ("--in-process", "--quiet", "--duration", "1s")
+    ref = orchestrate(nav, tmp_path, *short)
+    assert ref.code == 1, ref.stderr  # 1 s does not reach the goal
+    depth_only = ("--set", "nodes.camera.params.camera.max_depth=1.0")
+    strict = orchestrate(nav, tmp_path, *short, *depth_only, "--against", str(ref.run_dir))
+    assert strict.code == 4, strict.stderr
+    assert "topic /camera/depth/image_rect at tick 0" in strict.stderr
+    assert ("Only the rendered topics (/camera/color/image_raw, /camera/depth/image_rect) "
+            "differ") in strict.stderr and "--ignore-rendered" in strict.stderr
+    assert "egl: " in strict.stderr  # the renderer is named
+    loose = orchestrate(nav, tmp_path, *short, *depth_only, "--against", str(ref.run_dir),
+                        "--ignore-rendered")
+    assert loose.code == 1, loose.stderr
+    left_out = ("without the rendered topics (/camera/color/image_raw, "
+                "/camera/depth/image_rect: left out of the comparison)")
+    assert f"digest {left_out}: {ref.manifest['digest_without_rendered']}" in loose.stderr
+    other = orchestrate(nav, tmp_path, *short, "--set",
+                        "nodes.lidar.params.lidar.noise_stddev=0.02", "--expect-digest",
+                        ref.manifest["digest_without_rendered"], "--ignore-rendered")
+    assert other.code == 4, other.stderr
+    assert f"the digest {left_out} mismatch" in other.stderr
