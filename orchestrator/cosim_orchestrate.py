@@ -64,6 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--expect-digest and --against compare the digest without the\n"
                         "rendered topics (camera images: their pixels depend on the GL\n"
                         "renderer and its version); the message names the topics left out")
+    p.add_argument("--rendered-psnr", type=float, metavar="DB",
+                   help="with --against: compare the rest as --ignore-rendered does, and the\n"
+                        "rendered images frame by frame, each at least DB dB PSNR against\n"
+                        "the reference run's (exit 4 below it, naming the frame)")
     live = p.add_argument_group("watch and drive the run from outside (loopback unless an "
                                 "address is given)")
     live.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="ADDR:PORT",
@@ -120,6 +124,23 @@ def overrides_from(args: argparse.Namespace) -> dict:
     return overrides
 
 
+def _images_pass(args: argparse.Namespace, outcome) -> bool:
+    """--rendered-psnr: every rendered frame at or above the floor against --against's;
+    says how each rendered topic compared either way."""
+    from orchestrator.outputs.diff import read_manifest
+    from orchestrator.outputs.image_compare import lowest_psnr
+
+    topics = set(outcome.rendered_topics) | set(read_manifest(args.against).get(
+        "rendered_topics") or [])
+    results = lowest_psnr(args.against, outcome.run_dir, sorted(topics))
+    failed = [r for r in results if not r.passes(args.rendered_psnr)]
+    lines = "; ".join(r.describe() for r in results) or "none in this run"
+    verdict = "below" if failed else "at or above"
+    print(f"cosim-orchestrate: rendered topics against {args.against}, {verdict} the PSNR "
+          f"floor of {args.rendered_psnr:g} dB: {lines}", file=sys.stderr)
+    return not failed
+
+
 def _interrupt(signum, _frame):
     raise KeyboardInterrupt
 
@@ -139,6 +160,14 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))
+        if args.rendered_psnr is not None:
+            if args.against is None:
+                raise ValueError("--rendered-psnr needs --against DIR (a recorded run whose "
+                                 "images are the reference)")
+            if not args.rendered_psnr > 0:
+                raise ValueError(f"--rendered-psnr {args.rendered_psnr}: expected a floor in "
+                                 "dB above 0, e.g. 40")
+            args.ignore_rendered = True
         expected = expected_digest(args.expect_digest, args.against, args.ignore_rendered)
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
@@ -173,6 +202,8 @@ def main(argv: list[str] | None = None) -> int:
                                    args.ignore_rendered)
         if mismatch:
             print(f"cosim-orchestrate: {mismatch}", file=sys.stderr)
+            return EXIT_DIGEST_MISMATCH
+        if args.rendered_psnr is not None and not _images_pass(args, outcome):
             return EXIT_DIGEST_MISMATCH
     return code
 
