@@ -18,7 +18,8 @@ exit codes:
   2    bad input: the scenario or an option is invalid; nothing was started or written
   3    a node failed: crashed, reported an error, or missed its deadline
   4    the run finished but its digest is not the one --expect-digest (or --against) names
-       (with --ignore-rendered: its digest without the rendered topics, in manifest.json)
+       (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
+       or a rendered frame is below the --rendered-psnr floor
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
 
 outputs go to runs/<scenario>-<timestamp>/ (see --out): manifest.json with the run
