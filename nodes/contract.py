@@ -82,6 +82,13 @@ class StepNode:
         return {}
 
     @classmethod
+    def rendered_outputs(cls, params: BaseModel) -> frozenset[str]:
+        """The own names of the outputs drawn by a GL renderer (camera images): their bits
+        depend on the renderer and its version (GPU or software), not only on the inputs,
+        so digest comparisons can be asked to leave them out. None by default."""
+        return frozenset()
+
+    @classmethod
     def input_types(cls, params: BaseModel) -> dict[str, type]:
         """Input topic -> the message class this node takes on it, where it cares; the
         scenario is refused when the topic's producer publishes another type. ``type_keys``

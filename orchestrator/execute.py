@@ -23,6 +23,7 @@ from pathlib import Path
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from orchestrator.lockstep.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
+from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -58,6 +59,8 @@ class RunOutcome:
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)  # what nodes told people, in tick order
     live: dict = field(default_factory=dict)  # what the live endpoints did (--live, --rosbridge)
+    rendered_topics: list[str] = field(default_factory=list)  # drawn by a GL renderer
+    renderer: RendererProbe | None = None  # which GL draws them (for the manifest)
 
     @property
     def digest(self) -> str | None:
@@ -95,6 +98,9 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         log.warning("%s", warning)
     started = time.monotonic()
     outcome = RunOutcome("failed", run_dir, warnings=warnings)
+    outcome.rendered_topics = rendered_topics(scenario)
+    if outcome.rendered_topics:
+        outcome.renderer = RendererProbe()
     try:
         if options.in_process:
             outcome.start_s = time.monotonic() - started

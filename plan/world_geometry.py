@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plan.rot3 import mat_vec, rotate_rows
+
 ROUND = ("cylinder", "capsule")
 
 
@@ -97,7 +99,7 @@ def obstacle(model, data, g: int) -> Obstacle:
     rot = data.geom_xmat[g].reshape(3, 3)
     size = model.geom_size[g]
     upright = abs(rot[2, 2]) > 0.999
-    half = np.abs(rot) @ _local_half_extents(model, g, kind)
+    half = mat_vec(np.abs(rot), _local_half_extents(model, g, kind))
     name = model.geom(g).name or f"geom {g}"
     common = dict(name=name, geom=g, kind=kind, centre=(float(pos[0]), float(pos[1])),
                   z_range=(float(pos[2] - half[2]), float(pos[2] + half[2])),
@@ -109,7 +111,7 @@ def obstacle(model, data, g: int) -> Obstacle:
     else:
         centre, extent = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    points = pos + (centre + corners * extent) @ rot.T
+    points = pos + rotate_rows(centre + corners * extent, rot)
     return Obstacle(polygon=convex_hull(points[:, :2]), **common)
 
 

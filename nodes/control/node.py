@@ -46,6 +46,7 @@ from nodes.control import follow as f
 from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.plan import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
+from plan.rot3 import mat_t_mul, mat_t_vec
 
 NS = 1_000_000_000
 IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
@@ -396,7 +397,6 @@ def _laser_mount(model: mujoco.MjModel, base: str, site: str) -> tuple[float, fl
     mujoco.mj_kinematics(model, data)
     b = body_id(model, base)
     s = named_id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-    rb = data.xmat[b].reshape(3, 3)
-    rel = rb.T @ (data.site_xpos[s] - data.xpos[b])
-    rs = rb.T @ data.site_xmat[s].reshape(3, 3)
-    return float(rel[0]), float(rel[1]), math.atan2(rs[1, 0], rs[0, 0])
+    rel = mat_t_vec(data.xmat[b], data.site_xpos[s] - data.xpos[b])
+    rs = mat_t_mul(data.xmat[b], data.site_xmat[s])
+    return rel[0], rel[1], math.atan2(rs[1][0], rs[0][0])

@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import platform
 import resource
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.run_paths import RunPaths
 from runtime.timing import read_summary
+
+log = logging.getLogger("cosim")
 
 
 def software_versions() -> dict[str, str]:
@@ -111,6 +115,24 @@ def outputs_entry(outcome) -> dict[str, Any]:
             "parts": "parts" if parts.exists() else None}
 
 
+def digests_entry(scenario, outcome) -> dict[str, Any]:
+    """Per-topic digests (from the bag), the rendered topics, the digest without them, and
+    the versions a digest depends on (see orchestrator.outputs.topic_digests)."""
+    rendered = list(getattr(outcome, "rendered_topics", []))
+    topics: dict[str, str] = {}
+    if outcome.bag is not None:
+        try:
+            topics = topic_digests(outcome.bag, scenario.tick_ns)
+        except Exception as exc:  # noqa: BLE001 - the manifest must still be written
+            log.error("could not compute the per-topic digests: %s", exc)
+    finished = outcome.result is not None and bool(topics)
+    return {"digest_without_rendered": (digest_of_topics(topics, set(rendered))
+                                        if finished else None),
+            "rendered_topics": rendered,
+            "topic_digests": topics,
+            "digest_versions": digest_versions(getattr(outcome, "renderer", None))}
+
+
 def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
@@ -126,6 +148,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "transport": "in-process" if options.in_process else scenario.model.transport,
         "versions": software_versions(),
         "digest": result.digest if result else None,
+        **digests_entry(scenario, outcome),
         "outcome": {"status": outcome.status, "success": outcome.success,
                     "collisions": outcome.collisions, "error": outcome.error,
                     "metrics": metrics, "stopped_early": bool(result and result.stopped_early),
