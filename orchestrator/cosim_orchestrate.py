@@ -121,6 +121,10 @@ def _interrupt(signum, _frame):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     args = build_parser().parse_args(argv)
     from orchestrator.outputs.diff import digest_mismatch, expected_digest
     from orchestrator.run_rules import check_run
