@@ -31,6 +31,7 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile
 
+from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import RunControl
 from runtime.arrivals import Arrivals
 
@@ -70,6 +71,10 @@ class NavigateServer:
                                    cancel_callback=self._on_cancel,
                                    feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))
         control.observers.append(self._observe)
+
+    def local_action(self) -> LocalAction:
+        """This server's callbacks, for goals from the live endpoints."""
+        return LocalAction(NavigateToPose, self._on_goal, self._execute, self._on_cancel)
 
     def _observe(self, tick: int, reports: dict) -> None:
         """The master decided ``tick``: keep the navigation node's report of it."""

@@ -39,6 +39,7 @@ from simulation_interfaces.srv import (
     StepSimulation,
 )
 
+from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import PAUSED, PLAYING, Outcome, RunControl
 from plan.interactive import GOAL_TOPIC
 from plan.run_paths import RunPaths
@@ -124,6 +125,11 @@ class SimServices:
                                          self._simulate_steps, callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
         self.navigate = _navigate(self.node, group, scenario, self.control, arrivals)
+        # the same callbacks, for goals from the live endpoints (rosbridge's send_action_goal)
+        self.local_actions = {self.prefix + "simulate_steps": LocalAction(
+            SimulateSteps, None, self._simulate_steps)}
+        if self.navigate is not None:
+            self.local_actions["/navigate_to_pose"] = self.navigate.local_action()
         self.parameters = parameter_nodes(self.context, scenario, arrivals, self.control)
         executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:

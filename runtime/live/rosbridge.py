@@ -34,6 +34,7 @@ MAX_FRAME = 8 * 2**20  # a larger frame from a client gets an error status
 HARD_FRAME = 64 * 2**20  # a larger one closes the connection (websockets' own limit)
 QUEUE_DEPTH = 64  # per topic, between the run and the server's thread
 CLOSE_WAIT_S = 1.0
+ACTION_TIMEOUT_S = 10.0  # for an action server to appear and answer a goal (not its result)
 ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type")
 
 
@@ -232,6 +233,23 @@ class RosbridgeServer:
         request = service_request(srv, args)
         response = await asyncio.to_thread(services.call, name, request, timeout_s)
         return convert.to_json(response)
+
+    async def send_action_goal(self, name: str, type_name: str, args: Any, on_feedback,
+                               cancelled) -> tuple[int, Any]:
+        """Serve a send_action_goal op: a goal for one of the catalog's actions; its status
+        and result once it ends (feedback goes to ``on_feedback`` meanwhile)."""
+        actions = self.catalog.actions
+        known = actions.types() if actions is not None else {}
+        if name not in known:
+            raise ClientError(f"no action {name}; actions: {', '.join(sorted(known)) or 'none'}")
+        action = known[name]
+        if not same_type(type_name, ros_type_name(action), "action"):
+            raise ClientError(f"{name} is {ros_type_name(action)}, not {type_name}")
+        goal = convert.from_json(action.Goal, args if args not in (None, []) else {},
+                                 f"{ros_type_name(action)} goal")
+        status, result = await asyncio.to_thread(actions.run_goal, name, goal, on_feedback,
+                                                 cancelled, ACTION_TIMEOUT_S)
+        return status, convert.to_json(result)
 
     def _rosapi(self, name: str, args: dict) -> dict:
         topics = self.catalog.topics

@@ -57,9 +57,11 @@ class LiveEndpoints:
             log.info("%s", line)
         return lines
 
-    def attach_services(self, services) -> None:
-        """The services clients may call, once they exist (the run's simulation control)."""
+    def attach_services(self, services, actions=None) -> None:
+        """The services (and actions) clients may call, once they exist (the run's
+        simulation control)."""
         self.catalog.services = services
+        self.catalog.actions = actions
         if self.foxglove is not None and services is not None:
             self.foxglove.attach_services()
 
