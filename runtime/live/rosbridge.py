@@ -5,7 +5,8 @@ It runs an asyncio loop in a thread of its own. The run offers every message it 
 some client subscribed to its topic, and is decoded and encoded once, on the server's
 thread, whatever the number of clients. Client messages enter the run through the
 catalog's inbox (at a tick boundary, recorded); ``call_service`` reaches the catalog's
-services, and a few rosapi services answer what a client may ask a real rosbridge_server
+services, ``send_action_goal`` its actions (feedback and result as rosbridge sends them), and
+a few rosapi services answer what a client may ask a real rosbridge_server
 (``/rosapi/topics``, ``/rosapi/services``, ``/rosapi/topic_type``, ``/rosapi/service_type``).
 """
 
