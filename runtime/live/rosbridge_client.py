@@ -356,7 +356,7 @@ class ClientSession:
                 name, action_type, args, on_feedback, cancel.is_set)
             answer = {"op": "action_result", **tag, "action": name, "values": values,
                       "status": status, "result": True}
-        except (ClientError, ServiceUnavailable, convert.MessageError) as exc:
+        except Exception as exc:  # noqa: BLE001 - any failure is the goal's, told the client
             self.status("error", f"send_action_goal {name}: {exc}", op_id)
             answer = {"op": "action_result", **tag, "action": name, "values": str(exc),
                       "status": STATUS_UNKNOWN, "result": False}
