@@ -43,7 +43,7 @@ class Client:
     """A websocket client as upstream's test client is: JSON text frames out, frames in."""
 
     def __init__(self, port: int):
-        self.ws = connect(f"ws://127.0.0.1:{port}", max_size=None)
+        self.ws = connect(f"ws://127.0.0.1:{port}", max_size=None).__enter__()
 
     def send_json(self, payload: dict, times: int = 1) -> None:
         for _ in range(times):
