@@ -4,6 +4,7 @@ node): the topics a client may watch, the topics it may drive, and the services 
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -60,6 +61,7 @@ class Catalog:
     no_inbox_text: str = "this run takes no messages from outside"
     inbox_what: str = "a topic this run takes from outside"
     latched: frozenset[str] = frozenset()  # sent once (/tf_static): a late client gets the last
+    services_ready: threading.Event | None = None  # set once services come (None: no later)
     header_types: set[type] = field(default_factory=set)
 
     def __post_init__(self) -> None:

@@ -221,6 +221,7 @@ class RosbridgeServer:
     async def call_service(self, name: str, type_name: Any, args: Any, timeout_s: float
                            ) -> dict:
         """Serve a call_service op: a rosapi question or a service of the catalog."""
+        await self._services_come(timeout_s)
         if name in ROSAPI:
             return self._rosapi(name, args if isinstance(args, dict) else {})
         services = self.catalog.services
@@ -239,6 +240,7 @@ class RosbridgeServer:
                                cancelled) -> tuple[int, Any]:
         """Serve a send_action_goal op: a goal for one of the catalog's actions; its status
         and result once it ends (feedback goes to ``on_feedback`` meanwhile)."""
+        await self._services_come(ACTION_TIMEOUT_S)
         actions = self.catalog.actions
         known = actions.types() if actions is not None else {}
         if name not in known:
@@ -251,6 +253,13 @@ class RosbridgeServer:
         status, result = await asyncio.to_thread(actions.run_goal, name, goal, on_feedback,
                                                  cancelled, ACTION_TIMEOUT_S)
         return status, convert.to_json(result)
+
+    async def _services_come(self, timeout_s: float) -> None:
+        """A client that calls before the run's services are up (the nodes still start)
+        waits for them, up to ``timeout_s``."""
+        ready = self.catalog.services_ready
+        if ready is not None and not ready.is_set():
+            await asyncio.to_thread(ready.wait, timeout_s)
 
     def _rosapi(self, name: str, args: dict) -> dict:
         topics = self.catalog.topics
