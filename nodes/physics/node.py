@@ -156,11 +156,12 @@ class PhysicsNode(StepNode):
             return []
         fits = [NS_PER_S // (k * step) for k in range(1, 1000)
                 if NS_PER_S % (k * step) == 0][:5]
+        example = f", e.g. {', '.join(map(str, fits))} Hz" if fits else ""
         return [("rate", f"the period {period_ns} ns is not a whole number of the world's "
                  f"timesteps ({step} ns, <option timestep={model.opt.timestep!r}>): physics "
                  "integrates whole timesteps in each period.",
-                 f"a rate whose period is a multiple of {step} ns, e.g. "
-                 f"{', '.join(map(str, fits))} Hz; or change <option timestep> in the world.")]
+                 f"a rate whose period is a multiple of {step} ns{example}; or change "
+                 "<option timestep> in the world.")]
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
