@@ -195,6 +195,10 @@ def test_cases_on_a_lockstep_run(tmp_path, ros_node):
         multiple_subscribers(port, tick, "cbor-raw")
         transient_local_publisher(port)
         send_action_goal(port)
+        ws = Client(port)  # roslibjs' getActionServers
+        ws.send_json({"op": "call_service", "service": "/rosapi/action_servers", "args": {}})
+        assert ws.expect_messages(1)[0]["values"] == {"action_servers": ["/simulate_steps"]}
+        ws.close()
         assert sim.set_state(SimulationState.STATE_STOPPED).result == Result.RESULT_OK
         code, _, err = finish(run)
     finally:

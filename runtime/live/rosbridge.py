@@ -7,7 +7,8 @@ thread, whatever the number of clients. Client messages enter the run through th
 catalog's inbox (at a tick boundary, recorded); ``call_service`` reaches the catalog's
 services, ``send_action_goal`` its actions (feedback and result as rosbridge sends them), and
 a few rosapi services answer what a client may ask a real rosbridge_server
-(``/rosapi/topics``, ``/rosapi/services``, ``/rosapi/topic_type``, ``/rosapi/service_type``).
+(``/rosapi/topics``, ``/rosapi/services``, ``/rosapi/topic_type``, ``/rosapi/service_type``,
+``/rosapi/action_servers``).
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ HARD_FRAME = 64 * 2**20  # a larger one closes the connection (websockets' own l
 QUEUE_DEPTH = 64  # per topic, between the run and the server's thread
 CLOSE_WAIT_S = 1.0
 ACTION_TIMEOUT_S = 10.0  # for an action server to appear and answer a goal (not its result)
-ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type")
+ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type",
+          "/rosapi/action_servers")
 
 
 class OutgoingMessage:
@@ -269,6 +271,9 @@ class RosbridgeServer:
             return {"topics": ordered, "types": [ros_type_name(topics[t]) for t in ordered]}
         if name == "/rosapi/services":
             return {"services": sorted([*services, *ROSAPI])}
+        if name == "/rosapi/action_servers":
+            actions = self.catalog.actions.types() if self.catalog.actions else {}
+            return {"action_servers": sorted(actions)}
         if name == "/rosapi/topic_type":
             cls = topics.get(args.get("topic", ""))
             return {"type": ros_type_name(cls) if cls else ""}
