@@ -105,6 +105,15 @@ class StepNode:
         return []
 
     @classmethod
+    def period_problems(cls, params: BaseModel, model: Any, period_ns: int
+                        ) -> list[tuple[str, str, str]]:
+        """What makes this node's period ``period_ns`` unusable in the world ``model`` (a
+        physics node whose period is not a whole number of the world's timesteps), checked
+        when the scenario loads: (key, problem, accepted) as in ``world_problems``. Nothing
+        by default."""
+        return []
+
+    @classmethod
     def world_warnings(cls, params: BaseModel, model: Any, goal: dict[str, float] | None,
                        start: dict[str, float] | None) -> list[tuple[str, str]]:
         """What will likely keep this node from doing its job in the world, though the run

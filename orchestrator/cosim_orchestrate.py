@@ -51,7 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "cannot reach, an output nobody reads, ...): exit 2, nothing started")
     p.add_argument("--paused", action="store_true",
                    help="start paused: play or step with the simulation_interfaces services\n"
-                        "/cosim/set_simulation_state, /cosim/step_simulation (ros2 runs)")
+                        "/set_simulation_state, /step_simulation (ros2 runs)")
+    p.add_argument("--sim-namespace", metavar="NS",
+                   help="serve simulation_interfaces under NS (e.g. /cosim:\n"
+                        "/cosim/step_simulation, as Gazebo under /gzserver) instead of the\n"
+                        "root names Isaac Sim and O3DE use (simulation_interfaces.namespace)")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")
@@ -78,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--rosbridge", nargs="?", const="127.0.0.1:9090", metavar="ADDR:PORT",
                       help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
                            "publish the scenario's external: topics (entering at a tick,\n"
-                           "recorded), call /cosim/* services (default 127.0.0.1:9090)")
+                           "recorded), call the run's services (default 127.0.0.1:9090)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -122,6 +126,8 @@ def overrides_from(args: argparse.Namespace) -> dict:
         overrides["seed"] = args.seed
     if args.duration:
         overrides["duration"] = args.duration
+    if args.sim_namespace is not None:
+        overrides["simulation_interfaces.namespace"] = args.sim_namespace
     return overrides
 
 
@@ -148,6 +154,10 @@ def _interrupt(signum, _frame):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     args = build_parser().parse_args(argv)
     from orchestrator.outputs.diff import (
         digest_mismatch,

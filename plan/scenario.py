@@ -190,11 +190,16 @@ _YAML_MERGE = "tag:yaml.org,2002:merge"
 
 
 def _read_yaml(path: Path) -> tuple[dict, bytes]:
-    if not path.is_file():
+    # exists(), not is_file(): /dev/null or a pipe is read like a file (and may be empty)
+    if not path.exists() or path.is_dir():
         what = "is a directory, not a file" if path.is_dir() else "does not exist"
         raise ScenarioError(path, "", f"the scenario file {what}.",
                             "the path of a YAML scenario file, e.g. scenarios/nav.yaml.")
-    text = path.read_bytes()
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(path, "", f"the scenario file cannot be read: {exc.strerror}.",
+                            "a readable YAML scenario file.") from None
     try:
         root = yaml.compose(text, Loader=_LOADER)
         if root is not None:
@@ -501,7 +506,11 @@ class ScenarioContext:
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
-            for key, problem, accepted in cls.world_problems(params[i], world_model, goal):
+            problems = list(cls.world_problems(params[i], world_model, goal))
+            if hasattr(cls, "period_problems"):
+                problems += cls.period_problems(params[i], world_model,
+                                                self.model.nodes[i].period_ns)
+            for key, problem, accepted in problems:
                 where = key if key.startswith("goal") else self.node_key(i, key)
                 raise self.fail(where, f"{problem} (world {self.model.world})", accepted)
         start = robot_start(params)

@@ -60,6 +60,10 @@ def pick_node(scenario, kind: str, name: str | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-node."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     from runtime.parent import die_with_parent
 
     die_with_parent()

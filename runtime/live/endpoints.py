@@ -4,6 +4,7 @@ node): the topics a client may watch, the topics it may drive, and the services 
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -26,6 +27,19 @@ class Services(Protocol):
         """Serve one call and return the response; ServiceUnavailable when it cannot."""
 
 
+class Actions(Protocol):
+    """Action servers a client may send goals to (SimulateSteps, NavigateToPose)."""
+
+    def types(self) -> dict[str, type]:
+        """Action name -> its rclpy action class."""
+
+    def run_goal(self, name: str, goal: Any, on_feedback: Callable[[Any], None],
+                 cancelled: Callable[[], bool], timeout_s: float) -> tuple[int, Any]:
+        """Send one goal, pass each feedback message to ``on_feedback``, cancel it once
+        ``cancelled()``; return (GoalStatus status, result message). ServiceUnavailable when
+        it cannot be sent or accepted."""
+
+
 class Inbox(Protocol):
     """Where messages from clients enter the run (``orchestrator``'s Arrivals has this shape)."""
 
@@ -43,9 +57,11 @@ class Catalog:
     topics: dict[str, type]
     inbox: Inbox | None = None
     services: Services | None = None
+    actions: Actions | None = None
     no_inbox_text: str = "this run takes no messages from outside"
     inbox_what: str = "a topic this run takes from outside"
     latched: frozenset[str] = frozenset()  # sent once (/tf_static): a late client gets the last
+    services_ready: threading.Event | None = None  # set once services come (None: no later)
     header_types: set[type] = field(default_factory=set)
 
     def __post_init__(self) -> None:

@@ -23,9 +23,12 @@ _UNKNOWN = re.compile(r"Type '([^']+)' is unknown")
 
 
 def ros_type_name(cls: type) -> str:
-    """'sensor_msgs/msg/LaserScan' for an rclpy message class ('pkg/srv/Name' for services)."""
+    """'sensor_msgs/msg/LaserScan' for an rclpy message class ('pkg/srv/Name' for services,
+    'pkg/action/Name' for actions)."""
     package = cls.__module__.split(".")[0]
     kind = "srv" if hasattr(cls, "Request") and hasattr(cls, "Response") else "msg"
+    if hasattr(cls, "Goal") and hasattr(cls, "Feedback"):
+        kind = "action"
     return f"{package}/{kind}/{cls.__name__}"
 
 
