@@ -282,7 +282,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             else:
                 participants[name] = CosimNode(plan, scenario.schedule)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
-                                on_tick, paths.parts)
+                                on_tick, paths)
         control, services = _ros_interfaces(scenario, options, paths, live)
         try:
             master.wait_ready(started)

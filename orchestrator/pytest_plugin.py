@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import uuid
 from pathlib import Path
 from typing import Any
@@ -265,6 +264,8 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
     (SIGINT, then SIGTERM, then SIGKILL). Returns the pids that had to be stopped."""
     import psutil
 
+    from orchestrator.lockstep.supervisor import escalate
+
     me = psutil.Process()
     procs = {p.pid: p for p in me.children(recursive=True) if p.pid not in before}
     for proc in psutil.process_iter():
@@ -273,14 +274,5 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
                 procs[proc.pid] = proc
         except (psutil.Error, OSError):
             continue
-    alive = list(procs.values())
-    for sig in ("SIGINT", "SIGTERM", "SIGKILL"):
-        for proc in alive:
-            try:
-                proc.send_signal(getattr(signal, sig))
-            except psutil.Error:
-                pass
-        _, alive = psutil.wait_procs(alive, timeout=3 if sig != "SIGKILL" else 5)
-        if not alive:
-            break
+    escalate(list(procs.values()))
     return sorted(procs)

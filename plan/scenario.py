@@ -22,6 +22,7 @@ from plan.errors import ScenarioError, ScenarioNotice
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.registry import KINDS, kind_class, load_class
+from plan.ros_types import ros_type
 from plan.schedule import Edge, Schedule, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.validation import describe_validation_error, key_path
@@ -91,11 +92,6 @@ class Producer:
     msg: type
     latched: bool
     type_key: str | None  # the producer's parameter that chooses the type, if any
-
-
-def ros_type(msg_class: type) -> str:
-    """'geometry_msgs/msg/Twist' for an rclpy message class."""
-    return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
 
 @dataclass

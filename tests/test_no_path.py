@@ -13,8 +13,8 @@ import pytest
 
 from nodes.contract import NodeConfig, Tick
 from nodes.control.diagnose import explain_no_path
+from nodes.control.global_planner import Planner
 from nodes.control.node import ControlNode
-from nodes.control.plan import Planner
 from orchestrator.api import RunOptions, ScenarioError, ScenarioWarning, run
 from plan.scenario import load_scenario
 from tests.helpers import ROOT, orchestrate

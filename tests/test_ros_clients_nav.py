@@ -20,7 +20,8 @@ from simulation_interfaces.srv import (
 )
 
 from orchestrator.lockstep.inprocess import run_in_process
-from orchestrator.outputs.bag import BagReader, message_class
+from orchestrator.outputs.bag import BagReader
+from plan.ros_types import message_class
 from plan.scenario import load_scenario
 from tests.helpers import ROOT
 from tests.sim_client import OK, SimClient, orchestrate

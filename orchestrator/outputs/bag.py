@@ -25,6 +25,7 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from plan.ros_types import message_class, ros_type
 from plan.run_paths import RunPaths
 from runtime.protocol import CLOCK_TOPIC, encode_clock
 from runtime.recording import read_part
@@ -35,11 +36,6 @@ LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
                   QosLiveliness.AUTOMATIC, UNSPECIFIED, False)
 """The offered QoS recorded for a latched topic (/tf_static): what tf2's static broadcaster
 offers, so that ``ros2 bag play`` republishes it latched and Foxglove treats it so."""
-
-
-def ros_type_name(msg_class: type) -> str:
-    """'sensor_msgs/msg/LaserScan' for the rclpy class."""
-    return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
 
 def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) -> Path | None:
@@ -67,7 +63,7 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
         latched = scenario.latched_topics
         for topic, msg_class in sorted(scenario.topics.items()):
             qos = [LATCHED_QOS] if topic in latched else []
-            connections[topic] = writer.add_connection(topic, ros_type_name(msg_class),
+            connections[topic] = writer.add_connection(topic, ros_type(msg_class),
                                                        typestore=typestore,
                                                        offered_qos_profiles=qos)
         for tick, _, topic, data in heapq.merge(clock, *streams):
@@ -89,7 +85,7 @@ def register_installed(typestore, classes: Iterable[type]) -> None:
     todo = [c for c in classes]
     while todo:
         cls = todo.pop()
-        name = ros_type_name(cls)
+        name = ros_type(cls)
         if name in typestore.fielddefs:
             continue
         lines = []
@@ -178,9 +174,3 @@ class BagReader:
             yield stamp, decode(raw, cls)
 
 
-def message_class(ros_type: str) -> type:
-    """'sensor_msgs/msg/LaserScan' -> sensor_msgs.msg.LaserScan."""
-    import importlib
-
-    package, _, name = ros_type.rpartition("/")
-    return getattr(importlib.import_module(package.replace("/", ".")), name)

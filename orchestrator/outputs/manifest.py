@@ -105,10 +105,11 @@ def scenario_entry(scenario) -> dict[str, Any]:
 def outputs_entry(outcome) -> dict[str, Any]:
     """Where the outputs are, relative to the run directory (None: not written)."""
     run_dir = outcome.run_dir
-    parts = RunPaths(run_dir).parts
+    paths = RunPaths(run_dir)
     return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
-            "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
-            "parts": "parts" if parts.exists() else None}
+            "usd": relative(getattr(outcome, "usd", None), run_dir),
+            "logs": relative(paths.logs, run_dir),
+            "parts": relative(paths.parts, run_dir) if paths.parts.exists() else None}
 
 
 def build_manifest(scenario, outcome, options) -> dict[str, Any]:

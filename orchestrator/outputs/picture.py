@@ -27,6 +27,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
+from plan.poses import yaw_of
 from plan.run_paths import RunPaths
 
 NAV_TOPICS = ("/odom", "/plan", "/scan", "/cmd_vel")
@@ -119,11 +120,6 @@ def _decode(reader, topic: str, raw: bytes, last: dict[str, tuple[bytes, object]
     if hasattr(msg, "header"):  # a message without one differs in its first bytes too
         last[topic] = (bytes(raw[12:]), msg)
     return msg
-
-
-def yaw_of(q) -> float:
-    """Heading of a geometry_msgs Quaternion."""
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
 def odom_track(messages: list[tuple[int, object]]) -> Track:
