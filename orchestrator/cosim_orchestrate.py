@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.outputs.diff import digest_mismatch, expected_digest
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
-    from plan.scenario import load_scenario
+    from plan.load import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))

@@ -20,11 +20,14 @@ import json
 import os
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from orchestrator.domains import DOMAINS, DomainLease, domains_in_use  # noqa: F401 - also here
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 TOKEN_ENV = "COSIM_PYTEST_TOKEN"
 """Set in every process a test starts, so the clean-up finds them wherever they went."""
@@ -98,13 +101,13 @@ class Cosim:
         self.token = uuid.uuid4().hex
         self.children_before = _child_pids()
 
-    def load(self, scenario, **overrides: Any):
+    def load(self, scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
         """Load a scenario with overrides (and this test's seed); see orchestrator.api.load."""
         from orchestrator.api import load
 
         return load(scenario, **self._with_seed(overrides))
 
-    def run(self, scenario, *, in_process: bool = False, check: bool = True,
+    def run(self, scenario: str | Path | Scenario, *, in_process: bool = False, check: bool = True,
             golden: bool = True, **overrides: Any):
         """Run a scenario (see orchestrator.api.run) with this test's seed, in this test's ROS
         domain; check (or with --cosim-update-golden, record) its golden digest."""

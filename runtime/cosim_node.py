@@ -6,6 +6,10 @@ import argparse
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -44,7 +48,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def pick_node(scenario, kind: str, name: str | None) -> str:
+def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
     """The node to run: by name, or the only node of ``kind``."""
     if name:
         if name not in scenario.nodes:
@@ -65,9 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     die_with_parent()
     args = parse_args(argv)
     from plan.errors import ScenarioError
+    from plan.load import load_scenario
     from plan.options import RunOptions
     from plan.overrides import parse_overrides
-    from plan.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, parse_overrides(args.set))
@@ -92,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     return run_lockstep(scenario, names[0], args.run_dir, options)
 
 
-def run_realtime(scenario, name: str, rtf: float, options=None, live=None) -> int:
+def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=None) -> int:
     """Run node ``name`` free-running on wall time until Ctrl-C; ``live`` (RunOptions with
     ``live``/``rosbridge``) adds the live endpoints."""
     import signal
@@ -139,7 +143,7 @@ def run_realtime(scenario, name: str, rtf: float, options=None, live=None) -> in
         transport.close()
 
 
-def _start_endpoints(scenario, name: str, runtime, live):
+def _start_endpoints(scenario: Scenario, name: str, runtime, live):
     """The realtime node's live endpoints, when asked for: its outputs, inputs and /clock
     to watch, its inputs to drive, pause and step when it paces itself."""
     if live is None or not (live.live or live.rosbridge):
@@ -166,7 +170,7 @@ def _start_endpoints(scenario, name: str, runtime, live):
     return endpoints
 
 
-def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int:
+def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=None) -> int:
     """Run node ``name`` under an orchestrator until told to stop."""
     from plan.options import RunOptions, TransportSettings
     from plan.run_paths import RunPaths
@@ -209,7 +213,7 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         transport.close()
 
 
-def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -> int:
+def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options=None) -> int:
     """Run several nodes in this process, on one transport session with one wait."""
     from plan.options import RunOptions, TransportSettings
     from plan.run_paths import RunPaths

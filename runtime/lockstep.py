@@ -14,6 +14,7 @@ import sys
 import time
 import traceback
 from collections import deque
+from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
@@ -44,6 +45,9 @@ from runtime.protocol import (
 from runtime.recording import PartWriter
 from runtime.timing import TimeSplit
 from runtime.transport.base import Received, Transport
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
@@ -93,7 +97,7 @@ class LockstepRuntime:
     """Runs one node of a scenario in lockstep with the orchestrator (its step ``node`` may
     be attached after construction, before ``run``)."""
 
-    def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
+    def __init__(self, scenario: Scenario, name: str, node: StepNode | None, transport: Transport,
                  recorder: PartWriter | None = None, notes: NoteWriter | None = None,
                  pack: str | None = None):
         self.scenario = scenario

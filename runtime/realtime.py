@@ -16,6 +16,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
@@ -28,6 +29,9 @@ from runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
 from runtime.realtime_control import RealtimeControl
 from runtime.transport.base import Transport
 
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
+
 POLL_NS = 50_000_000
 PAUSED_POLL_NS = 10_000_000
 
@@ -35,7 +39,7 @@ PAUSED_POLL_NS = 10_000_000
 class RealtimeRuntime:
     """Runs node ``name`` of a scenario on wall time until stopped."""
 
-    def __init__(self, scenario, name: str, node: StepNode, transport: Transport,
+    def __init__(self, scenario: Scenario, name: str, node: StepNode, transport: Transport,
                  rtf: float = 1.0, publish_clock: bool | None = None):
         if rtf <= 0:
             raise ValueError(f"--rtf must be greater than zero, got {rtf}")

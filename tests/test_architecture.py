@@ -78,3 +78,13 @@ def test_settings_do_not_travel_through_the_environment():
         for path in (ROOT / pkg).rglob("*.py"):
             read |= set(re.findall(r"COSIM_[A-Z_]+", path.read_text()))
     assert read <= plumbing, sorted(read - plumbing)
+
+
+def test_the_floor_plan_keeps_its_limits():
+    """Rooms stay small enough to read: no module of plan/ over 400 lines, at most 12
+    modules at orchestrator/'s top level (the rest live in its folders)."""
+    long = [f"{p.name}: {n} lines" for p in sorted((ROOT / "plan").glob("*.py"))
+            if (n := len(p.read_text().splitlines())) > 400]
+    assert not long, long
+    top = sorted(p.name for p in (ROOT / "orchestrator").glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= 12, top

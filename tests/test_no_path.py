@@ -16,7 +16,7 @@ from nodes.control.diagnose import explain_no_path
 from nodes.control.global_planner import Planner
 from nodes.control.node import ControlNode
 from orchestrator.api import RunOptions, ScenarioError, ScenarioWarning, run
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 from tests.test_control import empty_scan, odom
 from tests.worlds import write_world

@@ -10,7 +10,7 @@ import textwrap
 import pytest
 
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 
 VALID = """
 name: pair

@@ -12,7 +12,7 @@ from __future__ import annotations
 import heapq
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import (
     Qos,
@@ -30,6 +30,9 @@ from plan.run_paths import RunPaths
 from runtime.protocol import CLOCK_TOPIC, encode_clock
 from runtime.recording import read_part
 
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
+
 UNSPECIFIED = QosTime(0, 0)  # the middleware's default (infinite), as rosbag2 reads it
 LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
                   QosDurability.TRANSIENT_LOCAL, UNSPECIFIED, UNSPECIFIED,
@@ -38,7 +41,8 @@ LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
 offers, so that ``ros2 bag play`` republishes it latched and Foxglove treats it so."""
 
 
-def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) -> Path | None:
+def write_bag(scenario: Scenario, run_dir: Path, ticks_run: int, finished: bool = True
+              ) -> Path | None:
     """Write ``<run dir>/bag`` from the node parts and the clock; None when nothing ran.
 
     A finished run keeps ticks ``0 .. ticks_run - 1`` only: nodes may have worked ahead

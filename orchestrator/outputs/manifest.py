@@ -8,10 +8,13 @@ import platform
 import resource
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from plan.run_paths import RunPaths
 from runtime.timing import read_summary
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 
 def software_versions() -> dict[str, str]:
@@ -56,7 +59,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
-def in_process_entries(scenario, ticks: int, result=None) -> dict[str, Any]:
+def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str, Any]:
     """Per-node entries of an in-process run: activations served, mean and worst step time
     (CPU and memory are the one process's, under 'orchestrator')."""
     out = {}
@@ -95,7 +98,7 @@ def file_entry(path: Path | None) -> dict[str, Any] | None:
     return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
 
 
-def scenario_entry(scenario) -> dict[str, Any]:
+def scenario_entry(scenario: Scenario) -> dict[str, Any]:
     """Which scenario ran: name, file, hash, overrides, world, planned length."""
     return {"name": scenario.name, "file": str(scenario.file), "sha256": scenario.sha256,
             "overrides": scenario.overrides, "world": file_entry(scenario.world),
@@ -112,7 +115,7 @@ def outputs_entry(outcome) -> dict[str, Any]:
             "parts": relative(paths.parts, run_dir) if paths.parts.exists() else None}
 
 
-def build_manifest(scenario, outcome, options) -> dict[str, Any]:
+def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
     ticks = result.ticks if result else 0
@@ -151,7 +154,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     }
 
 
-def write_manifest(scenario, outcome, options) -> None:
+def write_manifest(scenario: Scenario, outcome, options) -> None:
     """Write manifest.json into the run directory."""
     manifest = build_manifest(scenario, outcome, options)
     RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")

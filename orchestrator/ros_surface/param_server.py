@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ValidationError
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -25,6 +25,9 @@ from plan.interactive import params_topic
 from plan.scenario import EXTERNAL_NAME, NodePlan
 from plan.validation import describe_validation_error, field_of, inner_model
 from runtime.arrivals import Arrivals
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 
 class NodeParameters:
@@ -107,7 +110,7 @@ class NodeParameters:
         self.node.destroy_node()
 
 
-def parameter_nodes(context, scenario, arrivals: Arrivals | None, control: RunControl
+def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl
                     ) -> list[NodeParameters]:
     """A NodeParameters for every cosim node of the run (not foreign programs, not the
     external node)."""
