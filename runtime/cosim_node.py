@@ -172,26 +172,19 @@ def _start_endpoints(scenario: Scenario, name: str, runtime, live):
 
 def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=None) -> int:
     """Run node ``name`` under an orchestrator until told to stop."""
-    from plan.options import RunOptions, TransportSettings
+    from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
     from runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
     from runtime.notes import NoteWriter
     from runtime.recording import PartWriter
-    from runtime.transport.factory import create_transport
 
     options = options or RunOptions()
     paths = RunPaths(run_dir) if run_dir else None
 
     # Publishers and subscriptions first: DDS discovery then runs in the transport's own
     # threads while the node builds its model (MuJoCo compile, renderer set-up).
-    # The transport's threads start with SIGALRM blocked (they inherit this thread's mask),
-    # so the alarm that reports before a slow step always lands on this thread.
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
-    try:
-        transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
-    finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+    transport = _open_transport(scenario, options, f"cosim_{name}")
     recorder = PartWriter(paths.part(name)) if paths else None
     notes = NoteWriter(paths.notes(name)) if paths else None
     runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
@@ -215,7 +208,7 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
 
 def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options=None) -> int:
     """Run several nodes in this process, on one transport session with one wait."""
-    from plan.options import RunOptions, TransportSettings
+    from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
     from runtime.lockstep import LockstepRuntime, NodeFailure
@@ -223,16 +216,10 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
     from runtime.packed import PackedRuntimes, install_packed_stop_handlers
     from runtime.recording import PartWriter
     from runtime.shared_transport import SharedTransport
-    from runtime.transport.factory import create_transport
 
     options = options or RunOptions()
     paths = RunPaths(run_dir) if run_dir else None
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})  # see run_lockstep
-    try:
-        base = create_transport(TransportSettings.of(scenario, options),
-                                "cosim_" + "_".join(names))
-    finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+    base = _open_transport(scenario, options, "cosim_" + "_".join(names))
     shared = SharedTransport(base)
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
     notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
@@ -259,6 +246,20 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
             if writer:
                 writer.close()
         shared.close()
+
+
+def _open_transport(scenario: Scenario, options, participant: str):
+    """The node process's transport, its threads started with SIGALRM blocked (they inherit
+    this thread's mask), so the alarm that reports before a slow step always lands on the
+    thread that runs the step."""
+    from plan.options import TransportSettings
+    from runtime.transport.factory import create_transport
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+    try:
+        return create_transport(TransportSettings.of(scenario, options), participant)
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
 
 
 def _failed(runtime, exc) -> int:
