@@ -22,7 +22,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 from nodes.contract import Tick
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.build import make_node
 
 

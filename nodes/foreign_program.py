@@ -9,26 +9,12 @@ deterministic as long as the program is a deterministic function of its inputs.
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from nodes.contract import StepNode, Tick
-
-
-def message_class(name: str) -> type:
-    """'geometry_msgs/msg/Twist' (or 'geometry_msgs/Twist') -> the rclpy message class."""
-    parts = name.split("/")
-    if len(parts) == 2:
-        parts = [parts[0], "msg", parts[1]]
-    if len(parts) != 3 or not all(parts):
-        raise ValueError(f"{name!r} is not a message type like 'geometry_msgs/msg/Twist'")
-    try:
-        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
-        return getattr(module, parts[2])
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"message type {name!r} is not installed ({exc})") from None
+from plan.ros_types import message_class
 
 
 def installed_types(topics: dict[str, str]) -> dict[str, str]:

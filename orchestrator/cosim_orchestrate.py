@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
-    from plan.scenario import load_scenario
+    from plan.load import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))

@@ -22,14 +22,16 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from orchestrator.domains import DOMAINS, DomainLease, domains_in_use  # noqa: F401 - also here
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 TOKEN_ENV = "COSIM_PYTEST_TOKEN"
 """Set in every process a test starts, so the clean-up finds them wherever they went."""
@@ -107,14 +109,15 @@ class Cosim:
         self.token = uuid.uuid4().hex
         self.children_before = _child_pids()
 
-    def load(self, scenario, **overrides: Any):
+    def load(self, scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
         """Load a scenario with overrides (and this test's seed); see orchestrator.api.load."""
         from orchestrator.api import load
 
         return load(scenario, **self._with_seed(overrides))
 
-    def run(self, scenario, *, in_process: bool = False, check: bool = True,
-            golden: bool = True, ignore_rendered: bool | None = None, **overrides: Any):
+    def run(self, scenario: str | Path | Scenario, *, in_process: bool = False,
+            check: bool = True, golden: bool = True, ignore_rendered: bool | None = None,
+            **overrides: Any):
         """Run a scenario (see orchestrator.api.run) with this test's seed, in this test's ROS
         domain; check (or with --cosim-update-golden, record) its golden digest, without the
         rendered topics when ``ignore_rendered`` (default: --cosim-ignore-rendered)."""
@@ -320,6 +323,8 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
     (SIGINT, then SIGTERM, then SIGKILL). Returns the pids that had to be stopped."""
     import psutil
 
+    from orchestrator.lockstep.supervisor import escalate
+
     me = psutil.Process()
     procs = {p.pid: p for p in me.children(recursive=True) if p.pid not in before}
     for proc in psutil.process_iter():
@@ -328,14 +333,5 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
                 procs[proc.pid] = proc
         except (psutil.Error, OSError):
             continue
-    alive = list(procs.values())
-    for sig in ("SIGINT", "SIGTERM", "SIGKILL"):
-        for proc in alive:
-            try:
-                proc.send_signal(getattr(signal, sig))
-            except psutil.Error:
-                pass
-        _, alive = psutil.wait_procs(alive, timeout=3 if sig != "SIGKILL" else 5)
-        if not alive:
-            break
+    escalate(list(procs.values()))
     return sorted(procs)

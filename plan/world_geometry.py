@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plan.poses import yaw
 from plan.rot3 import mat_vec, rotate_rows
 
 ROUND = ("cylinder", "capsule")
@@ -209,8 +210,7 @@ def site_offset(model, name: str) -> tuple[float, float, float]:
     if sid < 0:
         return 0.0, 0.0, 0.0
     w, x, y, z = model.site_quat[sid]
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw
+    return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw(w, x, y, z)
 
 
 def robot_footprint_radius(model, base_body: str) -> float:

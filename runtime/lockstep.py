@@ -14,6 +14,7 @@ import sys
 import time
 import traceback
 from collections import deque
+from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
@@ -22,7 +23,8 @@ from std_msgs.msg import String
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from plan.packing import subscribers
-from runtime.exchange import InputHistory, output_digest, prepare_outputs
+from runtime.activation import Activation
+from runtime.exchange import InputHistory, output_digest
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,
@@ -44,6 +46,9 @@ from runtime.protocol import (
 from runtime.recording import PartWriter
 from runtime.timing import TimeSplit
 from runtime.transport.base import Received, Transport
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
@@ -93,7 +98,7 @@ class LockstepRuntime:
     """Runs one node of a scenario in lockstep with the orchestrator (its step ``node`` may
     be attached after construction, before ``run``)."""
 
-    def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
+    def __init__(self, scenario: Scenario, name: str, node: StepNode | None, transport: Transport,
                  recorder: PartWriter | None = None, notes: NoteWriter | None = None,
                  pack: str | None = None):
         self.scenario = scenario
@@ -101,7 +106,8 @@ class LockstepRuntime:
         self.name = name
         self.plan = scenario.nodes[name]
         self.sched = scenario.schedule
-        self.node = node
+        self.activation: Activation | None = None
+        self.node = node  # builds the activation (a packed process attaches it later)
         self.transport = transport
         self.recorder = recorder
         self.notes = notes
@@ -114,10 +120,18 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
-        self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
-        self.first = True  # the next activation is the first since the start or a reset
         self._last_start_report = -STATUS_PERIOD_S
         self._wire()
+
+    @property
+    def node(self) -> StepNode | None:
+        """The node's step class (None until attached)."""
+        return self.activation.node if self.activation else None
+
+    @node.setter
+    def node(self, node: StepNode | None) -> None:
+        self.activation = (Activation(self.plan, node, self.write_note, ParamsInput.of(self.plan))
+                           if node is not None else None)
 
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
@@ -242,10 +256,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
-            self.first = True
-            self.node.reset(self.scenario.model.seed, self.node.config)
-            if self.params_input:
-                self.params_input.forget()
+            self.activation.restart(self.scenario.model.seed)
             if self.recorder:
                 self.recorder.truncate()
             if self.notes:
@@ -289,23 +300,15 @@ class LockstepRuntime:
         start = time.perf_counter_ns()
         self.in_step = True
         try:
-            if self.params_input:
-                inputs = self.params_input.apply(self.node, inputs)
-            outputs = self.node.step(tick, inputs)
-            stepped = self.timing.add("step", start)
-            self.take_notes(tick)
-            items = prepare_outputs(self.name, self.plan.declared_outputs,
-                                    self.plan.output_names, tick, outputs,
-                                    self.plan.latched, self.first)
-            self.first = False
+            items = self.activation(tick, inputs)
         except Exception as exc:
-            self.take_notes(tick)
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
         finally:
             self.in_step = False
             if armed:
                 signal.setitimer(signal.ITIMER_REAL, 0)
+        stepped = self.timing.span("step", start, self.activation.stepped_ns)
         now = self.timing.add("serialise", stepped)
         step_ns = now - start
         for topic, data in items:
@@ -322,13 +325,11 @@ class LockstepRuntime:
         if len(self.unreported) >= MAX_BATCH:
             self.report_done()
 
-    def take_notes(self, tick: Tick) -> None:
-        """Write what the node noted in this step to its log and its notes file."""
-        for text in self.node.take_notes():
-            note = Note(self.name, tick.index, tick.time_ns, text)
-            print(f"note: {note.line()}", file=sys.stderr, flush=True)
-            if self.notes:
-                self.notes.write(note)
+    def write_note(self, note: Note) -> None:
+        """Write what the node noted to its log and its notes file."""
+        print(f"note: {note.line()}", file=sys.stderr, flush=True)
+        if self.notes:
+            self.notes.write(note)
 
     def report_done(self, *_signal) -> None:
         """Report the activations served since the last report, in one message. Also the

@@ -101,3 +101,13 @@ def test_no_matrix_product_on_the_way_to_published_values():
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno}: .{node.attr}")
     assert not found, ("matrix products whose bits depend on the CPU's BLAS kernels; use "
                        "plan.rot3 instead:\n" + "\n".join(found))
+
+
+def test_the_floor_plan_keeps_its_limits():
+    """Rooms stay small enough to read: no module of plan/ over 400 lines, at most 12
+    modules at orchestrator/'s top level (the rest live in its folders)."""
+    long = [f"{p.name}: {n} lines" for p in sorted((ROOT / "plan").glob("*.py"))
+            if (n := len(p.read_text().splitlines())) > 400]
+    assert not long, long
+    top = sorted(p.name for p in (ROOT / "orchestrator").glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= 12, top

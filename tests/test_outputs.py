@@ -18,7 +18,7 @@ from mcap_ros2.decoder import DecoderFactory
 from orchestrator.outputs.picture import write_report_png
 from orchestrator.outputs.report import print_outcome
 from orchestrator.progress import REDRAW_S, Progress
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.timing import PARTS
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 

@@ -20,8 +20,9 @@ from simulation_interfaces.srv import (
 )
 
 from orchestrator.lockstep.inprocess import run_in_process
-from orchestrator.outputs.bag import BagReader, message_class
-from plan.scenario import load_scenario
+from orchestrator.outputs.bag import BagReader
+from plan.load import load_scenario
+from plan.ros_types import message_class
 from tests.helpers import ROOT
 from tests.sim_client import OK, SimClient, orchestrate
 

@@ -14,7 +14,7 @@ from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import COSIM_NODE, ORCHESTRATE, ROOT, SCENARIOS, orchestrate
 from tests.test_supervision import bag_counts
 

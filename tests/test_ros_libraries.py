@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.ros_libraries import BOOTSTRAP_FLAG, fixed_library_path, own_library_dirs
 from tests.helpers import ROOT, orchestrate
 

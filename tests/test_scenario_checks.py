@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 
 VALID = """
 name: pair

@@ -18,7 +18,7 @@ from simulation_interfaces.srv import (
 )
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import SCENARIOS
 from tests.sim_client import OK, SimClient, orchestrate
 

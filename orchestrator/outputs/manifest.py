@@ -9,13 +9,15 @@ import platform
 import resource
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.run_paths import RunPaths
 from runtime.timing import read_summary
 
 log = logging.getLogger("cosim")
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 
 def software_versions() -> dict[str, str]:
@@ -60,7 +62,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
-def in_process_entries(scenario, ticks: int, result=None) -> dict[str, Any]:
+def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str, Any]:
     """Per-node entries of an in-process run: activations served, mean and worst step time
     (CPU and memory are the one process's, under 'orchestrator')."""
     out = {}
@@ -99,7 +101,7 @@ def file_entry(path: Path | None) -> dict[str, Any] | None:
     return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
 
 
-def scenario_entry(scenario) -> dict[str, Any]:
+def scenario_entry(scenario: Scenario) -> dict[str, Any]:
     """Which scenario ran: name, file, hash, overrides, world, planned length."""
     return {"name": scenario.name, "file": str(scenario.file), "sha256": scenario.sha256,
             "overrides": scenario.overrides, "world": file_entry(scenario.world),
@@ -109,13 +111,14 @@ def scenario_entry(scenario) -> dict[str, Any]:
 def outputs_entry(outcome) -> dict[str, Any]:
     """Where the outputs are, relative to the run directory (None: not written)."""
     run_dir = outcome.run_dir
-    parts = RunPaths(run_dir).parts
+    paths = RunPaths(run_dir)
     return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
-            "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
-            "parts": "parts" if parts.exists() else None}
+            "usd": relative(getattr(outcome, "usd", None), run_dir),
+            "logs": relative(paths.logs, run_dir),
+            "parts": relative(paths.parts, run_dir) if paths.parts.exists() else None}
 
 
-def digests_entry(scenario, outcome) -> dict[str, Any]:
+def digests_entry(scenario: Scenario, outcome) -> dict[str, Any]:
     """Per-topic digests (from the bag), the rendered topics, the digest without them, and
     the versions a digest depends on (see orchestrator.outputs.topic_digests)."""
     rendered = list(getattr(outcome, "rendered_topics", []))
@@ -133,7 +136,7 @@ def digests_entry(scenario, outcome) -> dict[str, Any]:
             "digest_versions": digest_versions(getattr(outcome, "renderer", None))}
 
 
-def build_manifest(scenario, outcome, options) -> dict[str, Any]:
+def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
     ticks = result.ticks if result else 0
@@ -173,7 +176,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     }
 
 
-def write_manifest(scenario, outcome, options) -> None:
+def write_manifest(scenario: Scenario, outcome, options) -> None:
     """Write manifest.json into the run directory."""
     manifest = build_manifest(scenario, outcome, options)
     RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")

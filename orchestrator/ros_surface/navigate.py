@@ -33,6 +33,8 @@ from rclpy.qos import QoSProfile
 
 from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import RunControl
+from plan.poses import pose_of
+from plan.timeutil import NS_PER_S
 from runtime.arrivals import Arrivals
 
 FRAMES = ("map", "odom")
@@ -175,12 +177,12 @@ class NavigateServer:
         fb = NavigateToPose.Feedback()
         pose = fb.current_pose
         pose.header.frame_id = "odom"
-        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(tick * self.tick_ns, 10**9)
+        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(tick * self.tick_ns, NS_PER_S)
         pose.pose.position.x, pose.pose.position.y = m["nav_x"], m["nav_y"]
         pose.pose.orientation.z = math.sin(m["nav_yaw"] / 2)
         pose.pose.orientation.w = math.cos(m["nav_yaw"] / 2)
         elapsed = (tick - started) * self.tick_ns
-        fb.navigation_time.sec, fb.navigation_time.nanosec = divmod(elapsed, 10**9)
+        fb.navigation_time.sec, fb.navigation_time.nanosec = divmod(elapsed, NS_PER_S)
         fb.number_of_recoveries = int(m.get("recoveries", 0.0) - recoveries)
         fb.distance_remaining = float(m["nav_distance_remaining"])
         if speed > MIN_SPEED and fb.distance_remaining > MIN_DISTANCE:
@@ -201,13 +203,6 @@ def goal_problem(goal: PoseStamped) -> tuple[int, str] | None:
     if q.x == q.y == q.z == q.w == 0.0:
         return UNKNOWN, "the goal's quaternion is zero: no orientation"
     return None
-
-
-def pose_of(pose) -> tuple[float, float, float]:
-    """(x, y, yaw) of a geometry_msgs/Pose, as the control node reads it."""
-    q = pose.orientation
-    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-    return float(pose.position.x), float(pose.position.y), yaw
 
 
 def same_goal(m: dict[str, float], goal: tuple[float, float, float]) -> bool:

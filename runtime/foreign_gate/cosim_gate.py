@@ -88,7 +88,7 @@ READY_TICK = -1
 
 # Poll interval bounds used only while the gate waits for an in-flight
 # callback of a MultiThreadedExecutor to finish (no rcl event signals the
-# completion of a Task reliably, see REPORT.md).
+# completion of a Task).
 _POLL_MIN_NS = 200_000
 _POLL_MAX_NS = 5_000_000
 # Poll interval while waiting for discovery before the first tick.
@@ -569,13 +569,34 @@ def _patch_time_source(time_source_module) -> None:
     time_source_module.ReliabilityPolicy = shim
 
 
+EXIT_UNSUPPORTED = 78  # as sitecustomize's exit when the gate cannot be installed
+
+
+def _refuse_events_executor(events_module) -> None:
+    """rclpy's ``EventsExecutor`` (``rclpy.experimental``) waits in C++, on no wait set of
+    ``rclpy.executors``: the gate never sees it, so a program using it would take no tick
+    and the run would only end at its start deadline. Name it when the program makes one."""
+    def refused(*_args, **_kwargs):
+        import os
+        import sys
+        print("cosim gate: fatal: this program uses rclpy's EventsExecutor "
+              "(rclpy.experimental), which waits without an rclpy wait set, so the cosim gate "
+              "cannot hold its inputs to the lockstep; use rclpy.executors."
+              "SingleThreadedExecutor or MultiThreadedExecutor (rclpy.spin uses the first).",
+              file=sys.stderr, flush=True)
+        os._exit(EXIT_UNSUPPORTED)
+
+    events_module.EventsExecutor = refused
+
+
 def install(config: GateConfig) -> None:
     """Arrange for rclpy to be gated when (or if) the program imports it."""
     global _gate
     if _gate is not None:
         return
     _gate = Gate(config)
-    hooks = {'rclpy.executors': _patch_executors}
+    hooks = {'rclpy.executors': _patch_executors,
+             'rclpy.experimental.events_executor': _refuse_events_executor}
     if config.reliable_clock:
         hooks['rclpy.time_source'] = _patch_time_source
     import sys

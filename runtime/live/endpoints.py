@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from plan.timeutil import NS_PER_S
 from runtime.protocol import CLOCK_TOPIC, decode_clock
 
 
@@ -78,7 +79,7 @@ class Catalog:
         if self.topics.get(topic) in self.header_types and len(data) >= 12:
             sec = int.from_bytes(data[4:8], "little", signed=True)
             nanosec = int.from_bytes(data[8:12], "little")
-            return sec * 1_000_000_000 + nanosec
+            return sec * NS_PER_S + nanosec
         return fallback_ns
 
 

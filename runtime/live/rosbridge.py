@@ -22,12 +22,14 @@ from typing import Any
 import cbor2
 
 from plan.listen import ListenAddress
+from plan.ros_types import ros_type
+from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
 from runtime.live import convert
 from runtime.live.channels import BoundedChannels
 from runtime.live.endpoints import Catalog, ServiceUnavailable
-from runtime.live.rosbridge_client import ClientError, ClientSession, service_request
-from runtime.live.schemas import ros_type_name, same_type
+from runtime.live.rosbridge_session import ClientError, ClientSession, service_request
+from runtime.live.schemas import same_type
 from runtime.protocol import CLOCK_TOPIC, decode_clock
 
 log = logging.getLogger("cosim")
@@ -60,7 +62,7 @@ class OutgoingMessage:
 
     def _encode(self, compression: str) -> str | bytes:
         if compression == "cbor-raw":
-            secs, nsecs = divmod(self.stamp_ns, 1_000_000_000)
+            secs, nsecs = divmod(self.stamp_ns, NS_PER_S)
             return cbor2.dumps({"op": "publish", "topic": self.topic,
                                 "msg": {"secs": secs, "nsecs": nsecs, "bytes": self.data}})
         if self._decoded is None:
@@ -232,8 +234,8 @@ class RosbridgeServer:
             offered = ", ".join(sorted([*known, *ROSAPI]))
             raise ClientError(f"no service {name}; services: {offered}")
         srv = known[name]
-        if type_name and not same_type(str(type_name), ros_type_name(srv), "srv"):
-            raise ClientError(f"{name} is {ros_type_name(srv)}, not {type_name}")
+        if type_name and not same_type(str(type_name), ros_type(srv), "srv"):
+            raise ClientError(f"{name} is {ros_type(srv)}, not {type_name}")
         request = service_request(srv, args)
         response = await asyncio.to_thread(services.call, name, request, timeout_s)
         return convert.to_json(response)
@@ -248,10 +250,10 @@ class RosbridgeServer:
         if name not in known:
             raise ClientError(f"no action {name}; actions: {', '.join(sorted(known)) or 'none'}")
         action = known[name]
-        if not same_type(type_name, ros_type_name(action), "action"):
-            raise ClientError(f"{name} is {ros_type_name(action)}, not {type_name}")
+        if not same_type(type_name, ros_type(action), "action"):
+            raise ClientError(f"{name} is {ros_type(action)}, not {type_name}")
         goal = convert.from_json(action.Goal, args if args not in (None, []) else {},
-                                 f"{ros_type_name(action)} goal")
+                                 f"{ros_type(action)} goal")
         status, result = await asyncio.to_thread(actions.run_goal, name, goal, on_feedback,
                                                  cancelled, ACTION_TIMEOUT_S)
         return status, convert.to_json(result)
@@ -268,7 +270,7 @@ class RosbridgeServer:
         services = self.catalog.services.types() if self.catalog.services else {}
         if name == "/rosapi/topics":
             ordered = sorted(topics)
-            return {"topics": ordered, "types": [ros_type_name(topics[t]) for t in ordered]}
+            return {"topics": ordered, "types": [ros_type(topics[t]) for t in ordered]}
         if name == "/rosapi/services":
             return {"services": sorted([*services, *ROSAPI])}
         if name == "/rosapi/action_servers":
@@ -276,9 +278,9 @@ class RosbridgeServer:
             return {"action_servers": sorted(actions)}
         if name == "/rosapi/topic_type":
             cls = topics.get(args.get("topic", ""))
-            return {"type": ros_type_name(cls) if cls else ""}
+            return {"type": ros_type(cls) if cls else ""}
         srv = services.get(args.get("service", ""))
-        return {"type": ros_type_name(srv) if srv else ""}
+        return {"type": ros_type(srv) if srv else ""}
 
 
 async def _close_client(websocket) -> None:

@@ -18,9 +18,10 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from plan.ros_types import ros_type
 from runtime.live import convert
 from runtime.live.endpoints import ServiceUnavailable
-from runtime.live.schemas import normalise_type, ros_type_name, same_type
+from runtime.live.schemas import normalise_type, same_type
 
 log = logging.getLogger("cosim")
 
@@ -215,8 +216,8 @@ class ClientSession:
                               f"{', '.join(sorted(catalog.topics))}")
         cls = catalog.topics[topic]
         given = request.get("type")
-        if given and not same_type(str(given), ros_type_name(cls)):
-            raise ClientError(f"subscribe: {topic} is {ros_type_name(cls)}, not {given}")
+        if given and not same_type(str(given), ros_type(cls)):
+            raise ClientError(f"subscribe: {topic} is {ros_type(cls)}, not {given}")
         throttle = _count(request, "throttle_rate")
         queue = _count(request, "queue_length")
         compression = request.get("compression") or "none"
@@ -264,8 +265,8 @@ class ClientSession:
         topic = self._topic(request)
         cls = self._inbox_type(topic, "advertise")
         given = request.get("type")
-        if not isinstance(given, str) or not same_type(given, ros_type_name(cls)):
-            raise ClientError(f"advertise: {topic} takes {ros_type_name(cls)}, not {given}")
+        if not isinstance(given, str) or not same_type(given, ros_type(cls)):
+            raise ClientError(f"advertise: {topic} takes {ros_type(cls)}, not {given}")
         self.advertised.add(topic)
         self.status("info", f"advertised {topic}", op_id)
 
@@ -378,7 +379,7 @@ def service_request(srv: type, args: Any) -> Any:
             raise convert.MessageError(f"{len(args)} args for {len(names)} fields "
                                        f"({', '.join(names)})")
         args = dict(zip(names, args, strict=False))
-    return convert.from_json(cls, args, f"{normalise_type(ros_type_name(srv))} request")
+    return convert.from_json(cls, args, f"{normalise_type(ros_type(srv))} request")
 
 
 def _count(request: dict, key: str) -> int:
