@@ -10,6 +10,7 @@ import copy
 import hashlib
 import math
 import shlex
+import sys
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -80,6 +81,23 @@ class NodePlan:
     def foreign(self) -> bool:
         """Whether this node is a foreign ROS 2 program started from a command."""
         return self.spec.command is not None
+
+    @property
+    def gated(self) -> bool:
+        """Whether this node is a foreign program that carries cosim's gate (a Python one):
+        it acknowledges every tick with how many messages it published on each output, so
+        it may publish any number of them per tick (the README's delivery contract)."""
+        if not self.foreign:
+            return False
+        first = self.spec.command[0]
+        return (first in ("python", "python3") or Path(first).name.startswith("python")
+                or first.endswith(".py") or first == sys.executable)
+
+    @property
+    def gated_outputs(self) -> list[str]:
+        """A gated program's output topics (graph names) in the order its gate counts them
+        in each acknowledgement."""
+        return sorted(self.output_names.values())
 
 
 @dataclass(frozen=True)
@@ -640,22 +658,28 @@ class ScenarioContext:
                         f"the same message type at both ends: change {ours} or {theirs}.")
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
-        """A foreign output that cosim nodes consume must carry one message per activation."""
+        """An ungated foreign program (not Python: no gate acknowledges its ticks) is known
+        to have finished a tick only by counting its messages, and its consumers map its
+        n-th message to its n-th activation: an output others consume must then carry one
+        message per activation. A gated program may publish any number (its consumers see
+        the latest sample, see ``runtime.gated_output``)."""
         consumed = {e.topic for e in edges}
         for i, spec in enumerate(self.model.nodes):
             plan = nodes[spec.name]
-            if not plan.foreign:
+            if not plan.foreign or plan.gated:
                 continue
             for own, graph in plan.output_names.items():
                 if graph in consumed and plan.params.silent_at_start:
                     raise self.fail(self.node_key(i, "params.silent_at_start"),
                                     f"{graph} is consumed by other nodes, which need the "
-                                    "program's sample of tick 0, and the program publishes "
-                                    "nothing then.", "false, or no node consuming its outputs.")
+                                    "program's sample of tick 0, and this program (not "
+                                    "Python, so not gated) publishes nothing then.",
+                                    "false, or no node consuming its outputs.")
                 if graph in consumed and plan.params.count(own) != 1:
                     raise self.fail(self.node_key(i, f"params.per_activation.{own}"),
                                     f"{graph} is consumed by other nodes, which take one "
-                                    f"message per activation, not {plan.params.count(own)}.",
+                                    f"message per activation of this program (not Python, "
+                                    f"so not gated), not {plan.params.count(own)}.",
                                     "1 for a consumed topic (or leave it out).")
 
     def check_cycles(self, edges: list[Edge]) -> None:
