@@ -44,7 +44,8 @@ class ControlAsRosNode(Node):
         self.plan_pub = self.create_publisher(Path, "plan", 10)
         self.create_subscription(Odometry, "odom", self.on_odom, 10)
         self.create_subscription(LaserScan, "scan", self.on_scan, 10)
-        if timer_hz > 0:
+        self.timer_driven = timer_hz > 0
+        if self.timer_driven:
             self.create_timer(1.0 / timer_hz, self.on_timer)
 
     def on_odom(self, msg: Odometry) -> None:
@@ -54,7 +55,7 @@ class ControlAsRosNode(Node):
     def on_scan(self, msg: LaserScan) -> None:
         """Keep the scan; without a timer, one control step per scan."""
         self.scan = msg
-        if not self.timers:
+        if not self.timer_driven:
             self.step(msg)
 
     def on_timer(self) -> None:

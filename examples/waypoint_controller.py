@@ -54,13 +54,14 @@ class WaypointController(Node):
         self.latest: Odometry | None = None
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 10)
         self.create_subscription(Odometry, "odom", self.on_odom, 10)
-        if timer_hz > 0:
+        self.timer_driven = timer_hz > 0
+        if self.timer_driven:
             self.create_timer(1.0 / timer_hz, self.on_timer)
 
     def on_odom(self, odom: Odometry) -> None:
         """Store the odometry; without a timer, answer it with a command at once."""
         self.latest = odom
-        if not self.timers:
+        if not self.timer_driven:
             self.command(odom)
 
     def on_timer(self) -> None:
