@@ -125,7 +125,7 @@ class ForeignProxy(Participant):
                       f"{feed_topic(self.name, own)})" for own in self._unsubscribed()]
             if not parts and not self.gate_ready:
                 parts.append(f"its cosim gate never reported ready on {self.ack} (is it an "
-                             "rclpy program run by this interpreter?)")
+                             "rclpy program run by this interpreter, with use_sim_time true?)")
         missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
         if missing:
             parts.append("its outputs are not advertised yet: "
