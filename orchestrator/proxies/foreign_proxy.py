@@ -269,4 +269,7 @@ class ForeignProxy(Participant):
         if self.gated:
             return ("its gate acknowledged the tick, but of the messages it counted only "
                     + ", ".join(parts) + " arrived (foreign program)")
-        return "it published " + ", ".join(parts) + " (foreign program)"
+        return ("it published " + ", ".join(parts) + " (a foreign program that is not "
+                "Python, so not gated: it must publish exactly the declared count per tick, "
+                "params.per_activation and params.silent_at_start; if it publishes fewer, "
+                "declare that)")
