@@ -5,9 +5,9 @@ The orchestrator ("feeder") remaps a foreign program's input topics and its
 for every tick ``j`` the program is due at, publishes one message on each
 input scheduled at ``j`` followed by the ``Clock`` of tick ``j``.  It only
 publishes tick ``j + period`` once the program acknowledged, on
-``<prefix>taken`` (``std_msgs/Int64``, reliable, transient-local, depth 1),
-that it has taken and processed tick ``j``: ``[j, n_1, ..., n_m]`` (``std_msgs/
-Int64MultiArray``), where ``n_i`` is how many messages the program published on its i-th
+``<prefix>taken`` (``std_msgs/Int64MultiArray``, reliable, transient-local, depth
+1000: the program's consumers read it too), that it has taken and processed tick ``j``:
+``[j, n_1, ..., n_m]``, where ``n_i`` is how many messages the program published on its i-th
 output (``outputs`` in the configuration) since the previous acknowledgement, from
 callbacks and timers alike: zero, one or several, so consumers know which messages belong
 to tick ``j`` without counting on a fixed number.
