@@ -35,6 +35,8 @@ SECTIONS = [
      lambda: nav.main(["--transport", "zenoh", "--repeats", "3"])),
     ("nav: the controller as a foreign rclpy program over built-in",
      lambda: foreign_nav.main(["--repeats", "3"])),
+    ("nav: the same, timer-driven (callbacks store, a 10 Hz timer publishes)",
+     lambda: foreign_nav.main(["--repeats", "3", "--timer"])),
     ("nav: with the Foxglove live view and one client over without",
      lambda: live.main(["--repeats", "3"])),
     ("nav: where each process spends its time (py-spy)", lambda: profile.main([])),

@@ -7,6 +7,7 @@ what it returns.
 from __future__ import annotations
 
 import shlex
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,6 +75,23 @@ class NodePlan:
     def foreign(self) -> bool:
         """Whether this node is a foreign ROS 2 program started from a command."""
         return self.spec.command is not None
+
+    @property
+    def gated(self) -> bool:
+        """Whether this node is a foreign program that carries cosim's gate (a Python one):
+        it acknowledges every tick with how many messages it published on each output, so
+        it may publish any number of them per tick (the README's delivery contract)."""
+        if not self.foreign:
+            return False
+        first = self.spec.command[0]
+        return (first in ("python", "python3") or Path(first).name.startswith("python")
+                or first.endswith(".py") or first == sys.executable)
+
+    @property
+    def gated_outputs(self) -> list[str]:
+        """A gated program's output topics (graph names) in the order its gate counts them
+        in each acknowledgement."""
+        return sorted(self.output_names.values())
 
 
 @dataclass

@@ -25,6 +25,7 @@ from nodes.live_params import ParamsInput
 from plan.packing import subscribers
 from runtime.activation import Activation
 from runtime.exchange import InputHistory, output_digest
+from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, ack_topic, decode_ack
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,
@@ -87,6 +88,11 @@ class InputChannel:
         self.received += 1
         return tick
 
+    def accept_ticks(self, rec: Received) -> list[int]:
+        """``accept``, as the list of producer ticks resolved (a GatedChannel's interface)."""
+        tick = self.accept(rec)
+        return [tick] if tick >= 0 else []
+
     def rebase(self, sent_before: int) -> None:
         """Start over after a reset: the producer had sent ``sent_before`` messages."""
         self.base = sent_before
@@ -141,16 +147,30 @@ class LockstepRuntime:
         self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
                                                        latched=t in latched)
                            for t, msg in plan.outputs.items()}
-        self.inputs: dict[str, InputChannel] = {}
+        self.inputs: dict[str, InputChannel | GatedChannel] = {}
         self.input_subs = {}
+        self.acks: dict[str, list[GatedChannel]] = {}  # a gated producer's ack topic -> inputs
         driver = sched.driving_edge(self.name)
         for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
             period = sched.periods[inp.producer]
             drives = sched.periods[self.name] if edge == driver else None
-            self.inputs[inp.graph_topic] = InputChannel(inp.topic, inp.graph_topic,
-                                                        inp.msg_type, period, drives)
+            depth = sched.history_depth(edge)
+            producer = self.scenario.nodes[inp.producer]
+            if producer.gated:  # any number of messages per tick: its gate says how many
+                channel = GatedChannel(inp.topic, inp.graph_topic, inp.msg_type, period,
+                                       producer.gated_outputs.index(inp.graph_topic), drives)
+                acks = ack_topic(inp.producer)
+                if acks not in self.acks:
+                    self.acks[acks] = []
+                    self.input_subs[acks] = self.transport.subscription(
+                        acks, ACK_TYPE, depth, latched=True)
+                self.acks[acks].append(channel)
+                depth = max(depth, 1000)  # a burst of messages in one tick is not lost
+            else:
+                channel = InputChannel(inp.topic, inp.graph_topic, inp.msg_type, period, drives)
+            self.inputs[inp.graph_topic] = channel
             self.input_subs[inp.graph_topic] = self.transport.subscription(
-                inp.graph_topic, inp.msg_type, sched.history_depth(edge))
+                inp.graph_topic, inp.msg_type, depth)
         # A node told of its ticks by a same_tick input does not wake for /clock.
         self.clock_sub = (self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
                           if driver is None else None)
@@ -196,10 +216,18 @@ class LockstepRuntime:
             if rec.topic == COMMAND_TOPIC:
                 self.on_command(decode_command(rec.data))
                 continue
-            channel = self.inputs[rec.topic]
-            tick = channel.accept(rec)
-            if channel.drives and tick >= 0 and tick % channel.drives == 0:
-                self.clocks.append(tick)
+            try:
+                if rec.topic in self.acks:
+                    tick, counts = decode_ack(rec.data)
+                    resolved = [(c, c.acknowledged(tick, counts)) for c in self.acks[rec.topic]]
+                else:
+                    channel = self.inputs[rec.topic]
+                    resolved = [(channel, channel.accept_ticks(rec))]
+            except SequenceError as exc:
+                raise NodeFailure(str(exc)) from None
+            for channel, ticks in resolved:
+                if channel.drives:
+                    self.clocks.extend(t for t in ticks if t % channel.drives == 0)
 
     def run(self) -> None:
         """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""
@@ -286,6 +314,8 @@ class LockstepRuntime:
             wanted[inp.topic] = (inp.graph_topic, r)
         taken = time.perf_counter_ns()
         inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
+        # a gated foreign producer's output before its first message: none yet, no entry
+        inputs = {own: msg for own, msg in inputs.items() if msg is not None}
         self.timing.add("deserialise", taken)
         self.activate(Tick(k, self.sched.time_ns(k)), inputs)
         return True

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.run_paths import RunPaths
+from runtime.gated_output import FOREIGN_OUTPUT_RULE
 from runtime.timing import read_summary
 
 log = logging.getLogger("cosim")
@@ -136,6 +137,26 @@ def digests_entry(scenario: Scenario, outcome) -> dict[str, Any]:
             "digest_versions": digest_versions(getattr(outcome, "renderer", None))}
 
 
+def foreign_entry(scenario: Scenario) -> dict[str, Any]:
+    """Per foreign program, the rule its outputs follow: what its consumers see, and the
+    message counts the scenario declares exactly (checked at every tick)."""
+    out = {}
+    for name, plan in scenario.nodes.items():
+        if not plan.foreign:
+            continue
+        params = plan.params
+        if plan.gated:
+            rule = FOREIGN_OUTPUT_RULE
+            exact = {plan.output_names[own]: n for own, n in params.per_activation.items()}
+        else:
+            rule = ("not gated: counted, its n-th message on an output is its sample of its "
+                    "n-th activation")
+            exact = {graph: params.count(own) for own, graph in plan.output_names.items()}
+        out[name] = {"gated": plan.gated, "outputs": rule, "exact_counts": exact,
+                     "silent_at_start": params.silent_at_start}
+    return out
+
+
 def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
@@ -168,6 +189,7 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
         "loop_real_time_factor": round(sim_s / outcome.loop_s, 2) if outcome.loop_s else None,
         "orchestrator": own_cost(),
         "nodes": nodes,
+        "foreign": foreign_entry(scenario),
         "outputs": outputs_entry(outcome),
         "options": options.as_dict(),
         "warnings": list(getattr(outcome, "warnings", [])),
