@@ -420,7 +420,8 @@ def draw_distances(ax, scenario, track: Track, scans) -> None:
     ax.set_ylabel("distance [m]")
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="best", fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # nothing drawn without a goal or a lidar (an arm)
+        ax.legend(loc="best", fontsize=8)
 
 
 def nearest_return(scan) -> float:
