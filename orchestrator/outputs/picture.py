@@ -27,6 +27,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
+from orchestrator.outputs.arm_picture import JOINT_STATES, joint_figure, joint_goal_of
 from plan.run_paths import RunPaths
 
 NAV_TOPICS = ("/odom", "/plan", "/scan", "/cmd_vel")
@@ -73,10 +74,13 @@ def write_report_png(scenario, run_dir: Path, bag: Path | None, outcome=None) ->
     """
     if bag is None or not Path(bag).exists():
         return None
-    data = read_bag(Path(bag), NAV_TOPICS)
+    arm = joint_goal_of(scenario) is not None
+    data = read_bag(Path(bag), NAV_TOPICS + ((JOINT_STATES,) if arm else ()))
     if not any(data.counts.values()):
         return None
-    if data.messages.get("/odom"):
+    if arm and data.messages.get(JOINT_STATES):
+        fig = joint_figure(scenario, data, outcome, title(scenario, outcome))
+    elif data.messages.get("/odom"):
         fig = nav_figure(scenario, data, outcome)
     else:
         fig = counts_figure(scenario, data, outcome)
