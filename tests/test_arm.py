@@ -105,3 +105,12 @@ def test_a_target_outside_a_joint_range_is_exit_2_naming_the_key(tmp_path):
 def test_a_joint_goal_on_an_unknown_joint_is_exit_2_naming_the_key(tmp_path):
     err = refused(tmp_path, "elbow: 1.1,", "elbw: 1.1,")
     assert "joint_goal.positions.elbw" in err and "no hinge or slide joint 'elbw'" in err
+
+
+def test_a_fixed_base_takes_no_cmd_vel_exit_2(tmp_path):
+    run = orchestrate(ARM, tmp_path, "--in-process", "--set",
+                      "nodes.physics.inputs=[{topic: /joint_commands, mode: delayed}, "
+                      "{topic: /cmd_vel, mode: delayed}]")
+    assert run.code == 2
+    assert "nodes[0] (physics).inputs[1].topic: this node does not take /cmd_vel" in run.stderr
+    assert not any(tmp_path.iterdir())

@@ -194,8 +194,9 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
-        """Velocity commands, pan-tilt position commands and teleports."""
-        return {CMD_VEL, JOINT_COMMANDS, SET_POSE_TOPIC}
+        """Joint position commands; with a drive, velocity commands and teleports too."""
+        mobile = {CMD_VEL, SET_POSE_TOPIC} if params.wheel_joints is not None else set()
+        return mobile | {JOINT_COMMANDS}
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robot."""
