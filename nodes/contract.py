@@ -34,6 +34,7 @@ class NodeConfig:
     period_ns: int
     world: Path | None = None
     goal: dict[str, float] | None = None
+    joint_goal: dict[str, Any] | None = None  # {positions: {joint: rad}, tolerance: rad}
     scenario_dir: Path = field(default_factory=Path.cwd)
     render_warm_up: bool = True  # a camera builds its GL renderer in a thread at set-up
 

@@ -357,7 +357,7 @@ def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
     reached = goal_reached(metrics)
     spec = scenario.model.success
     ok = collisions <= spec.max_collisions
-    if spec.reach_goal and scenario.model.goal is not None:
+    if spec.reach_goal and scenario.model.has_goal:
         ok = ok and reached
     outcome.collisions, outcome.success = collisions, ok
     outcome.status = "success" if ok else "goal_not_met"

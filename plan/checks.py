@@ -120,6 +120,7 @@ class ScenarioChecks:
         problems raise; what only deserves a word (a goal its map cannot reach) is
         returned as warnings."""
         goal = self.model.goal.model_dump() if self.model.goal else None
+        self.check_joint_goal(world_model)
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
@@ -142,6 +143,20 @@ class ScenarioChecks:
                     "a goal the robot can reach from its start: move the goal, the start or "
                     "the obstacles named."))
         return warnings
+
+    def check_joint_goal(self, world_model) -> None:
+        """Every joint of ``joint_goal`` is a hinge or slide joint of the world."""
+        goal = self.model.joint_goal
+        if goal is None:
+            return
+        joints = {world_model.joint(j).name: int(world_model.jnt_type[j])
+                  for j in range(world_model.njnt)}
+        for name in goal.positions:
+            if joints.get(name) not in (2, 3):  # mjJNT_SLIDE, mjJNT_HINGE: one position each
+                raise self.fail(f"joint_goal.positions.{name}", f"the world has no hinge or "
+                                f"slide joint {name!r} (world {self.model.world}); its joints: "
+                                f"{', '.join(n for n in joints if n) or 'none'}.",
+                                "names of the robot's hinge or slide joints.")
 
     def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""

@@ -75,6 +75,16 @@ class GoalSpec(Strict):
     yaw_tolerance: float = Field(3.2, gt=0)
 
 
+class JointGoalSpec(Strict):
+    """Where a robot's joints must get to (an arm's last target), and how close counts."""
+
+    positions: dict[str, float] = Field(min_length=1, description="joint name -> position "
+                                        "(rad for a hinge), e.g. {elbow: 1.2}")
+    tolerance: float = Field(0.05, gt=0, description="largest error of any joint (rad)")
+    speed_tolerance: float = Field(0.1, gt=0, description="largest speed of any of these "
+                                   "joints (rad/s): reached means there and settling")
+
+
 class SuccessSpec(Strict):
     """What a successful run means: goal reached (if a goal is given) and few enough collisions."""
 
@@ -136,6 +146,7 @@ class ScenarioModel(Strict):
     zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     world: str | None = Field(None, description="path of the world file, relative to this file")
     goal: GoalSpec | None = None
+    joint_goal: JointGoalSpec | None = None
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
     external: ExternalSpec | None = None
@@ -146,3 +157,8 @@ class ScenarioModel(Strict):
     simulation_interfaces: SimulationInterfacesSpec = Field(
         default_factory=SimulationInterfacesSpec)
     nodes: list[NodeSpec] = Field(min_length=1)
+
+    @property
+    def has_goal(self) -> bool:
+        """Whether the run has a goal to reach: a pose (``goal``) or joint positions."""
+        return self.goal is not None or self.joint_goal is not None

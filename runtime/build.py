@@ -14,9 +14,11 @@ def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
     """The NodeConfig every driver gives node ``name`` at reset."""
     plan = scenario.nodes[name]
     goal = scenario.model.goal.model_dump() if scenario.model.goal else None
+    joint_goal = scenario.model.joint_goal.model_dump() if scenario.model.joint_goal else None
     warm_up = (options or RunOptions()).camera_warm_up
     return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
                       period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
+                      joint_goal=joint_goal,
                       scenario_dir=scenario.file.parent.resolve(), render_warm_up=warm_up)
 
 
