@@ -32,7 +32,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run a cosim scenario: start every node as its own process, advance them "
                     "in lockstep on /clock over ROS 2,\nand write a deterministic run digest. "
                     "The same scenario and seed give the same digest, bit for bit.")
-    p.add_argument("scenario", type=Path, help="scenario YAML file, e.g. scenarios/nav.yaml")
+    p.add_argument("scenario", type=Path, nargs="?",
+                   help="scenario YAML file, e.g. scenarios/nav.yaml (not with --replay)")
+    p.add_argument("--replay", type=Path, metavar="RUN_DIR",
+                   help="run a recorded run again in lockstep: its scenario, and every message\n"
+                        "that entered it from outside at the tick it entered; exit 4 when\n"
+                        "the digest differs from the record's (runs not paced on wall time)")
     p.add_argument("--in-process", action="store_true",
                    help="run every node in this process with no transport (the reference)")
     p.add_argument("--out", type=Path, default=Path("runs"),
@@ -127,9 +132,20 @@ def main(argv: list[str] | None = None) -> int:
     from plan.errors import ScenarioError
     from plan.scenario import load_scenario
 
+    recorded = None
     try:
-        scenario = load_scenario(args.scenario, overrides_from(args))
+        if (args.scenario is None) == (args.replay is None):
+            raise ValueError("give a scenario file or --replay RUN_DIR (one of them)")
+        if args.replay is not None:
+            from orchestrator.replay import load_recorded
+
+            recorded = load_recorded(args.replay, overrides_from(args))
+            scenario = recorded.scenario
+        else:
+            scenario = load_scenario(args.scenario, overrides_from(args))
         expected = expected_digest(args.expect_digest, args.against)
+        if recorded is not None and expected is None and not recorded.paced:
+            expected = recorded.digest
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
@@ -137,6 +153,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
+    if recorded is not None:
+        print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
+              f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
     from orchestrator.execute import execute
     from orchestrator.outputs.report import print_outcome
@@ -145,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(scenario.schedule.n_ticks, scenario.tick_ns,
                         enabled=not args.quiet and sys.stderr.isatty())
     try:
-        outcome = execute(scenario, options, on_tick=progress.update)
+        outcome = execute(scenario, options, on_tick=progress.update, external=recorded)
     except KeyboardInterrupt:
         print("cosim-orchestrate: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -155,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     code = {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
             "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)
     if expected and outcome.digest and code in (EXIT_SUCCESS, EXIT_GOAL_NOT_MET):
-        mismatch = digest_mismatch(expected, outcome.digest, outcome.run_dir, args.against)
+        mismatch = digest_mismatch(expected, outcome.digest, outcome.run_dir,
+                                   args.against or args.replay)
         if mismatch:
             print(f"cosim-orchestrate: {mismatch}", file=sys.stderr)
             return EXIT_DIGEST_MISMATCH

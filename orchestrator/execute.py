@@ -188,13 +188,19 @@ def _arrivals_for(scenario: Scenario) -> Arrivals | None:
     return Arrivals(plan.outputs) if plan is not None else None
 
 
+def _external_name(scenario: Scenario) -> str | None:
+    return next((n for n, p in scenario.nodes.items() if p.in_orchestrator), None)
+
+
 def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.lockstep.inprocess import run_in_process
+    from orchestrator.proxies.arrivals_record import recording
 
     writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
-    arrivals = external.take if isinstance(external, Arrivals) else external
+    arrivals = recording(external.take if isinstance(external, Arrivals) else external,
+                         writers.get(_external_name(scenario)))
 
     def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
         writers[name].write(k, items)
