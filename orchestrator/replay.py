@@ -67,8 +67,8 @@ def load_recorded(run_dir: Path, extra_overrides: dict | None = None) -> Recorde
     overrides = dict(entry.get("overrides") or {})
     ticks = int(manifest.get("ticks") or 0)
     planned = int(entry.get("planned_ticks") or 0)
-    if ticks and ticks < planned and not (manifest.get("outcome") or {}).get("stopped_early"):
-        # the run was stopped from outside: the replay stops at the same tick
+    if 1 < ticks < planned:
+        # stopped from outside (or at the goal, where the replay stops anyway): the same end
         overrides["duration"] = f"{(ticks - 1) * int(manifest['tick_ns'])}ns"
     scenario = load_scenario(file, overrides)
     if scenario.sha256 != entry.get("sha256"):

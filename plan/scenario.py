@@ -24,6 +24,7 @@ from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.registry import KINDS, kind_class, load_class
 from plan.schedule import Edge, Schedule, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.twin import twin_problems
 from plan.validation import describe_validation_error, key_path
 
 FOREIGN = "nodes.foreign_program:ForeignNode"
@@ -326,6 +327,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
+    where.check_twin(nodes)
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
 
@@ -357,6 +359,16 @@ class ScenarioContext:
     def __init__(self, path: Path, model: ScenarioModel):
         self.path = path
         self.model = model
+
+    def check_twin(self, nodes: dict[str, NodePlan]) -> None:
+        """A twin's topic map names only topics of the run (plan/twin.py)."""
+        if self.model.twin is None:
+            return
+        external = {t: c for p in nodes.values() if p.in_orchestrator
+                    for t, c in p.outputs.items()}
+        topics = {t: c for p in nodes.values() for t, c in p.outputs.items()}
+        for key, problem, accepted in twin_problems(self.model.twin, external, topics):
+            raise self.fail(key, problem, accepted)
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""

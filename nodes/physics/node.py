@@ -4,7 +4,10 @@ Inputs: /cmd_vel (geometry_msgs/Twist, or TwistStamped with ``enable_stamped_cmd
 normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64MultiArray of
 [pan, tilt] positions, optional) and /cosim/set_pose (simulation_interfaces/NamedPose,
 optional: SetEntityState from an interactive run's clients; the base is put at rest at the
-pose's x, y and yaw).
+pose's x, y and yaw) and /real/odom (nav_msgs/Odometry, optional: a digital twin's real
+robot; once one has arrived the base is a kinematic mirror, placed at its x, y and yaw with
+its velocities every activation instead of being driven, so sensors render from the real
+robot's pose and contacts are those the real pose would have).
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -39,6 +42,7 @@ from nodes.physics.world import (
     wheel_geometry,
 )
 from plan.interactive import SET_POSE_TOPIC
+from plan.twin import MIRROR_TOPIC
 from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
@@ -101,7 +105,8 @@ class PhysicsNode(StepNode):
     @classmethod
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
-        return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist}
+        return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist,
+                MIRROR_TOPIC: Odometry}
 
     @classmethod
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
@@ -145,8 +150,8 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
-        """Velocity commands, pan-tilt position commands and teleports."""
-        return {"/cmd_vel", "/joint_commands", SET_POSE_TOPIC}
+        """Velocity commands, pan-tilt position commands, teleports and a real robot's pose."""
+        return {"/cmd_vel", "/joint_commands", SET_POSE_TOPIC, MIRROR_TOPIC}
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robot."""
@@ -194,7 +199,10 @@ class PhysicsNode(StepNode):
         """Integrate one period (except at the first activation) and publish the state."""
         self._head(inputs.get("/joint_commands"))
         first = not self.started
-        if self.started:
+        real = inputs.get(MIRROR_TOPIC)
+        if real is not None and real.header.frame_id:  # a twin: the real robot's pose, as is
+            self._mirror(real)
+        elif self.started:
             v, w = m.twist_of(inputs.get("/cmd_vel"))
             ctrl, (left_act, right_act) = self.data.ctrl, self.wheel_act
             for _ in range(self.substeps):
@@ -218,6 +226,22 @@ class PhysicsNode(StepNode):
             mujoco.mj_forward(self.model, self.data)
         elif self.frames is not None and self.frames.needs_kinematics:
             mujoco.mj_kinematics(self.model, self.data)
+
+    def _mirror(self, odom: Odometry) -> None:
+        """Place the base at the real robot's planar pose with its velocities (z, roll and
+        pitch stay on the floor); nothing is integrated, the contacts are counted there."""
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        yaw = m.yaw_of(np.array([q.w, q.x, q.y, q.z]))
+        base = self.data.qpos[self.qadr:self.qadr + 7]
+        base[:2] = p.x, p.y
+        base[3:] = np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)
+        v, w = odom.twist.twist.linear, odom.twist.twist.angular  # in the base frame
+        vel = self.data.qvel[self.vadr:self.vadr + 6]
+        vel[:] = (v.x * np.cos(yaw) - v.y * np.sin(yaw), v.x * np.sin(yaw) + v.y * np.cos(yaw),
+                  0.0, 0.0, 0.0, w.z)
+        self.drive.v, self.drive.w = v.x, w.z
+        mujoco.mj_forward(self.model, self.data)
+        self.collisions.update(self.data)
 
     def _teleport(self, msg: Any) -> None:
         """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the
