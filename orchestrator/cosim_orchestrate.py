@@ -74,6 +74,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
                            "publish the scenario's external: topics (entering at a tick,\n"
                            "recorded), call /cosim/* services (default 127.0.0.1:9090)")
+    live.add_argument("--twin", metavar="ws://HOST:PORT",
+                      help="a digital twin of the real robot whose rosbridge server this is:\n"
+                           "the scenario's twin: topic map, paced on the wall clock (the\n"
+                           "scenario's twin.url if not given)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -103,7 +107,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
                       pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict,
-                      live=args.live, rosbridge=args.rosbridge)
+                      live=args.live, rosbridge=args.rosbridge, twin=args.twin)
 
 
 def overrides_from(args: argparse.Namespace) -> dict:
@@ -139,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.replay is not None:
             from orchestrator.replay import load_recorded
 
+            if args.twin:
+                raise ValueError("--replay feeds the recorded inputs; it takes no --twin")
             recorded = load_recorded(args.replay, overrides_from(args))
             scenario = recorded.scenario
         else:

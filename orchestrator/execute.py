@@ -23,6 +23,7 @@ from pathlib import Path
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from orchestrator.lockstep.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
+from orchestrator.proxies.twin import twin_address, twin_run
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -86,6 +87,8 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     rosbridge clients' messages are the run's arrivals.
     """
     warnings = check_run(scenario, options)
+    if twin_address(scenario, options, external) is not None:  # a live twin: paced, its link
+        external, options, on_tick = twin_run(scenario, options, on_tick, external)
     if external is None and options.rosbridge:
         external = _arrivals_for(scenario)
     paths = make_run_dir(options.out, scenario.name)

@@ -90,6 +90,8 @@ def read_arrivals(bag: Path, scenario: Scenario) -> dict[int, dict[str, Any]]:
     out: dict[int, dict[str, Any]] = {}
     with BagReader(bag) as reader:
         topics = [t for t in reader.counts if external_topic(t) in classes]
+        if not topics:  # (no topics would read them all)
+            return out
         for recorded, stamp_ns, raw in reader.raw(topics):
             topic = external_topic(recorded)
             out.setdefault(stamp_ns // scenario.tick_ns, {})[topic] = decode(raw, classes[topic])

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sys
 import threading
 import time
@@ -211,9 +212,9 @@ class TwinLink:
         self.publish = dict(spec.publish)  # run -> robot
         self.out_classes = {run: scenario.topics[run] for run in self.publish}
         self.reconnect_max_s = spec.reconnect_max / 1e9
-        self.stats = {robot: TopicStats(robot, run, spec.stale_after / 1e9)
+        self.topic_stats = {robot: TopicStats(robot, run, spec.stale_after / 1e9)
                       for robot, run in self.subscribe.items()}
-        arrivals.stats = {s.run: s for s in self.stats.values()}
+        arrivals.stats = {s.run: s for s in self.topic_stats.values()}
         self._out: dict[str, bytes] = {}
         self._out_lock = threading.Lock()
         self.sent = dict.fromkeys(self.publish.values(), 0)
@@ -224,13 +225,28 @@ class TwinLink:
         self.connected_s = 0.0
         self.started = time.monotonic()
         self.pacer: Pacer | None = None
+        self.domain: int | None = None  # the run's own ROS domain (own_domain)
+        self._lease = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="cosim-twin", daemon=True)
 
+    def own_domain(self) -> None:
+        """Take a ROS domain no other run here uses, for this run's processes: the robot (or
+        a stand-in on this machine) publishes the same topic names on its own domain, and
+        reaches the twin through rosbridge only."""
+        from orchestrator.domains import DomainLease
+
+        self._lease = DomainLease(wait_s=10.0)
+        self.domain = self._lease.__enter__()  # held until this process ends
+        os.environ["ROS_DOMAIN_ID"] = str(self.domain)
+
     def start(self) -> list[str]:
-        """Start connecting (in the background); the line that says to where."""
+        """Start connecting (in the background); the lines that say to where."""
         self._thread.start()
-        return [f"twin of the robot at {self.address.url}: "
+        domain = ([f"the twin's own ROS 2 topics are on domain {self.domain} "
+                   f"(ROS_DOMAIN_ID={self.domain} ros2 topic list)"]
+                  if self.domain is not None else [])
+        return domain + [f"twin of the robot at {self.address.url}: "
                 + ", ".join(f"{r} -> {t}" for r, t in self.subscribe.items())
                 + ("; back: " + ", ".join(f"{t} -> {r}" for t, r in self.publish.items())
                    if self.publish else "")]
@@ -246,7 +262,8 @@ class TwinLink:
     def close(self) -> None:
         """Stop the link (the run is over)."""
         self._stop.set()
-        self._thread.join(timeout=5)
+        if self._thread.is_alive():
+            self._thread.join(timeout=5)
 
     def stats_entry(self) -> dict[str, Any]:
         """The manifest's ``live.twin``: the link's and every topic's network figures."""
@@ -254,7 +271,8 @@ class TwinLink:
         return {"url": self.address.url, "connects": self.connects,
                 "reconnects": max(self.connects - 1, 0), "attempts": self.attempts,
                 "connected_s": round(self.connected_s, 3),
-                "topics": {robot: s.summary(now) for robot, s in self.stats.items()},
+                "topics": {robot: s.summary(now) for robot, s in self.topic_stats.items()},
+                "ros_domain": self.domain,
                 "sent": self.sent, "replaced_before_sending": self.replaced,
                 "robot_errors": self.errors,
                 "ticks_behind_wall_clock": self.pacer.behind if self.pacer else None}
@@ -341,7 +359,7 @@ class TwinLink:
         from runtime.live.convert import MessageError, from_json
 
         now, wall = time.monotonic(), time.time()
-        stats = self.stats.get(robot)
+        stats = self.topic_stats.get(robot)
         if stats is None:
             return
         try:
@@ -360,7 +378,7 @@ class TwinLink:
 
     def _check_stale(self) -> None:
         now = time.monotonic()
-        for robot, stats in self.stats.items():
+        for robot, stats in self.topic_stats.items():
             if stats.check_stale(now):
                 say(f"{robot} is stale: nothing for {stats.stale_after_s:g} s (the twin "
                     f"holds its last {stats.run})")
@@ -382,3 +400,19 @@ class TwinLink:
 def _reason(exc: BaseException) -> str:
     text = str(exc) or type(exc).__name__
     return text.splitlines()[0][:200]
+
+
+def twin_run(scenario: Scenario, options: RunOptions, on_tick: Callable[[int], None] | None,
+             external: Any) -> tuple[TwinArrivals, RunOptions, Callable[[int], None]]:
+    """What a live twin run changes: its arrivals (with the link to the robot, started with
+    the run's live endpoints), strict lockstep (tick k starts when k - 1 is decided, so what
+    arrived enters at the tick whose wall time it arrived before) and a loop paced on the
+    wall clock."""
+    external_plan = next(p for p in scenario.nodes.values() if p.in_orchestrator)
+    arrivals = TwinArrivals(external_plan.outputs)
+    arrivals.link = TwinLink(scenario, twin_address(scenario, options, external), arrivals)
+    pacer = Pacer(scenario.tick_ns, on_tick)
+    arrivals.link.pacer = pacer
+    if scenario.model.transport == "ros2" and not options.in_process:
+        arrivals.link.own_domain()
+    return arrivals, options.with_(pipeline=False), pacer
