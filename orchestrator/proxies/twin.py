@@ -13,7 +13,8 @@ Stamps and the clock: a real robot stamps with its own clock. When stamps are wi
 minute of this machine's clock the two are taken as shared and the delay is arrival minus
 stamp; otherwise (a simulated stand-in stamps from zero) the offset is unknown and the delay
 is measured above the fastest message seen (``clock: offset``), which is the network's and
-the robot's jitter, not the absolute delay.
+the robot's jitter, not the absolute delay (per connection: a restarted robot may stamp
+from a new origin).
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ class TopicStats:
         self.refused = 0  # did not convert to the run's type
         self.delay = Percentiles()
         self.entry_wait = Percentiles()
-        self.raw_delays: list[float] = []  # arrival - stamp, s (the offset is taken later)
+        # arrival - stamp (s) per connection: a restarted robot may stamp from a new origin
+        self.sessions: list[list[float]] = [[]]
         self.last_stamp: float | None = None
         self.gaps: list[float] = []
         self.lost = 0
@@ -107,7 +109,7 @@ class TopicStats:
             self.stale_since = None
         self.last_arrival = now
         if stamp is not None and stamp > 0:
-            self.raw_delays.append(wall - stamp)
+            self.sessions[-1].append(wall - stamp)
             if self.last_stamp is not None and stamp > self.last_stamp:
                 gap = stamp - self.last_stamp
                 if len(self.gaps) >= 5:
@@ -117,6 +119,12 @@ class TopicStats:
                 self.gaps = (self.gaps + [gap])[-50:]
             self.last_stamp = stamp
         return back
+
+    def new_connection(self) -> None:
+        """The link connected again: stamps may start over (a restarted robot)."""
+        if self.sessions[-1]:
+            self.sessions.append([])
+        self.last_stamp = None
 
     def check_stale(self, now: float) -> bool:
         """Whether the topic just went stale."""
@@ -129,12 +137,13 @@ class TopicStats:
 
     def summary(self, now: float) -> dict[str, Any]:
         """The manifest's entry for this topic."""
-        raw = self.raw_delays
+        raw = [d for session in self.sessions for d in session]
         clock = "shared" if raw and abs(sorted(raw)[len(raw) // 2]) < SHARED_CLOCK_S else "offset"
-        offset = 0.0 if clock == "shared" or not raw else min(raw)
         delay = Percentiles()
-        for value in raw[:MAX_SAMPLES]:
-            delay.add((value - offset) * 1e3)
+        for session in self.sessions:
+            offset = 0.0 if clock == "shared" or not session else min(session)
+            for value in session:
+                delay.add((value - offset) * 1e3)
         stale_s = self.stale_s + (now - self.stale_since if self.stale_since else 0.0)
         return {"as": self.run, "arrived": self.arrived, "entered": self.entered,
                 "superseded": self.superseded, "refused": self.refused, "lost": self.lost,
@@ -288,32 +297,34 @@ class TwinLink:
         from websockets.sync.client import connect
 
         wait = FIRST_RETRY_S
-        lost_at: float | None = None
+        lost_at: float | None = time.monotonic()  # since when the robot is not reached
+        failed = 0  # tries since the last connection
         while not self._stop.is_set():
             self.attempts += 1
             try:
                 ws = connect(self.address.url, open_timeout=2.0, close_timeout=1.0,
                              max_size=64 * 2**20)
             except (OSError, TimeoutError, WebSocketException) as exc:
-                if self.attempts == 1 or lost_at is not None:
-                    say(f"no robot at {self.address.url} ({_reason(exc)}); trying again "
-                        f"with backoff up to {self.reconnect_max_s:g} s, the run goes on")
-                    lost_at = lost_at or time.monotonic()
+                failed += 1
+                if failed == 1 or failed % 10 == 0:
+                    say(f"no robot at {self.address.url} ({_reason(exc)}); trying again with "
+                        f"backoff up to {self.reconnect_max_s:g} s, the run goes on"
+                        + (f" (try {failed})" if failed > 1 else ""))
                 self._stop.wait(wait)
                 wait = min(wait * 2, self.reconnect_max_s)
                 continue
             self.connects += 1
-            if self.connects == 1 and lost_at is None:
-                say(f"connected to the robot at {self.address.url}")
-            else:
-                gone = f" after {time.monotonic() - lost_at:.1f} s" if lost_at else ""
-                say(f"reconnected to the robot at {self.address.url}{gone} "
-                    f"(connection {self.connects})")
-            lost_at, wait = None, FIRST_RETRY_S
+            after = (f" after {time.monotonic() - lost_at:.1f} s and {failed + 1} tries"
+                     if failed else "")
+            say(f"{'connected' if self.connects == 1 else 'reconnected'} to the robot at "
+                f"{self.address.url}{after}")
+            lost_at, wait, failed = None, FIRST_RETRY_S, 0
+            for stats in self.topic_stats.values():
+                stats.new_connection()
             since = time.monotonic()
             try:
                 self._session(ws)
-            except (OSError, WebSocketException) as exc:
+            except Exception as exc:  # noqa: BLE001 - whatever ends a session, the link goes on
                 lost_at = time.monotonic()
                 say(f"lost the robot at {self.address.url} ({_reason(exc)}); reconnecting")
             finally:
