@@ -125,7 +125,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
 @pytest.mark.parametrize(("text", "key", "accepted"), [
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, "
-     "external, interactive, nodes"),
+     "external, interactive, twin, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
      "name, kind, module, rate, params, inputs, remap, debug, command, external, process, "
      "prefix"),

@@ -21,8 +21,9 @@ def twin_rows(twin: dict[str, Any]) -> list[tuple[str, str]]:
             d = t["delay"]
             base = "" if t["clock"] == "shared" else " above the fastest (clocks not shared)"
             text += f"; delay p50 {d['p50_ms']:.1f} ms, p99 {d['p99_ms']:.1f} ms{base}"
-        if t["entry_wait"]:
-            text += f"; to a tick p99 {t['entry_wait']['p99_ms']:.1f} ms"
+        if t.get("mirror_delay"):
+            m = t["mirror_delay"]
+            text += f"; mirror delay p50 {m['p50_ms']:.1f} ms, p99 {m['p99_ms']:.1f} ms"
         if t["stale_periods"]:
             text += (f"; stale {t['stale_periods']} time(s), {t['stale_s']:.1f} s"
                      + (", stale at the end" if t["stale_at_end"] else ""))

@@ -6,8 +6,10 @@ publishes on the ``publish`` topics goes back to the robot, the latest message p
 (an unsent one is replaced, never queued). Nothing the network does blocks the tick loop:
 the loop only puts into and takes from memory. The link says what it sees (connected,
 lost, stale, back) on stderr and in the log, and keeps per robot topic the delay from the
-message's stamp to its arrival, the wait from arrival to the tick it entered at, losses
-(gaps in the stamps) and stale periods, for the manifest and the summary.
+message's stamp to its arrival, the wait from arrival to the tick it entered at, the
+mirror delay (stamp to the tick it entered: what the twin lags the robot by), losses
+(gaps in the stamps against the stream's mean period) and stale periods, for the manifest
+and the summary.
 
 Stamps and the clock: a real robot stamps with its own clock. When stamps are within a
 minute of this machine's clock the two are taken as shared and the delay is arrival minus
@@ -90,6 +92,7 @@ class TopicStats:
         self.entry_wait = Percentiles()
         # arrival - stamp (s) per connection: a restarted robot may stamp from a new origin
         self.sessions: list[list[float]] = [[]]
+        self.mirror_sessions: list[list[float]] = [[]]  # entry - stamp (s): the mirror's lag
         self.last_stamp: float | None = None
         self.gaps: list[float] = []
         self.lost = 0
@@ -112,8 +115,8 @@ class TopicStats:
             self.sessions[-1].append(wall - stamp)
             if self.last_stamp is not None and stamp > self.last_stamp:
                 gap = stamp - self.last_stamp
-                if len(self.gaps) >= 5:
-                    period = sorted(self.gaps)[len(self.gaps) // 2]
+                if len(self.gaps) >= 5:  # the stream's period: the mean gap (bursts cancel)
+                    period = sum(self.gaps) / len(self.gaps)
                     if gap > 1.5 * period:
                         self.lost += round(gap / period) - 1
                 self.gaps = (self.gaps + [gap])[-50:]
@@ -124,6 +127,7 @@ class TopicStats:
         """The link connected again: stamps may start over (a restarted robot)."""
         if self.sessions[-1]:
             self.sessions.append([])
+            self.mirror_sessions.append([])
         self.last_stamp = None
 
     def check_stale(self, now: float) -> bool:
@@ -139,15 +143,18 @@ class TopicStats:
         """The manifest's entry for this topic."""
         raw = [d for session in self.sessions for d in session]
         clock = "shared" if raw and abs(sorted(raw)[len(raw) // 2]) < SHARED_CLOCK_S else "offset"
-        delay = Percentiles()
-        for session in self.sessions:
+        delay, mirror = Percentiles(), Percentiles()
+        for session, lags in zip(self.sessions, self.mirror_sessions, strict=True):
             offset = 0.0 if clock == "shared" or not session else min(session)
             for value in session:
                 delay.add((value - offset) * 1e3)
+            for value in lags:
+                mirror.add((value - offset) * 1e3)
         stale_s = self.stale_s + (now - self.stale_since if self.stale_since else 0.0)
         return {"as": self.run, "arrived": self.arrived, "entered": self.entered,
                 "superseded": self.superseded, "refused": self.refused, "lost": self.lost,
                 "clock": clock, "delay": delay.summary(), "entry_wait": self.entry_wait.summary(),
+                "mirror_delay": mirror.summary(),
                 "stale_periods": self.stale_periods, "stale_s": round(stale_s, 3),
                 "stale_at_end": self.stale_since is not None,
                 "never_arrived": self.arrived == 0}
@@ -176,10 +183,15 @@ class TwinArrivals(Arrivals):
         with self._lock:
             taken, self._waiting = self._waiting, {}
             since, self._since = self._since, {}
-        for topic in taken:
-            if topic in self.stats and topic in since:
-                self.stats[topic].entered += 1
-                self.stats[topic].entry_wait.add((now - since[topic]) * 1e3)
+        wall = time.time()
+        for topic, msg in taken.items():
+            stats = self.stats.get(topic)
+            if stats is not None and topic in since:
+                stats.entered += 1
+                stats.entry_wait.add((now - since[topic]) * 1e3)
+                stamp = _stamp_s(msg)
+                if stamp:
+                    stats.mirror_sessions[-1].append(wall - stamp)
         return taken
 
 
@@ -380,9 +392,7 @@ class TwinLink:
                 say(f"{robot} does not fit {stats.run}'s type: {exc}")
             stats.refused += 1
             return
-        header = getattr(msg, "header", None)
-        stamp = header.stamp.sec + header.stamp.nanosec / 1e9 if header is not None else None
-        back = stats.arrival(now, wall, stamp)
+        back = stats.arrival(now, wall, _stamp_s(msg))
         if back is not None:
             say(f"{robot} is back after {back:.2f} s without messages")
         self.arrivals.put(stats.run, msg)
@@ -406,6 +416,12 @@ class TwinLink:
             ws.send(json.dumps({"op": "publish", "topic": robot, "msg": body},
                                separators=(",", ":")))
             self.sent[robot] += 1
+
+
+def _stamp_s(msg: Any) -> float | None:
+    """A message's header stamp in seconds (None without a header)."""
+    header = getattr(msg, "header", None)
+    return header.stamp.sec + header.stamp.nanosec / 1e9 if header is not None else None
 
 
 def _reason(exc: BaseException) -> str:
