@@ -113,6 +113,8 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
                 proc.wait(timeout=30)
         log.close()
     assert twin.returncode == 0, "".join(said.lines)
+    told = "".join(said.lines)
+    assert "twin: /odom is stale" in told and "twin: /odom is back after" in told
     recorded = run_dir(tmp_path / "twin")
     manifest = json.loads((recorded / "manifest.json").read_text())
     link = manifest["live"]["twin"]
@@ -121,6 +123,7 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
     assert odom["entered"] > 0 and odom["delay"]["n"] == odom["arrived"]
     assert odom["entry_wait"]["n"] == odom["entered"]
     assert link["topics"]["/scan"]["never_arrived"]  # the stand-in has no lidar
+    assert odom["stale_periods"] >= 1 and odom["stale_s"] > 0  # while it was away
 
     # the mirror: at every tick a robot message entered, the twin's /odom is at its pose;
     # and what entered is the robot's own /odom (the rclpy user saw the same message)
@@ -183,6 +186,20 @@ def wait_until(condition, proc: subprocess.Popen, said: Lines) -> None:
 
 def _yaw(q) -> float:
     return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+
+def test_no_robot_at_the_start_is_a_message_and_retries_while_the_run_goes_on(tmp_path):
+    port = free_port()  # nothing listens there
+    done = subprocess.run([*ORCHESTRATE, str(TWIN), "--twin", f"ws://127.0.0.1:{port}",
+                           "--duration", "1s", "--in-process", "--quiet", "--out",
+                           str(tmp_path / "out")], cwd=ROOT, capture_output=True, text=True,
+                          timeout=HANG_S)
+    assert done.returncode == 0, done.stderr
+    assert f"twin: no robot at ws://127.0.0.1:{port}" in done.stderr
+    assert "Traceback" not in done.stderr
+    link = json.loads((run_dir(tmp_path / "out") / "manifest.json").read_text())["live"]["twin"]
+    assert link["connects"] == 0 and link["attempts"] >= 2  # it kept trying
+    assert link["topics"]["/odom"]["never_arrived"]
 
 
 @pytest.mark.parametrize("args, says", [

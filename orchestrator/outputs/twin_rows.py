@@ -37,3 +37,19 @@ def twin_rows(twin: dict[str, Any]) -> list[tuple[str, str]]:
         rows.append(("behind", f"{twin['ticks_behind_wall_clock']} tick(s) decided more than "
                                "a tick late"))
     return rows
+
+
+def twin_line(twin: dict[str, Any]) -> str:
+    """The network in a few lines, for the report picture."""
+    lines = [f"twin of {twin['url']}: {twin['reconnects']} reconnect(s)"]
+    for robot, t in twin.get("topics", {}).items():
+        if t["never_arrived"]:
+            lines.append(f"{robot}: nothing arrived")
+            continue
+        d, m = t.get("delay") or {}, t.get("mirror_delay") or {}
+        lines.append(f"{robot}: {t['arrived']} arrived, {t['lost']} lost, delay p50/p99 "
+                     f"{d.get('p50_ms', 0):.1f}/{d.get('p99_ms', 0):.1f} ms, mirror "
+                     f"{m.get('p50_ms', 0):.1f}/{m.get('p99_ms', 0):.1f} ms"
+                     + (f", stale {t['stale_periods']}x {t['stale_s']:.1f} s"
+                        if t["stale_periods"] else ""))
+    return "\n".join(lines)
