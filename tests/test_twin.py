@@ -124,6 +124,9 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
     assert odom["entry_wait"]["n"] == odom["entered"]
     assert link["topics"]["/scan"]["never_arrived"]  # the stand-in has no lidar
     assert odom["stale_periods"] >= 1 and odom["stale_s"] > 0  # while it was away
+    # the chosen run topics went back (the stand-in refuses them: it takes only /cmd_vel)
+    assert link["sent"]["/twin/scan"] > 0 and link["sent"]["/twin/odom"] > 0
+    assert any("/twin/odom is not an input" in text for text in link["robot_errors"])
 
     # the mirror: at every tick a robot message entered, the twin's /odom is at its pose;
     # and what entered is the robot's own /odom (the rclpy user saw the same message)
