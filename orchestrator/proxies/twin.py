@@ -234,7 +234,7 @@ class TwinLink:
         self.out_classes = {run: scenario.topics[run] for run in self.publish}
         self.reconnect_max_s = spec.reconnect_max / 1e9
         self.topic_stats = {robot: TopicStats(robot, run, spec.stale_after / 1e9)
-                      for robot, run in self.subscribe.items()}
+                            for robot, run in self.subscribe.items()}
         arrivals.stats = {s.run: s for s in self.topic_stats.values()}
         self._out: dict[str, bytes] = {}
         self._out_lock = threading.Lock()
