@@ -14,6 +14,8 @@ from urllib.parse import urlsplit
 
 MIRROR_TOPIC = "/real/odom"
 """The run topic whose odometry the physics node mirrors kinematically."""
+MIRROR_JOINTS_TOPIC = "/real/joint_states"
+"""The run topic whose joint positions the physics node mirrors with the pose."""
 
 
 @dataclass(frozen=True)

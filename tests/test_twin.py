@@ -15,6 +15,7 @@ import time
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
 
 from orchestrator.outputs.bag import BagReader
 from runtime.recording import read_part
@@ -134,6 +135,9 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
         entered = {s // TICK_NS: m for s, m in bag.messages("/cosim/arrivals/real/odom",
                                                             Odometry)}
         mirrored = {s // TICK_NS: m for s, m in bag.messages("/odom", Odometry)}
+        joints_in = {s // TICK_NS: m for s, m in bag.messages(
+            "/cosim/arrivals/real/joint_states", JointState)}
+        joints_out = {s // TICK_NS: m for s, m in bag.messages("/joint_states", JointState)}
     assert len(entered) == odom["entered"]
     held = None
     for tick in sorted(mirrored):
@@ -145,6 +149,12 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
         assert (got.position.x, got.position.y) == pytest.approx(
             (want.position.x, want.position.y), abs=1e-9), tick
         assert _yaw(got.orientation) == pytest.approx(_yaw(want.orientation), abs=1e-9)
+    # the joints too (the wheels turned: their angles are the robot's)
+    assert len(joints_in) > 10
+    for tick, real in joints_in.items():
+        assert list(joints_out[tick].name) == list(real.name)
+        assert list(joints_out[tick].position) == pytest.approx(list(real.position), abs=1e-9)
+    assert max(abs(p) for m in joints_in.values() for p in m.position[:2]) > 0.1
     # the first stand-in's messages (the second one stamps from zero again, and its first
     # messages may reach rosbridge before DDS discovery lets the rclpy user see them)
     first, last = [], -1

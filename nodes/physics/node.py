@@ -7,7 +7,8 @@ optional: SetEntityState from an interactive run's clients; the base is put at r
 pose's x, y and yaw) and /real/odom (nav_msgs/Odometry, optional: a digital twin's real
 robot; once one has arrived the base is a kinematic mirror, placed at its x, y and yaw with
 its velocities every activation instead of being driven, so sensors render from the real
-robot's pose and contacts are those the real pose would have).
+robot's pose and contacts are those the real pose would have), with /real/joint_states
+(sensor_msgs/JointState, optional) setting the named joints' positions too.
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -42,7 +43,7 @@ from nodes.physics.world import (
     wheel_geometry,
 )
 from plan.interactive import SET_POSE_TOPIC
-from plan.twin import MIRROR_TOPIC
+from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
@@ -106,7 +107,7 @@ class PhysicsNode(StepNode):
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
         return {"/cmd_vel": TwistStamped if params.enable_stamped_cmd_vel else Twist,
-                MIRROR_TOPIC: Odometry}
+                MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState}
 
     @classmethod
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
@@ -151,7 +152,8 @@ class PhysicsNode(StepNode):
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
         """Velocity commands, pan-tilt position commands, teleports and a real robot's pose."""
-        return {"/cmd_vel", "/joint_commands", SET_POSE_TOPIC, MIRROR_TOPIC}
+        return {"/cmd_vel", "/joint_commands", SET_POSE_TOPIC, MIRROR_TOPIC,
+                MIRROR_JOINTS_TOPIC}
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robot."""
@@ -200,8 +202,9 @@ class PhysicsNode(StepNode):
         self._head(inputs.get("/joint_commands"))
         first = not self.started
         real = inputs.get(MIRROR_TOPIC)
+        joints = inputs.get(MIRROR_JOINTS_TOPIC)
         if real is not None and real.header.frame_id:  # a twin: the real robot's pose, as is
-            self._mirror(real)
+            self._mirror(real, joints)
         elif self.started:
             v, w = m.twist_of(inputs.get("/cmd_vel"))
             ctrl, (left_act, right_act) = self.data.ctrl, self.wheel_act
@@ -227,7 +230,7 @@ class PhysicsNode(StepNode):
         elif self.frames is not None and self.frames.needs_kinematics:
             mujoco.mj_kinematics(self.model, self.data)
 
-    def _mirror(self, odom: Odometry) -> None:
+    def _mirror(self, odom: Odometry, joints: JointState | None) -> None:
         """Place the base at the real robot's planar pose with its velocities (z, roll and
         pitch stay on the floor); nothing is integrated, the contacts are counted there."""
         p, q = odom.pose.pose.position, odom.pose.pose.orientation
@@ -240,8 +243,23 @@ class PhysicsNode(StepNode):
         vel[:] = (v.x * np.cos(yaw) - v.y * np.sin(yaw), v.x * np.sin(yaw) + v.y * np.cos(yaw),
                   0.0, 0.0, 0.0, w.z)
         self.drive.v, self.drive.w = v.x, w.z
+        if joints is not None:
+            self._mirror_joints(joints)
         mujoco.mj_forward(self.model, self.data)
         self.collisions.update(self.data)
+
+    def _mirror_joints(self, msg: JointState) -> None:
+        """The real robot's joint positions (and velocities, where given) for the joints
+        this robot has by name; others are left as they are."""
+        index = {name: i for i, name in enumerate(self.joint_names)}
+        for j, name in enumerate(msg.name):
+            i = index.get(name)
+            if i is None:
+                continue
+            if j < len(msg.position):
+                self.data.qpos[self.joint_q[i]] = msg.position[j]
+            if j < len(msg.velocity):
+                self.data.qvel[self.joint_v[i]] = msg.velocity[j]
 
     def _teleport(self, msg: Any) -> None:
         """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the
