@@ -227,3 +227,35 @@ def test_bad_twin_input_is_exit_2_with_nothing_started(tmp_path, args, says):
                           cwd=ROOT, capture_output=True, text=True, timeout=HANG_S)
     assert done.returncode == 2 and says in done.stderr, done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_network_figures_losses_stale_and_clock_offsets():
+    from orchestrator.proxies.twin import TopicStats
+
+    stats = TopicStats("/odom", "/real/odom", stale_after_s=0.5)
+    period = 0.02
+    # a robot clock 1000 s behind ours, 3 ms + jitter on the way, messages 7..9 lost
+    for k in range(30):
+        if k in (7, 8, 9):
+            continue
+        stamp = 100.0 + k * period
+        stats.arrival(now=k * period + 0.003, wall=1100.0 + k * period + 0.003 + 0.001 * (k % 2),
+                      stamp=stamp)
+    assert stats.lost == 3
+    assert not stats.check_stale(now=30 * period)  # within stale_after of the last
+    assert stats.check_stale(now=30 * period + 0.6) and stats.stale_periods == 1
+    assert not stats.check_stale(now=30 * period + 0.7)  # one period, said once
+    last = 29 * period + 0.003
+    back = stats.arrival(now=last + 1.0, wall=1100.0 + 31 * period + 0.003,
+                         stamp=100.0 + 31 * period)
+    assert back == pytest.approx(0.5, abs=1e-6)  # stale from the last + 0.5 s till now
+    summary = stats.summary(now=2.0)
+    assert summary["clock"] == "offset"  # 1000 s apart: not one clock
+    assert summary["delay"]["p50_ms"] == pytest.approx(0.0, abs=0.01)  # above the fastest
+    assert summary["delay"]["max_ms"] == pytest.approx(1.0, abs=0.01)
+    assert summary["stale_periods"] == 1 and not summary["stale_at_end"]
+    # a restarted robot stamps from zero: its own fastest message is its own baseline
+    stats.new_connection()
+    for k in range(5):
+        stats.arrival(now=3.0 + k * period, wall=5000.0 + k * period, stamp=k * period + 0.01)
+    assert stats.summary(now=4.0)["delay"]["max_ms"] == pytest.approx(1.0, abs=0.01)
