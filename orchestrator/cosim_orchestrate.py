@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--replay", type=Path, metavar="RUN_DIR",
                    help="run a recorded run again in lockstep: its scenario, and every message\n"
                         "that entered it from outside at the tick it entered; exit 4 when\n"
-                        "the digest differs from the record's (runs not paced on wall time)")
+                        "the digest differs from the record's")
     p.add_argument("--in-process", action="store_true",
                    help="run every node in this process with no transport (the reference)")
     p.add_argument("--out", type=Path, default=Path("runs"),
@@ -150,8 +150,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             scenario = load_scenario(args.scenario, overrides_from(args))
         expected = expected_digest(args.expect_digest, args.against)
-        if recorded is not None and expected is None and not recorded.paced:
-            expected = recorded.digest
+        if recorded is not None and expected is None:
+            expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:

@@ -5,8 +5,9 @@ holds every message that entered from outside at the tick it entered
 (``orchestrator.proxies.arrivals_record``). A replay loads the same scenario with the same
 overrides, runs as many ticks as the record has, and feeds each recorded arrival to the
 external node at its tick. Nothing from outside enters a replay, so every replay gives one
-digest, multi-process and in-process; for a run not paced on the wall clock it is the
-recorded run's digest.
+digest, multi-process and in-process, and it is the recorded run's digest: a run paced on
+the wall clock (a twin) ran in lockstep too, its outside inputs entering at the ticks
+recorded, so wall time decided only when they came, which the record keeps.
 """
 
 from __future__ import annotations

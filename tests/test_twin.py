@@ -179,6 +179,7 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
         assert done.returncode == 0, done.stderr
         digests.append(done.stdout.split("digest ")[1].split()[0])
     assert len(set(digests)) == 1
+    assert digests[0] == manifest["digest"]  # lockstep, paced: the recorded run itself
 
 
 def entered_so_far(out) -> int:
