@@ -30,7 +30,6 @@ class Recorded:
     scenario: Scenario
     arrivals: dict[int, dict[str, Any]]  # tick -> external topic -> message
     digest: str | None  # the recorded run's digest
-    paced: bool  # the recorded run was paced on the wall clock (a twin)
 
     def __call__(self, tick: int) -> dict[str, Any]:
         """What entered at ``tick`` (a Replay for the external node)."""
@@ -76,9 +75,7 @@ def load_recorded(run_dir: Path, extra_overrides: dict | None = None) -> Recorde
         raise ScenarioError(file, "(file)", "the scenario file changed since the run was "
                             "recorded (its sha256 differs from the manifest's)",
                             "the scenario as it was, e.g. from version control")
-    twin = (manifest.get("live") or {}).get("twin")
-    return Recorded(scenario, read_arrivals(paths.bag, scenario), manifest.get("digest"),
-                    paced=twin is not None)
+    return Recorded(scenario, read_arrivals(paths.bag, scenario), manifest.get("digest"))
 
 
 def read_arrivals(bag: Path, scenario: Scenario) -> dict[int, dict[str, Any]]:
