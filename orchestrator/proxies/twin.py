@@ -257,8 +257,15 @@ class TwinLink:
         reaches the twin through rosbridge only."""
         from orchestrator.domains import DomainLease
 
-        self._lease = DomainLease(wait_s=10.0)
-        self.domain = self._lease.__enter__()  # held until this process ends
+        lease = DomainLease(wait_s=10.0)
+        try:
+            self.domain = lease.__enter__()  # held until this process ends
+        except Exception as exc:  # noqa: BLE001 - the twin still works, only less isolated
+            say(f"could not take a ROS domain of its own ({exc}); the run stays on "
+                f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}, where a robot on this "
+                "machine would mix its topics with the run's")
+            return
+        self._lease = lease
         os.environ["ROS_DOMAIN_ID"] = str(self.domain)
 
     def start(self) -> list[str]:
