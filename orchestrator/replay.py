@@ -19,8 +19,9 @@ from typing import Any
 
 from orchestrator.proxies.arrivals_record import external_topic
 from plan.errors import ScenarioError
+from plan.load import load_scenario
 from plan.run_paths import RunPaths
-from plan.scenario import Scenario, load_scenario
+from plan.scenario import Scenario
 
 
 @dataclass

@@ -16,9 +16,10 @@ from orchestrator.lockstep.participants import Participant
 from orchestrator.proxies.arrivals_record import arrival_items
 from plan.packing import subscribers
 from plan.scenario import NodePlan, Scenario
+from runtime.activation import Activation
 from runtime.arrivals import Arrivals, Replay
 from runtime.build import make_node
-from runtime.exchange import output_digest, prepare_outputs
+from runtime.exchange import output_digest
 from runtime.protocol import DONE, Done, Status
 from runtime.recording import PartWriter
 from runtime.transport.base import Transport
@@ -37,6 +38,7 @@ class ExternalSource(Participant):
         self.scenario = scenario
         self.schedule = scenario.schedule
         self.node = make_node(scenario, plan.name)
+        self.activation = Activation(plan, self.node)
         self.arrivals = arrivals
         self.recorder = recorder
         depth = self.schedule.output_depths(self.name, plan.outputs)
@@ -69,8 +71,7 @@ class ExternalSource(Participant):
         if self.recorder and inputs:
             self.recorder.write(tick, arrival_items(inputs))
         when = Tick(tick, self.schedule.time_ns(tick))
-        items = prepare_outputs(self.name, self.plan.declared_outputs, self.plan.output_names,
-                                when, self.node.step(when, inputs))
+        items = self.activation(when, inputs)
         for topic, data in items:
             self.publishers[topic].publish(data)
             self.sent[topic] += 1
@@ -87,7 +88,7 @@ class ExternalSource(Participant):
 
     def reset(self) -> None:
         """Back to tick 0 (the run's reset): the node starts over, the record too."""
-        self.node.reset(self.scenario.model.seed, self.node.config)
+        self.activation.restart(self.scenario.model.seed)
         self.pending.clear()
         if isinstance(self.arrivals, Arrivals):
             self.arrivals.take(0)  # what came before the reset is no part of the new run

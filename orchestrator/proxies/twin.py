@@ -352,14 +352,14 @@ class TwinLink:
 
     def _session(self, ws) -> None:
         """Subscribe and advertise, then serve until the connection or the run ends."""
-        from runtime.live.convert import type_label
+        from plan.ros_types import ros_type
 
         for robot, cls in self.classes.items():
             ws.send(json.dumps({"op": "subscribe", "id": f"cosim_twin:{robot}", "topic": robot,
-                                "type": type_label(cls)}))
+                                "type": ros_type(cls)}))
         for run, robot in self.publish.items():
             ws.send(json.dumps({"op": "advertise", "id": f"cosim_twin:{robot}", "topic": robot,
-                                "type": type_label(self.out_classes[run])}))
+                                "type": ros_type(self.out_classes[run])}))
         while not self._stop.is_set():
             try:
                 frame = ws.recv(timeout=POLL_S)
