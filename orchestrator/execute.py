@@ -206,27 +206,25 @@ def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
     from orchestrator.lockstep.inprocess import run_in_process
     from orchestrator.proxies.arrivals_record import recording
 
-    writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
-    arrivals = recording(external.take if isinstance(external, Arrivals) else external,
-                         writers.get(_external_name(scenario)))
-
-    def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
-        writers[name].write(k, items)
-
-    endpoints = _start_live(scenario, options, external)
-    if endpoints is not None:
-        from orchestrator.live.view import in_process_observer
-
-        live_observe, live_tick = in_process_observer(endpoints, scenario)
-        observe = _both(observe, live_observe)
-        on_tick = _both(on_tick, live_tick) if on_tick else live_tick
-    try:
-        return run_in_process(scenario, observe, on_tick, arrivals)
-    finally:
-        if endpoints is not None:
-            outcome.live = endpoints.close()
+    with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
+        writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
         for writer in writers.values():
-            writer.close()
+            run.callback(writer.close)
+        arrivals = recording(external.take if isinstance(external, Arrivals) else external,
+                             writers.get(_external_name(scenario)))
+
+        def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
+            writers[name].write(k, items)
+
+        endpoints = _start_live(scenario, options, external)
+        if endpoints is not None:
+            from orchestrator.live.view import in_process_observer
+
+            run.callback(_close_endpoints, outcome, endpoints)
+            live_observe, live_tick = in_process_observer(endpoints, scenario)
+            observe = _both(observe, live_observe)
+            on_tick = _both(on_tick, live_tick) if on_tick else live_tick
+        return run_in_process(scenario, observe, on_tick, arrivals)
 
 
 def _both(first: Callable, second: Callable) -> Callable:
