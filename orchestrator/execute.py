@@ -23,6 +23,7 @@ from orchestrator.lockstep.starters import Site, join_all, start_all
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
 from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
+from orchestrator.proxies.twin import twin_address, twin_run
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -88,6 +89,8 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     rosbridge clients' messages are the run's arrivals.
     """
     warnings = check_run(scenario, options)
+    if twin_address(scenario, options, external) is not None:  # a live twin: paced, its link
+        external, options, on_tick = twin_run(scenario, options, on_tick, external)
     if external is None and options.rosbridge:
         external = _arrivals_for(scenario)
     paths = make_run_dir(options.out, scenario.name)
@@ -193,16 +196,22 @@ def _arrivals_for(scenario: Scenario) -> Arrivals | None:
     return Arrivals(plan.outputs) if plan is not None else None
 
 
+def _external_name(scenario: Scenario) -> str | None:
+    return next((n for n, p in scenario.nodes.items() if p.in_orchestrator), None)
+
+
 def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.lockstep.inprocess import run_in_process
+    from orchestrator.proxies.arrivals_record import recording
 
     with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
         writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
         for writer in writers.values():
             run.callback(writer.close)
-        arrivals = external.take if isinstance(external, Arrivals) else external
+        arrivals = recording(external.take if isinstance(external, Arrivals) else external,
+                             writers.get(_external_name(scenario)))
 
         def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
             writers[name].write(k, items)

@@ -16,6 +16,7 @@ from plan.registry import KINDS, kind_class, load_class
 from plan.scenario import FOREIGN, NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.twin import twin_problems
 from plan.validation import describe_validation_error
 
 
@@ -214,6 +215,16 @@ class ScenarioChecks:
                                     f"message per activation of this program (not Python, "
                                     f"so not gated), not {plan.params.count(own)}.",
                                     "1 for a consumed topic (or leave it out).")
+
+    def check_twin(self, nodes: dict[str, NodePlan]) -> None:
+        """A twin's topic map names only topics of the run (plan/twin.py)."""
+        if self.model.twin is None:
+            return
+        external = {t: c for p in nodes.values() if p.in_orchestrator
+                    for t, c in p.outputs.items()}
+        topics = {t: c for p in nodes.values() for t, c in p.outputs.items()}
+        for key, problem, accepted in twin_problems(self.model.twin, external, topics):
+            raise self.fail(key, problem, accepted)
 
     def check_cycles(self, edges: list[Edge]) -> None:
         """Refuse a cycle of same_tick edges, naming it."""

@@ -125,6 +125,25 @@ class ExternalSpec(Strict):
                                      "{/goal_pose: geometry_msgs/msg/PoseStamped}")
 
 
+class TwinSpec(Strict):
+    """A digital twin (plan/twin.py): the run connects to a real robot's rosbridge server,
+    is paced on the wall clock, takes the robot's topics in through the external node and
+    sends chosen run topics back."""
+
+    url: str | None = Field(None, description="ws://HOST:PORT of the robot's rosbridge server "
+                            "(--twin overrides it)")
+    subscribe: dict[Topic, Topic] = Field(min_length=1, description="robot topic -> the run's "
+                                          "external topic it enters as, e.g. "
+                                          "{/odom: /real/odom}")
+    publish: dict[Topic, Topic] = Field(default_factory=dict, description="run topic -> the "
+                                        "robot topic it is sent back as, e.g. "
+                                        "{/scan: /twin/scan}")
+    stale_after: DurationNs = Field(500_000_000, description="a robot topic with nothing new "
+                                    "for this long is stale, e.g. '500ms'")
+    reconnect_max: DurationNs = Field(5_000_000_000, description="the longest wait between "
+                                      "two tries to reach the robot (backoff), e.g. '5s'")
+
+
 class SimulationInterfacesSpec(Strict):
     """Where a run serves simulation_interfaces (ros2 runs, multi-process)."""
 
@@ -154,6 +173,7 @@ class ScenarioModel(Strict):
                               "(NavigateToPose goals, SetEntityState, parameter sets); each "
                               "change enters at a tick boundary through the external node "
                               "and is recorded (see plan/interactive.py)")
+    twin: TwinSpec | None = None
     simulation_interfaces: SimulationInterfacesSpec = Field(
         default_factory=SimulationInterfacesSpec)
     nodes: list[NodeSpec] = Field(min_length=1)

@@ -44,6 +44,7 @@ def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scen
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
+    where.check_twin(nodes)
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
 

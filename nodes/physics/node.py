@@ -7,7 +7,12 @@ normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64Mu
 positions, one per ``position_joints`` entry in that order, optional; a command of another
 length is refused with a note and the servos keep their targets) and /cosim/set_pose
 (simulation_interfaces/NamedPose, optional: SetEntityState from an interactive run's clients;
-a mobile base is put at rest at the pose's x, y and yaw).
+a mobile base is put at rest at the pose's x, y and yaw) and /real/odom (nav_msgs/Odometry,
+optional: a digital twin's real robot; once one has arrived the base is a kinematic mirror,
+placed at its x, y and yaw with its velocities every activation instead of being driven, so
+sensors render from the real robot's pose and contacts are those the real pose would have),
+with /real/joint_states (sensor_msgs/JointState, optional) setting the named joints' positions
+too.
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -44,6 +49,7 @@ from nodes.physics.world import (
 )
 from plan.interactive import SET_POSE_TOPIC
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
+from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
@@ -110,7 +116,8 @@ class PhysicsNode(StepNode):
     @classmethod
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
-        return {CMD_VEL: TwistStamped if params.enable_stamped_cmd_vel else Twist}
+        return {CMD_VEL: TwistStamped if params.enable_stamped_cmd_vel else Twist,
+                MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState}
 
     @classmethod
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
@@ -194,8 +201,10 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
-        """Joint position commands; with a drive, velocity commands and teleports too."""
-        mobile = {CMD_VEL, SET_POSE_TOPIC} if params.wheel_joints is not None else set()
+        """Joint position commands; with a drive, velocity commands, teleports and a real
+        robot's pose (a twin) too."""
+        mobile = ({CMD_VEL, SET_POSE_TOPIC, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC}
+                  if params.wheel_joints is not None else set())
         return mobile | {JOINT_COMMANDS}
 
     def setup(self) -> None:
@@ -253,7 +262,11 @@ class PhysicsNode(StepNode):
         """Integrate one period (except at the first activation) and publish the state."""
         self._position_command(inputs.get(JOINT_COMMANDS))
         first = not self.started
-        if self.started:
+        real = inputs.get(MIRROR_TOPIC)
+        joints = inputs.get(MIRROR_JOINTS_TOPIC)
+        if real is not None and real.header.frame_id:  # a twin: the real robot's pose, as is
+            self._mirror(real, joints)
+        elif self.started:
             if self.drive is None:
                 self._integrate_fixed()
             else:
@@ -293,6 +306,37 @@ class PhysicsNode(StepNode):
             mujoco.mj_forward(self.model, self.data)
         elif self.frames is not None and self.frames.needs_kinematics:
             mujoco.mj_kinematics(self.model, self.data)
+
+    def _mirror(self, odom: Odometry, joints: JointState | None) -> None:
+        """Place the base at the real robot's planar pose with its velocities (z, roll and
+        pitch stay on the floor); nothing is integrated, the contacts are counted there."""
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        yaw = m.yaw_of(np.array([q.w, q.x, q.y, q.z]))
+        base = self.data.qpos[self.qadr:self.qadr + 7]
+        base[:2] = p.x, p.y
+        base[3:] = np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)
+        v, w = odom.twist.twist.linear, odom.twist.twist.angular  # in the base frame
+        vel = self.data.qvel[self.vadr:self.vadr + 6]
+        vel[:] = (v.x * np.cos(yaw) - v.y * np.sin(yaw), v.x * np.sin(yaw) + v.y * np.cos(yaw),
+                  0.0, 0.0, 0.0, w.z)
+        self.drive.v, self.drive.w = v.x, w.z
+        if joints is not None:
+            self._mirror_joints(joints)
+        mujoco.mj_forward(self.model, self.data)
+        self.collisions.update(self.data)
+
+    def _mirror_joints(self, msg: JointState) -> None:
+        """The real robot's joint positions (and velocities, where given) for the joints
+        this robot has by name; others are left as they are."""
+        index = {name: i for i, name in enumerate(self.joint_names)}
+        for j, name in enumerate(msg.name):
+            i = index.get(name)
+            if i is None:
+                continue
+            if j < len(msg.position):
+                self.data.qpos[self.joint_q[i]] = msg.position[j]
+            if j < len(msg.velocity):
+                self.data.qvel[self.joint_v[i]] = msg.velocity[j]
 
     def _teleport(self, msg: Any) -> None:
         """Put the base at rest at the request's x, y and yaw (z, roll and pitch stay on the

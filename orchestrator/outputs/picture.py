@@ -226,6 +226,12 @@ def nav_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     notes = notes_text(outcome)
     if notes:
         fig.text(0.01, 0.005, notes, ha="left", va="bottom", fontsize=8, color="#8b0000")
+    twin = (getattr(outcome, "live", None) or {}).get("twin")
+    if twin:
+        from orchestrator.outputs.twin_rows import twin_line
+
+        fig.text(0.01, 0.06 if notes else 0.005, twin_line(twin), ha="left", va="bottom",
+                 fontsize=8, color="#00008b")
     return fig
 
 

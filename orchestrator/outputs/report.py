@@ -52,6 +52,11 @@ def print_summary(outcome) -> None:
     manifest = read_manifest(outcome)
     sections = [("Outcome", outcome_rows(outcome, manifest)),
                 ("Outputs", output_rows(outcome))]
+    twin = (manifest.get("live") or {}).get("twin")
+    if twin:
+        from orchestrator.outputs.twin_rows import twin_rows
+
+        sections.insert(1, ("Twin", twin_rows(twin)))
     nodes = node_table(manifest)
     if sys.stdout.isatty():
         print_rich(outcome, sections, nodes)
