@@ -414,7 +414,8 @@ def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
     reached = goal_reached(metrics)
     spec = scenario.model.success
     ok = collisions <= spec.max_collisions
-    if spec.reach_goal and scenario.model.goal is not None:
+    if spec.reach_goal and (scenario.model.goal is not None
+                            or scenario.model.robots is not None):
         ok = ok and reached
     outcome.collisions, outcome.success = collisions, ok
     outcome.status = "success" if ok else "goal_not_met"

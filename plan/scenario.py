@@ -22,6 +22,14 @@ from plan.errors import ScenarioError, ScenarioNotice
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.registry import KINDS, kind_class, load_class
+from plan.robots import (
+    RobotsLayout,
+    expand_nodes,
+    namespaced,
+    robot_of,
+    robots_layout,
+    swarm_model,
+)
 from plan.schedule import Edge, Schedule, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.validation import describe_validation_error, key_path
@@ -111,6 +119,7 @@ class Scenario:
     sha256: str
     overrides: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # ScenarioNotice texts
+    robots: RobotsLayout | None = None  # the robots: section laid out (plan/robots.py)
 
     @property
     def name(self) -> str:
@@ -299,6 +308,9 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     where = ScenarioContext(path, model)
     where.check_finite("", model.model_dump(by_alias=True, exclude={"nodes"}))
     where.check_unique_names()
+    layout = robots_layout(path, model)
+    model = expand_nodes(path, model, layout)
+    where = ScenarioContext(path, model)
     model = where.with_external_node()
     where = ScenarioContext(path, model)
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
@@ -307,6 +319,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
         where.check_finite(where.node_key(i, "params"), params[i].model_dump())
     world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
     world_warnings = []
+    if world_model is not None and layout is not None:
+        world_model = swarm_model(world, layout)
     if world_model is not None:
         world_warnings = where.check_world_fit(classes, params, world_model)
     tick_ns = where.tick_ns()
@@ -327,7 +341,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
-    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
+    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
+                    layout)
 
 
 def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
@@ -337,7 +352,8 @@ def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge])
                           "but no node of the scenario consumes it (only ROS tools will see "
                           "it).", "a remap to a topic a node of the scenario consumes.")
             for plan in nodes.values() for own, graph in plan.output_names.items()
-            if own != graph and graph not in consumed]
+            if own != graph and graph not in consumed
+            and graph != namespaced(robot_of(plan.name) or "", own)]  # a template's own
 
 
 def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:

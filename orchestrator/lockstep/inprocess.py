@@ -37,7 +37,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
     notes: list[Note] = []
-    stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
+    stop = scenario.model.success.stop_on_goal and (scenario.model.goal is not None
+                                                    or scenario.model.robots is not None)
     activated: set[str] = set()  # a node's first activation also returns its latched outputs
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
