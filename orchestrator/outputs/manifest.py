@@ -10,6 +10,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from orchestrator.outputs.swarm import swarm_entry
 from plan.run_paths import RunPaths
 from runtime.timing import read_summary
 
@@ -147,6 +148,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "warnings": list(getattr(outcome, "warnings", [])),
         "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
         "live": getattr(outcome, "live", None) or None,
+        "swarm": swarm_entry(scenario, result.metrics if result else {}),
     }
 
 
