@@ -174,7 +174,8 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
     started = time.monotonic()
     try:
-        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd)
+        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd,
+                             scenario.robots)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the stage is lost
         log.error("could not write %s: %s", outcome.paths.usd.name, exc)
         return None
