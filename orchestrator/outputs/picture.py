@@ -73,14 +73,6 @@ def write_report_png(scenario, run_dir: Path, bag: Path | None, outcome=None) ->
     """
     if bag is None or not Path(bag).exists():
         return None
-    if getattr(scenario, "robots", None) is not None:  # a swarm: every robot's path
-        from orchestrator.outputs.swarm import swarm_figure
-
-        fig = swarm_figure(scenario, Path(bag), outcome)
-        path = RunPaths(Path(run_dir)).report
-        FigureCanvasAgg(fig)
-        fig.savefig(path, dpi=DPI)
-        return path
     data = read_bag(Path(bag), NAV_TOPICS)
     if not any(data.counts.values()):
         return None
