@@ -99,7 +99,8 @@ class NamedRobot(Strict):
     """One robot of a robots: list: its name (its namespace), start pose and goal."""
 
     name: Name = Field(description="letters, digits and _; the robot's namespace")
-    start: PlanarPose
+    start: PlanarPose | None = Field(None, description="where it starts; in a USD stage "
+                                     "with robot prims, the prim named so places it instead")
     goal: PlanarPose
 
 
@@ -109,8 +110,10 @@ class RobotsSpec(Strict):
     start mirrored through the region's centre), or ``named`` robots, each with its start
     and goal."""
 
-    description: str = Field(description="the MJCF of one robot (like worlds/robot.xml), "
-                             "relative to this file; its names get the prefix ROBOT/")
+    description: str | None = Field(None, description="the MJCF of one robot (like "
+                                    "worlds/robot.xml), relative to this file; its names get "
+                                    "the prefix ROBOT/; default: the one a USD stage's robot "
+                                    "prims name (cosim:robot:mjcf)")
     base_body: str = Field("base_link", description="the robot's root body in the description")
     count: int | None = Field(None, ge=1, le=1024)
     name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")

@@ -104,7 +104,7 @@ def swarm_spec(world: Path, layout: RobotsLayout):
 
     from plan.worldfile import load_world_spec
 
-    spec = load_world_spec(world)
+    spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
     robot = mujoco.MjSpec.from_file(str(layout.description))
     spec.copy_during_attach = True
     for r in layout.robots:
@@ -136,14 +136,17 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     if spec is None:
         return None
     where = _Where(path)
-    description = _description(where, path, spec)
-    footprint = _footprint(where, description, spec.base_body)
     obstacles, world = _arena(where, path, model, spec.base_body)
+    mounts = _stage_robots(where, world)
+    description = _description(where, path, spec, mounts)
+    footprint = _footprint(where, description, spec.base_body)
     if (spec.count is None) == (spec.named is None):
         raise where.fail("robots", "give exactly one of count (seeded placement) or named "
                          "(a list of robots).", "count: N with region: {x: [x0, x1], y: "
                          "[y0, y1]}, or named: [{name, start: {x, y}, goal: {x, y}}, ...].")
-    if spec.named is not None:
+    if mounts:
+        robots = _from_stage(where, spec, mounts, obstacles, footprint)
+    elif spec.named is not None:
         robots = _named(where, spec, obstacles, footprint)
     else:
         robots = _placed(where, spec, obstacles, footprint, model.seed)
@@ -159,7 +162,16 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     return layout
 
 
-def _description(where: _Where, path: Path, spec: RobotsSpec) -> Path:
+def _description(where: _Where, path: Path, spec: RobotsSpec, mounts) -> Path:
+    if spec.description is None:
+        files = sorted({str(mjcf) for _, mjcf, _ in mounts})
+        if len(files) != 1:
+            raise where.fail("robots.description", "no robot description given"
+                             + (f", and the stage's robot prims name {len(files)} MJCF files."
+                                if files else "."), "description: the MJCF of one robot, "
+                             "e.g. worlds/robot.xml (or a USD stage whose robot prims all "
+                             "name one).")
+        return Path(files[0])
     description = (path.parent / spec.description).resolve()
     if not description.is_file():
         raise where.fail("robots.description", f"{spec.description!r} does not exist (looked "
@@ -190,7 +202,7 @@ def _arena(where: _Where, path: Path, model: ScenarioModel, base_body: str):
     import mujoco
 
     from plan.world_geometry import static_obstacles
-    from plan.worldfile import WorldError, load_world_model
+    from plan.worldfile import WorldError, compile_world, load_world_spec
 
     if model.world is None:
         raise where.fail("world", "a robots: section needs a world (the arena) to put them in.",
@@ -200,7 +212,7 @@ def _arena(where: _Where, path: Path, model: ScenarioModel, base_body: str):
         raise where.fail("world", f"world file {model.world!r} does not exist (looked for "
                          f"{world}).", "a path relative to the scenario file.")
     try:
-        arena = load_world_model(world)
+        arena = compile_world(load_world_spec(world, stage_robots_too=False), world)
     except WorldError as exc:
         raise where.fail("world", str(exc), "an MJCF or USD world that MuJoCo loads.") from None
     if mujoco.mj_name2id(arena, mujoco.mjtObj.mjOBJ_BODY, base_body) >= 0:
@@ -210,6 +222,65 @@ def _arena(where: _Where, path: Path, model: ScenarioModel, base_body: str):
     return static_obstacles(arena), world
 
 
+def _stage_robots(where: _Where, world: Path) -> list[tuple[str, Path, tuple]]:
+    """The robot prims of a USD stage (``cosim:robot:mjcf``) as (name, MJCF, (x, y, yaw)):
+    named by the prim (``/World/Robots/robot_3`` -> robot_3), at its world pose; [] for an
+    MJCF world."""
+    from plan.worldfile import WorldError, is_usd, open_stage, stage_robots
+
+    if not is_usd(world):
+        return []
+    from pxr import Gf, Usd, UsdGeom
+
+    try:
+        stage = open_stage(world)
+        mounts = stage_robots(stage, world)
+    except WorldError as exc:
+        raise where.fail("world", str(exc), "a USD stage MuJoCo loads.") from None
+    out = []
+    for mount in mounts:
+        prim = stage.GetPrimAtPath(mount.prim)
+        pose = Gf.Transform(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(
+            Usd.TimeCode.Default()))
+        x, y, _ = pose.GetTranslation()
+        q = pose.GetRotation().GetQuat()
+        w, (qx, qy, qz) = q.GetReal(), q.GetImaginary()
+        yaw = math.atan2(2 * (w * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
+        out.append((mount.prim.rsplit("/", 1)[-1], mount.mjcf, (float(x), float(y), yaw)))
+    return out
+
+
+def _from_stage(where: _Where, spec: RobotsSpec, mounts, obstacles, footprint: float
+                ) -> list[RobotPlacement]:
+    """The stage's robot prims, each at its prim's pose; ``named`` gives each one's goal."""
+    from plan.model import NamedRobot, PlanarPose
+
+    if spec.named is None:
+        raise where.fail("robots", f"the world's stage places {len(mounts)} robots; each "
+                         "needs a goal.", "named: [{name: <prim name>, goal: {x, y}}, ...], "
+                         "one entry per robot prim of the stage.")
+    placed = {name: pose for name, _, pose in mounts}
+    goals = {}
+    for i, entry in enumerate(spec.named):
+        key = f"robots.named[{i}]"
+        if entry.name not in placed:
+            raise where.fail(f"{key}.name", f"the stage has no robot prim named {entry.name!r}.",
+                             f"one of {', '.join(sorted(placed))}.")
+        if entry.start is not None:
+            raise where.fail(f"{key}.start", f"the stage places robot {entry.name!r} (its "
+                             "prim's pose); a start here would contradict it.",
+                             "leave start out.")
+        goals[entry.name] = entry.goal
+    missing = [name for name in placed if name not in goals]
+    if missing:
+        raise where.fail("robots.named", f"no goal for the stage's robot {missing[0]!r}.",
+                         "an entry {name, goal} for every robot prim of the stage.")
+    named = [NamedRobot(name=name, goal=goals[name],
+                        start=PlanarPose(x=pose[0], y=pose[1], yaw=pose[2]))
+             for name, pose in placed.items()]
+    return _named(where, spec.model_copy(update={"named": named}), obstacles, footprint)
+
+
 def _named(where: _Where, spec: RobotsSpec, obstacles, footprint: float
            ) -> list[RobotPlacement]:
     from plan.world_geometry import place_problem
@@ -217,6 +288,10 @@ def _named(where: _Where, spec: RobotsSpec, obstacles, footprint: float
     robots: list[RobotPlacement] = []
     for i, entry in enumerate(spec.named):
         key = f"robots.named[{i}]"
+        if entry.start is None:
+            raise where.fail(f"{key}.start", f"robot {entry.name!r} has no start.",
+                             "start: {x, y, yaw} (only a USD stage's robot prims place "
+                             "their robots themselves).")
         for other in robots:
             if other.name == entry.name:
                 raise where.fail(f"{key}.name", f"two robots are named {entry.name!r} (one "

@@ -317,9 +317,10 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
     for i in range(len(model.nodes)):
         where.check_finite(where.node_key(i, "params"), params[i].model_dump())
-    world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    needs_world = any(cls.needs_world for _, cls in classes.values())
+    world, world_model = where.world_path(needs_world and layout is None)
     world_warnings = []
-    if world_model is not None and layout is not None:
+    if needs_world and layout is not None:  # the arena was checked by robots_layout
         world_model = swarm_model(world, layout)
     if world_model is not None:
         world_warnings = where.check_world_fit(classes, params, world_model)

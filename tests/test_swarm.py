@@ -185,3 +185,33 @@ def test_swarm_scenario_gets_every_robot_to_its_goal(tmp_path):
     for robot in doc["robots"]["named"]:
         assert math.dist((robot["start"]["x"], robot["start"]["y"]),
                          (robot["goal"]["x"], robot["goal"]["y"])) > 6.0
+
+
+SWARM_USD = ROOT / "scenarios" / "swarm_usd.yaml"
+
+
+def test_a_usd_stage_of_instanceable_robot_prims_loads_as_one_robot_each(tmp_path):
+    s = load_scenario(SWARM_USD)
+    ring = {r["name"]: r for r in yaml.safe_load(SWARM.read_text())["robots"]["named"]}
+    assert [r.name for r in s.robots.robots] == list(ring)
+    for robot in s.robots.robots:  # placed at the prims' poses, as swarm.yaml places them
+        start = ring[robot.name]["start"]
+        assert robot.start == pytest.approx((start["x"], start["y"], start["yaw"]), abs=1e-3)
+    assert s.robots.description == WORLDS / "robot.xml"
+    done = orchestrate(SWARM_USD, tmp_path, "--in-process", "--export-usd", "--duration",
+                       "1s", "--set", "success.reach_goal=false", "--quiet")
+    assert done.code == 0, done.stderr
+    usd = (done.run_dir / "run.usda").read_text()
+    assert all(f'"mujoco:body_name" = "robot_{i}/base_link"' in usd for i in range(8))
+
+
+@pytest.mark.parametrize("change, key", [
+    (lambda named: named[0].update(start={"x": 0.0, "y": 0.0}), "robots.named[0].start"),
+    (lambda named: named.pop(), "robots.named"),
+    (lambda named: named[0].update(name="robot_9"), "robots.named[0].name"),
+])
+def test_a_usd_swarm_stage_refuses_goals_that_do_not_match_its_robots(tmp_path, change, key):
+    doc = yaml.safe_load(SWARM_USD.read_text())
+    doc["world"] = str(WORLDS / "swarm.usda")
+    change(doc["robots"]["named"])
+    assert refused(tmp_path, doc).key == key

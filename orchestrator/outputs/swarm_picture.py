@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.outputs.picture import DPI, draw_obstacles, load_world, read_bag, title
+from orchestrator.outputs.picture import DPI, World, draw_obstacles, read_bag, title
 from orchestrator.outputs.swarm import swarm_entry
 from plan.robots import namespaced
 from plan.run_paths import RunPaths
@@ -27,6 +27,22 @@ def write_swarm_png(scenario, run_dir: Path, bag: Path | None, outcome=None) -> 
     return path
 
 
+def arena(scenario) -> World:
+    """The static obstacles of the swarm's world (the robots are not static)."""
+    from plan.robots import swarm_model
+    from plan.world_geometry import static_obstacles
+
+    world = World()
+    for o in static_obstacles(swarm_model(scenario.world, scenario.robots)):
+        if not o.visible:
+            continue
+        if o.is_circle:
+            world.circles.append((o.centre[0], o.centre[1], o.radius))
+        else:
+            world.polygons.append(o.polygon)
+    return world
+
+
 def swarm_figure(scenario, bag: Path, outcome):
     """The arena from above with every robot's driven path in its own colour, its start
     (square), goal (star, tolerance circle) and where it ended (dot)."""
@@ -37,7 +53,7 @@ def swarm_figure(scenario, bag: Path, outcome):
     layout = scenario.robots
     topics = tuple(namespaced(r, "/odom") for r in layout.names)
     data = read_bag(Path(bag), topics)
-    world = load_world(scenario.world)
+    world = arena(scenario)
     colours = colormaps["tab20" if len(layout.names) > 10 else "tab10"]
     fig = Figure(figsize=(11, 10))
     ax = fig.add_subplot(1, 1, 1)
