@@ -83,6 +83,12 @@ def robot_of(node_name: str) -> str | None:
     return node_name.partition("@")[2] or None
 
 
+def topic_token(node_name: str) -> str:
+    """A node name as a part of a topic name (a topic may not hold '@'):
+    'control@robot_3' -> 'control_at_robot_3'."""
+    return node_name.replace("@", "_at_")
+
+
 def prefixed(robot: str, name: str) -> str:
     """A name of the description as it is in the swarm world: 'robot_3/base_link'."""
     return f"{robot}/{name}"

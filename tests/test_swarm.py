@@ -215,3 +215,16 @@ def test_a_usd_swarm_stage_refuses_goals_that_do_not_match_its_robots(tmp_path, 
     doc["world"] = str(WORLDS / "swarm.usda")
     change(doc["robots"]["named"])
     assert refused(tmp_path, doc).key == key
+
+
+def test_a_templated_foreign_program_runs_once_per_robot_in_its_namespace(tmp_path):
+    done = orchestrate(SCENARIOS / "swarm_foreign.yaml", tmp_path, "--quiet")
+    assert done.code == 0, done.stderr
+    with BagReader(done.run_dir / "bag") as bag:
+        data: dict[str, list[int]] = {}
+        for topic, _, raw in bag.raw(None):
+            if topic.endswith(("/source", "/echoed")):
+                data.setdefault(topic, []).append(bag.deserialize(raw, topic).data)
+    for robot in ("robot_0", "robot_1"):
+        assert len(data[f"/{robot}/echoed"]) == 101  # ticks 0..100 of 1 s at 100 Hz
+        assert data[f"/{robot}/echoed"] == [v + 1 for v in data[f"/{robot}/source"]]
