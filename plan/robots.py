@@ -390,13 +390,15 @@ def _seed(scenario_seed: int) -> int:
 # -- node templates --------------------------------------------------------------------------
 
 def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
-                 ) -> ScenarioModel:
+                 ) -> tuple[ScenarioModel, dict[str, int]]:
     """The model with every ``for_each: robot`` node replaced by one instance per robot
     (``NAME@ROBOT``, parameter ``robot`` set where its class takes one, every topic under
     the robot's namespace) and every other node whose class takes a ``robots`` parameter
-    (the world node) given every robot's name and one input per robot."""
+    (the world node) given every robot's name and one input per robot. Also returns each
+    node's index in the file, by name (an instance's is its template's)."""
     where = _Where(path)
     nodes: list[NodeSpec] = []
+    origins: dict[str, int] = {}
     for i, spec in enumerate(model.nodes):
         key = f"nodes[{i}] ({spec.name})"
         if spec.for_each is None:
@@ -404,6 +406,7 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
                 raise where.fail(f"{key}.robots", "robots: chooses the robots of a template.",
                                  "for_each: robot with it, or leave robots out.")
             nodes.append(_world_node(spec, layout) if layout else spec)
+            origins[spec.name] = i
             continue
         if layout is None:
             raise where.fail(f"{key}.for_each", "the scenario has no robots: section.",
@@ -415,7 +418,8 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
                                  f"one of {', '.join(layout.names[:8])}"
                                  f"{', ...' if len(layout.names) > 8 else ''}.")
         nodes += [_instance(spec, robot) for robot in chosen]
-    return model.model_copy(update={"nodes": nodes})
+        origins.update({f"{spec.name}@{robot}": i for robot in chosen})
+    return model.model_copy(update={"nodes": nodes}), origins
 
 
 def _class_of(spec: NodeSpec) -> type | None:

@@ -309,10 +309,10 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Sce
     where.check_finite("", model.model_dump(by_alias=True, exclude={"nodes"}))
     where.check_unique_names()
     layout = robots_layout(path, model)
-    model = expand_nodes(path, model, layout)
-    where = ScenarioContext(path, model)
+    model, origins = expand_nodes(path, model, layout)
+    where = ScenarioContext(path, model, origins)
     model = where.with_external_node()
-    where = ScenarioContext(path, model)
+    where = ScenarioContext(path, model, origins)
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
     for i in range(len(model.nodes)):
@@ -371,9 +371,10 @@ def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:
 class ScenarioContext:
     """The semantic checks that follow schema validation, each raising a precise ScenarioError."""
 
-    def __init__(self, path: Path, model: ScenarioModel):
+    def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None):
         self.path = path
         self.model = model
+        self.origins = origins or {}  # node name -> its entry's index in the file (templates)
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""
@@ -381,7 +382,8 @@ class ScenarioContext:
 
     def node_key(self, i: int, sub: str = "") -> str:
         """'nodes[1] (sensors).rate'-style key path."""
-        key = f"nodes[{i}] ({self.model.nodes[i].name})"
+        name = self.model.nodes[i].name
+        key = f"nodes[{self.origins.get(name, i)}] ({name})"
         return f"{key}.{sub}" if sub else key
 
     def check_finite(self, key: str, value: Any) -> None:

@@ -150,7 +150,7 @@ def test_every_packing_gives_one_digest_and_the_bag_has_every_namespace(tmp_path
     reference = orchestrate(SMALL, tmp_path / "in", "--in-process", "--quiet")
     assert reference.code == 0, reference.stderr
     digest = reference.manifest["digest"]
-    for args in ((), ("--pack", "kind")):
+    for args in ((), ("--pack", "kind"), ("--pack", "robot")):
         done = orchestrate(SMALL, tmp_path / "mp", *args, "--quiet")
         assert done.code == 0, done.stderr
         assert done.manifest["digest"] == digest, args
@@ -228,3 +228,10 @@ def test_a_templated_foreign_program_runs_once_per_robot_in_its_namespace(tmp_pa
     for robot in ("robot_0", "robot_1"):
         assert len(data[f"/{robot}/echoed"]) == 101  # ticks 0..100 of 1 s at 100 Hz
         assert data[f"/{robot}/echoed"] == [v + 1 for v in data[f"/{robot}/source"]]
+
+
+def test_an_error_in_a_template_names_the_instance_and_the_file_entry(tmp_path):
+    doc = small_doc()
+    doc["nodes"][2]["params"] = {"max_speed": -1.0}  # control, the third entry of the file
+    error = refused(tmp_path, doc)
+    assert error.key == "nodes[2] (control@robot_0).params.max_speed"
