@@ -17,7 +17,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported
 from bench.common import ROOT  # noqa: E402
 from nodes.contract import Tick  # noqa: E402
 from orchestrator.lockstep.inprocess import make_node  # noqa: E402
-from plan.scenario import load_scenario  # noqa: E402
+from plan.load import load_scenario  # noqa: E402
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 

@@ -16,7 +16,7 @@ from nodes.sensors.mirror import WorldMirror
 from nodes.sensors.node import SensorsNode
 from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 SMALL = SCENARIOS / "swarm_small.yaml"

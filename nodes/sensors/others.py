@@ -54,9 +54,10 @@ class OtherRobots:
             return dist
         c = centres[near]  # (k, 2)
         d = dirs[:, :2]  # (n, 2): the horizontal part of each beam (unit length in 3D)
-        a = np.einsum("ij,ij->i", d, d)[:, None]  # (n, 1)
-        b = d @ c.T  # (n, k): beam . centre
-        cc = np.einsum("ij,ij->i", c, c)[None, :] - self.radius ** 2
+        # element by element, no matrix products: the same bits on every CPU
+        a = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[:, None]  # (n, 1)
+        b = d[:, :1] * c[:, 0] + d[:, 1:2] * c[:, 1]  # (n, k): beam . centre
+        cc = (c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1])[None, :] - self.radius ** 2
         disc = b * b - a * cc
         with np.errstate(invalid="ignore", divide="ignore"):
             t = (b - np.sqrt(disc)) / a
