@@ -166,8 +166,10 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     try:
         from orchestrator.outputs.picture import write_report_png
+        from orchestrator.outputs.swarm_picture import write_swarm_png
 
-        return write_report_png(scenario, outcome.run_dir, outcome.bag, outcome)
+        write = write_swarm_png if scenario.robots is not None else write_report_png
+        return write(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)
         return None
@@ -182,7 +184,8 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
     started = time.monotonic()
     try:
-        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd)
+        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd,
+                             scenario.robots)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the stage is lost
         log.error("could not write %s: %s", outcome.paths.usd.name, exc)
         return None

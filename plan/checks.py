@@ -23,9 +23,10 @@ from plan.validation import describe_validation_error
 class ScenarioChecks:
     """The semantic checks of one scenario model that follow schema validation, each raising
     a precise ScenarioError naming the file and key."""
-    def __init__(self, path: Path, model: ScenarioModel):
+    def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None):
         self.path = path
         self.model = model
+        self.origins = origins or {}  # node name -> its entry's index in the file (templates)
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""
@@ -33,7 +34,8 @@ class ScenarioChecks:
 
     def node_key(self, i: int, sub: str = "") -> str:
         """'nodes[1] (sensors).rate'-style key path."""
-        key = f"nodes[{i}] ({self.model.nodes[i].name})"
+        name = self.model.nodes[i].name
+        key = f"nodes[{self.origins.get(name, i)}] ({name})"
         return f"{key}.{sub}" if sub else key
 
     def check_finite(self, key: str, value: Any) -> None:

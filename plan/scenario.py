@@ -15,6 +15,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from plan.model import NodeSpec, ScenarioModel
+from plan.robots import RobotsLayout
 from plan.schedule import Schedule
 
 FOREIGN = "nodes.foreign_program:ForeignNode"
@@ -109,6 +110,7 @@ class Scenario:
     sha256: str
     overrides: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # ScenarioNotice texts
+    robots: RobotsLayout | None = None  # the robots: section laid out (plan/robots.py)
 
     @property
     def name(self) -> str:

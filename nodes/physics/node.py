@@ -38,6 +38,7 @@ from nodes.physics.contacts import CollisionCounter
 from nodes.physics.drive import DiffDrive
 from nodes.physics.frames import RobotFrames, TfParams, frame_problems, on_robot
 from nodes.physics.imu import ImuParams, SimulatedImu, imu_problems
+from nodes.physics.swarm import SwarmPhysics, robot_params, swarm_outputs
 from nodes.physics.world import (
     NS_PER_S,
     load_model,
@@ -48,6 +49,7 @@ from nodes.physics.world import (
     wheel_geometry,
 )
 from plan.interactive import SET_POSE_TOPIC
+from plan.robots import namespaced
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 from plan.world_geometry import floor_mask
@@ -88,6 +90,9 @@ class PhysicsParams(BaseModel):
     enable_stamped_cmd_vel: bool = Field(False, description="take /cmd_vel as TwistStamped")
     tf: TfParams | None = Field(TfParams(), description="/tf and /tf_static; null: none")
     imu: ImuParams | None = Field(ImuParams(), description="/imu; null: none")
+    robots: list[str] = Field([], description="set from the scenario's robots: section: "
+                              "every robot's name; the node then steps them all, each under "
+                              "its namespace (nodes.physics.swarm)")
 
 
 class PhysicsNode(StepNode):
@@ -100,6 +105,8 @@ class PhysicsNode(StepNode):
     @classmethod
     def outputs(cls, params: PhysicsParams) -> dict[str, type]:
         """Odometry, joint states, the world state that sensor nodes mirror, /tf and /imu."""
+        if params.robots:
+            return swarm_outputs(params)
         out = {ODOM: Odometry, JOINT_STATES: JointState,
                "/cosim/world_state": Float64MultiArray}
         if params.tf is not None:
@@ -116,8 +123,10 @@ class PhysicsNode(StepNode):
     @classmethod
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
-        return {CMD_VEL: TwistStamped if params.enable_stamped_cmd_vel else Twist,
-                MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState}
+        twist = TwistStamped if params.enable_stamped_cmd_vel else Twist
+        if params.robots:
+            return {namespaced(r, CMD_VEL): twist for r in params.robots}
+        return {CMD_VEL: twist, MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState}
 
     @classmethod
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
@@ -125,6 +134,8 @@ class PhysicsNode(StepNode):
         every obstacle by the robot's footprint radius."""
         from plan.world_geometry import place_problem, robot_footprint_radius, static_obstacles
 
+        if params.robots:  # each robot is checked as the first one is, its copy's names
+            return cls.world_problems(robot_params(params, params.robots[0]), model, goal)
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, params.base_body)
         if body < 0:
             bodies = [model.body(j).name for j in range(1, model.nbody)]
@@ -202,7 +213,9 @@ class PhysicsNode(StepNode):
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
         """Joint position commands; with a drive, velocity commands, teleports and a real
-        robot's pose (a twin) too."""
+        robot's pose (a twin) too; in a swarm, each robot's velocity and joint commands."""
+        if params.robots:
+            return {namespaced(r, t) for r in params.robots for t in (CMD_VEL, JOINT_COMMANDS)}
         mobile = ({CMD_VEL, SET_POSE_TOPIC, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC}
                   if params.wheel_joints is not None else set())
         return mobile | {JOINT_COMMANDS}
@@ -211,10 +224,15 @@ class PhysicsNode(StepNode):
         """Load the world, check the timestep against the period and place the robot."""
         p = self.params
         world = self.config.world
-        self.model = load_model(world)
+        self.model = load_model(world, self.config.robots)
         self.data = mujoco.MjData(self.model)
         self.substeps = substeps(self.model, world, self.config.period_ns)
         self.dt = timestep_ns(self.model, world) / 1e9
+        self.swarm = None
+        if p.robots:
+            self.swarm = SwarmPhysics(self.model, self.data, p, self.config.robots, self.rng,
+                                      self.substeps, self.dt)
+            return
         self.base = named_id(self.model, mujoco.mjtObj.mjOBJ_BODY, p.base_body)
         free = self.model.body_jntadr[self.base]
         self.mobile = free >= 0 and self.model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
@@ -260,6 +278,8 @@ class PhysicsNode(StepNode):
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Integrate one period (except at the first activation) and publish the state."""
+        if self.swarm is not None:
+            return self.swarm.step(tick, inputs)
         self._position_command(inputs.get(JOINT_COMMANDS))
         first = not self.started
         real = inputs.get(MIRROR_TOPIC)
@@ -409,6 +429,8 @@ class PhysicsNode(StepNode):
 
     def metrics(self) -> dict[str, float]:
         """Collision events, the ground-truth planar pose, and whether it reached the goal."""
+        if self.swarm is not None:
+            return self.swarm.metrics()
         q = self._base_pose()
         out = {"collisions": float(self.collisions.events), "x": float(q[0]),
                "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
