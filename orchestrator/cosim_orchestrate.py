@@ -122,6 +122,7 @@ def _interrupt(signum, _frame):
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
     args = build_parser().parse_args(argv)
+    import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from orchestrator.outputs.diff import digest_mismatch, expected_digest
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError

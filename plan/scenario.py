@@ -20,14 +20,12 @@ from pydantic import BaseModel, ValidationError
 
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
+from plan.kinds import catalogue
 from plan.model import InputSpec, NodeSpec, ScenarioModel
-from plan.registry import KINDS, kind_class, load_class
 from plan.schedule import Edge, Schedule, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.validation import describe_validation_error, key_path
 
-FOREIGN = "nodes.foreign_program:ForeignNode"
-EXTERNAL = "nodes.external_inputs:ExternalInputs"
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
 
 
@@ -74,7 +72,7 @@ class NodePlan:
     @property
     def in_orchestrator(self) -> bool:
         """Whether the orchestrator steps this node itself (the external node): no process."""
-        return self.class_ref == EXTERNAL
+        return self.class_ref == catalogue().external
 
     @property
     def foreign(self) -> bool:
@@ -398,7 +396,7 @@ class ScenarioContext:
                                 "another name.")
         period = spec.period_ns if spec else min(node.period_ns for node in nodes)
         node = NodeSpec.model_construct(
-            name=EXTERNAL_NAME, kind=None, module=EXTERNAL, period_ns=period,
+            name=EXTERNAL_NAME, kind=None, module=catalogue().external, period_ns=period,
             params={"topics": topics}, inputs=[], remap={},
             debug=NodeSpec.model_fields["debug"].default_factory(), command=None,
             external=False, prefix=None)
@@ -438,28 +436,29 @@ class ScenarioContext:
 
     def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type]:
         """The step class named by kind or module (or the stand-in of a foreign command)."""
+        kinds = catalogue()
         given = [key for key in ("kind", "module", "command") if getattr(spec, key) is not None]
         if len(given) != 1:
             raise self.fail(self.node_key(i), "give exactly one of 'kind', 'module' or "
                             f"'command' (found {', '.join(given) or 'none'}).",
-                            f"kind: one of {', '.join(sorted(KINDS))}; "
+                            f"kind: one of {', '.join(sorted(kinds.kinds))}; "
                             "or module: 'package.module:Class'; or command: [program, args...] "
                             "for a foreign ROS 2 program.")
         if spec.command is not None:
-            return FOREIGN, load_class(FOREIGN)
+            return kinds.foreign, kinds.load(kinds.foreign)
         if spec.kind is not None:
-            if spec.kind not in KINDS:
+            if spec.kind not in kinds.kinds:
                 raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
-                                f"one of {', '.join(sorted(KINDS))}.")
+                                f"one of {', '.join(sorted(kinds.kinds))}.")
             try:
-                return KINDS[spec.kind], kind_class(spec.kind)
+                return kinds.kinds[spec.kind], kinds.load(kinds.kinds[spec.kind])
             except Exception as exc:  # noqa: BLE001 - report, don't crash: nothing has started
                 raise self.fail(self.node_key(i, "kind"), f"node kind {spec.kind!r} cannot be "
-                                f"loaded from {KINDS[spec.kind]}: {exc}.",
+                                f"loaded from {kinds.kinds[spec.kind]}: {exc}.",
                                 "a kind whose code is installed; check the installation."
                                 ) from None
         try:
-            return spec.module, load_class(spec.module)
+            return spec.module, kinds.load(spec.module)
         except Exception as exc:  # noqa: BLE001 - any import failure is the user's to fix
             raise self.fail(self.node_key(i, "module"), f"cannot load {spec.module!r}: {exc}.",
                             "'package.module:Class' importable here, a StepNode subclass."

@@ -8,6 +8,8 @@ import random
 import psutil
 import pytest
 
+import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+
 # One domain per test run, chosen before anything imports rclpy; children inherit it.
 DOMAIN = os.environ.get("COSIM_TEST_DOMAIN") or str(random.SystemRandom().randint(1, 100))
 os.environ["ROS_DOMAIN_ID"] = DOMAIN
