@@ -4,8 +4,6 @@ start-up errors of foreign programs name the program."""
 
 from __future__ import annotations
 
-import time
-
 import yaml
 
 from tests.helpers import ROOT, SCENARIOS, orchestrate
@@ -79,10 +77,9 @@ def test_a_program_that_never_subscribes_a_declared_input_is_named(tmp_path):
     assert "never subscribed to its declared input /c" in done.stderr
 
 
-def test_a_program_that_dies_before_it_is_ready_ends_the_run_quickly(tmp_path):
-    started = time.monotonic()
+def test_a_program_that_dies_before_it_is_ready_ends_the_run_without_its_deadline(tmp_path):
+    # the start deadline is far beyond the hang guard: only noticing the death ends it in time
     done = orchestrate(scenario_with(tmp_path, ["python", "-c", "import sys; sys.exit(5)"],
-                                     start="60s"), tmp_path / "r")
+                                     start="3600s"), tmp_path / "r", timeout=240)
     assert done.code == 3, done.stderr
     assert "node fusion died" in done.stderr and "exit code 5" in done.stderr
-    assert time.monotonic() - started < 15  # start-up included; never the 60 s deadline
