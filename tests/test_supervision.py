@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import random
 import signal
 import subprocess
 import time
+import uuid
 
 import psutil
 import pytest
@@ -21,22 +23,23 @@ HANG_S = 60  # generous: only a hang runs into it, however loaded the machine
 class LiveRun:
     """cosim-orchestrate started in the background, with handles on its node processes."""
 
-    def __init__(self, scenario, out):
+    def __init__(self, scenario, out, *args: str, env: dict[str, str] | None = None):
         self.out = out
-        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario),
-                                      "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
+                                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, env={**os.environ, **(env or {})})
         self.ps = psutil.Process(self.proc.pid)
 
     def node(self, name: str) -> psutil.Process:
         """The process of node ``name``."""
         return node_process(self.proc.pid, name)
 
-    def wait_running(self, min_bytes: int = 2000, timeout: float = 60) -> None:
-        """Wait until ticks are being recorded."""
+    def wait_running(self, min_bytes: int = 2000, timeout: float = 60,
+                     part: str = "tail") -> None:
+        """Wait until ticks are being recorded (node ``part``'s)."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            parts = list(self.out.glob("*/parts/tail.rec"))
+            parts = list(self.out.glob(f"*/parts/{part}.rec"))
             if parts and parts[0].stat().st_size > min_bytes:
                 return
             assert self.proc.poll() is None, self.proc.communicate()
@@ -138,15 +141,44 @@ def test_interrupting_the_orchestrator_exits_130_cleanly(tmp_path, sig):
     assert bag_counts(run.run_dir)["/tail"] > 10
 
 
-def test_sigkill_to_the_orchestrator_leaves_no_orphan(tmp_path):
-    run = LiveRun(LONG, tmp_path)
-    run.wait_running()
-    children = run.ps.children()
+RUN_MARK = "COSIM_TEST_RUN"  # set for one orchestrator: every process of its run carries it
+ORPHAN_CASES = {  # scenario, options, the node whose recording shows the run going
+    "forked nodes": (LONG, (), "tail"),
+    "--spawn exec": (LONG, ("--spawn", "exec"), "tail"),
+    "packed process": (LONG, ("--pack", "kind"), "tail"),
+    "zenoh": (LONG, ("--transport", "zenoh"), "tail"),
+    "foreign program": (SCENARIOS / "foreign_echo.yaml", ("--duration", "120s"), "sink"),
+}
+
+
+def carrying(mark: str) -> list[psutil.Process]:
+    """Live processes whose environment has RUN_MARK=mark (forked ones show the
+    orchestrator's environment, programs it started inherit it)."""
+    found = []
+    for proc in psutil.process_iter():
+        try:
+            if proc.environ().get(RUN_MARK) == mark and proc.status() != psutil.STATUS_ZOMBIE:
+                found.append(proc)
+        except (psutil.Error, OSError):
+            continue
+    return found
+
+
+@pytest.mark.parametrize("case", list(ORPHAN_CASES))
+def test_sigkill_to_the_orchestrator_leaves_no_process_of_any_kind(tmp_path, case):
+    scenario, args, part = ORPHAN_CASES[case]
+    mark = uuid.uuid4().hex
+    run = LiveRun(scenario, tmp_path, *args, env={RUN_MARK: mark})
+    run.wait_running(part=part)
+    started = {p.pid for p in carrying(mark)}
+    tree = {p.pid for p in run.ps.children(recursive=True)}
+    assert run.proc.pid in started and tree and tree <= started  # the mark sees them all
     run.proc.kill()
-    run.proc.wait()
-    gone, alive = psutil.wait_procs(children, timeout=5)
-    assert not alive, f"orphans: {[p.pid for p in alive]}"
-    assert len(gone) == 3
+    run.proc.communicate()
+    deadline = time.monotonic() + HANG_S  # a hang guard: they go at once, or never
+    while (left := carrying(mark)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not left, f"orphans: {[(p.pid, p.name()) for p in left]}"
 
 
 def test_node_failing_at_start_is_named_with_its_cause(tmp_path):
