@@ -1,13 +1,15 @@
 """Real ROS 2 programs with several inputs stay bit-identical in lockstep (the delivery
 contract in the README): plain rclpy programs of the tests' own, whatever the order they
 create their subscriptions in, their executor, or a sim-time timer, get every tick's inputs
-as one whole. Three runs and one with both cores busy give one digest, and every output is
-the function of the very samples the schedule names."""
+as one whole. Three runs (two with the processes started in a shuffled order) and one with
+every core busy give one digest, and every output is the function of the very samples the
+schedule names."""
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import time
 
 import pytest
@@ -46,9 +48,10 @@ def _spin(seconds: float) -> None:
 
 
 @contextlib.contextmanager
-def both_cores_busy(seconds: float = 60):
+def every_core_busy(seconds: float = 120):
+    """One busy spinner per core this process may run on, for the block (then killed)."""
     procs = [multiprocessing.Process(target=_spin, args=(seconds,), daemon=True)
-             for _ in range(2)]
+             for _ in range(len(os.sched_getaffinity(0)))]
     for p in procs:
         p.start()
     try:
@@ -72,7 +75,10 @@ def by_tick(run_dir, tick_ns: int) -> dict[str, dict[int, int]]:
 CASES = {
     "subscriptions a then b": (["inputs:=2", "order:=abc"], None, 20, False),
     "subscriptions b then a": (["inputs:=2", "order:=cba"], None, 20, False),
-    "multi-threaded executor": (["inputs:=2", "executor:=multi"], None, 20, False),
+    # a's callback takes 30 ms and may overlap b's (a reentrant group, four threads): only
+    # the gate, waiting for a's to finish, makes b's output see a's sample of the same tick
+    "multi-threaded executor": (["inputs:=2", "executor:=multi", "reentrant:=true",
+                                 "slow:=a", "work_ms:=30"], None, 20, False),
     "10 Hz sim-time timer": (["inputs:=2", "trigger:=timer"], None, 10, True),
     "three inputs": (["inputs:=3", "order:=cba"], THREE, 20, False),
 }
@@ -82,9 +88,11 @@ CASES = {
 def test_several_inputs_give_one_digest_every_run(tmp_path, case):
     args, inputs, rate, timer = CASES[case]
     path = variant(tmp_path, args, inputs=inputs, rate=rate, timer=timer)
-    runs = [orchestrate(path, tmp_path / f"run{n}") for n in range(3)]
-    with both_cores_busy():
-        runs.append(orchestrate(path, tmp_path / "loaded"))
+    runs = [orchestrate(path, tmp_path / "run0"),
+            *(orchestrate(path, tmp_path / f"run{n}", "--shuffle-start", str(n))
+              for n in (1, 2))]
+    with every_core_busy():
+        runs.append(orchestrate(path, tmp_path / "loaded", "--shuffle-start", "3"))
     for run in runs:
         assert run.code == 0, run.stderr
     digests = {run.manifest["digest"] for run in runs}
