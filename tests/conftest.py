@@ -22,9 +22,12 @@ become_subreaper()
 
 @pytest.fixture(autouse=True)
 def no_process_left_behind(request):
-    """Fail the test that leaves any process of the run alive (and kill what it left)."""
+    """Fail the test that leaves any process of the run alive (and kill what it left).
+    What runs when it starts belongs to a fixture of a wider scope (a module's Ray cluster),
+    which stops it itself."""
+    before = {_identity(p) for p in session_processes()}
     yield
-    left = session_processes()
+    left = [p for p in session_processes() if _identity(p) not in before]
     if left:
         _, left = psutil.wait_procs(left, timeout=5)
     if left:
@@ -36,6 +39,30 @@ def no_process_left_behind(request):
                 pass
         if names:
             pytest.fail(f"{request.node.nodeid} left processes behind: {names}")
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the session if anything outlived it (a wider fixture's processes included)."""
+    left = session_processes()
+    if left:
+        _, left = psutil.wait_procs(left, timeout=5)
+    names = [_describe(p) for p in left if alive(p)]
+    for proc in left:
+        try:
+            proc.kill()
+        except psutil.Error:
+            pass
+    if names:
+        print(f"\nthe test session left processes behind: {names}")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def _identity(proc: psutil.Process) -> tuple[int, float]:
+    """A process's pid and start time (a pid alone may be reused)."""
+    try:
+        return proc.pid, proc.create_time()
+    except psutil.Error:
+        return proc.pid, 0.0
 
 
 def _describe(proc: psutil.Process) -> str:
