@@ -62,11 +62,13 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     paused = roslibpy.Service(ros, "/cosim/pause", "std_srvs/SetBool").call(
         roslibpy.ServiceRequest({"data": True}), timeout=60)
     assert paused["success"] and paused["message"].startswith("paused at tick 0"), paused
+    started = time.monotonic()
     js = node_client("rosbridge_client.mjs", f"ws://127.0.0.1:{port}", "--topics",
                      "/odom,/scan", "--cbor", "/scan", "--cmd-vel", "0.5")
     got = summary(js)
     code, _, err = finish(orch)
     ros.close()
+    took = time.monotonic() - started
     assert code == 0, err
     assert got["errors"] == []
     assert got["step"] == {"success": True,
@@ -79,8 +81,10 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     assert odom["last"]["x"] > -3.0 + 0.5  # it drove: /cmd_vel entered the run
     assert scan["count"] > 20 and scan["last"]["ranges"] == 360  # these came as CBOR
     # at most one scan per 500 ms of wall time (a fast run may give only one)
+    # at most one scan per 500 ms of the time the run took, however long that was (a ratio:
+    # the times the client saw them at bunch up when it is slow to read)
     assert 1 <= len(throttled) < scan["count"]
-    assert all(b - a > 0.4 for a, b in zip(throttled, throttled[1:], strict=False))
+    assert len(throttled) <= took / 0.5 + 2
     live = manifest(tmp_path / "runs")["live"]["rosbridge"]
     assert live["clients"] == 2 and live["clients_at_once"] == 2
     assert live["published_by_clients"] >= 1 and live["errors"] == 0
