@@ -16,7 +16,7 @@ install: $(STAMP) $(JS_STAMP)
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	@$(BIN)/python -c 'import sys; assert sys.version_info[:2] == (3, 11), "cosim needs Python 3.11 in .venv, found " + sys.version' 
+	@$(BIN)/python -c 'import sys; assert sys.version_info[:2] in ((3, 11), (3, 12)), "cosim needs Python 3.11 or 3.12 in .venv, found " + sys.version'
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	@touch $(STAMP)

@@ -49,7 +49,7 @@ def payloads() -> dict[str, object]:
 
 def nav_payloads() -> dict[str, object]:
     """Odometry, a 360-beam LaserScan and a 123-pose Path as the nav nodes build them."""
-    from nodes.control.plan import path_message
+    from nodes.control.global_planner import path_message
     from nodes.physics.messages import odometry
 
     odom = odometry(np.array([1.0, 2.0, 0.1, 1.0, 0.0, 0.0, 0.0]), np.full(6, 0.1), "odom",

@@ -18,7 +18,7 @@ import nodes  # noqa: E402, F401 - provides the node kinds to the plan (plan.kin
 from bench.common import ROOT  # noqa: E402
 from nodes.contract import Tick  # noqa: E402
 from orchestrator.lockstep.inprocess import make_node  # noqa: E402
-from plan.scenario import load_scenario  # noqa: E402
+from plan.load import load_scenario  # noqa: E402
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 

@@ -1,14 +1,17 @@
 #!/usr/bin/env python3
 """A plain rclpy waypoint follower: only rclpy and standard messages, no cosim import.
 
-It publishes exactly one geometry_msgs/Twist on ``cmd_vel`` for every nav_msgs/Odometry it
+It publishes one geometry_msgs/Twist on ``cmd_vel`` for every nav_msgs/Odometry it
 receives on ``odom``: steer towards the next waypoint, slow down while misaligned, and at
-the last one turn to ``goal_yaw`` and stop. Being a pure function of the odometry it
-receives, it runs deterministically in cosim's lockstep (scenarios/nav_foreign.yaml), and
-just as well against any live robot or simulator.
+the last one turn to ``goal_yaw`` and stop. With ``timer_hz`` > 0 it has the shape most
+control nodes have instead: the odometry callback only stores the latest message, and a
+timer at that rate (on sim time, with ``use_sim_time``) computes and publishes the command,
+so it publishes nothing until the timer first fires and nothing between firings. Being a
+function of the odometry it receives, it runs deterministically in cosim's lockstep
+(scenarios/nav_foreign.yaml), and just as well against any live robot or simulator.
 
     python examples/waypoint_controller.py --ros-args -p use_sim_time:=true \\
-        -p waypoints:="[1.0, 0.0, 1.0, 1.0]"
+        -p waypoints:="[1.0, 0.0, 1.0, 1.0]" [-p timer_hz:=10.0]
 """
 
 import math
@@ -46,12 +49,28 @@ class WaypointController(Node):
         self.max_speed = self.declare_parameter("max_speed", 0.5).value
         self.max_turn = self.declare_parameter("max_turn", 1.5).value
         self.reach = self.declare_parameter("reach_distance", 0.2).value
+        timer_hz = float(self.declare_parameter("timer_hz", 0.0).value)
         self.index = 0
+        self.latest: Odometry | None = None
         self.cmd_pub = self.create_publisher(Twist, "cmd_vel", 10)
         self.create_subscription(Odometry, "odom", self.on_odom, 10)
+        self.timer_driven = timer_hz > 0
+        if self.timer_driven:
+            self.create_timer(1.0 / timer_hz, self.on_timer)
 
     def on_odom(self, odom: Odometry) -> None:
-        """One command per odometry message."""
+        """Store the odometry; without a timer, answer it with a command at once."""
+        self.latest = odom
+        if not self.timer_driven:
+            self.command(odom)
+
+    def on_timer(self) -> None:
+        """Publish the command for the latest odometry (none before the first)."""
+        if self.latest is not None:
+            self.command(self.latest)
+
+    def command(self, odom: Odometry) -> None:
+        """Steer towards the current waypoint and publish one command."""
         pose = odom.pose.pose
         x, y, yaw = pose.position.x, pose.position.y, yaw_of(pose.orientation)
         while self.index < len(self.waypoints) - 1 and self._distance(x, y) < self.reach:

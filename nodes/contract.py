@@ -82,6 +82,13 @@ class StepNode:
         return {}
 
     @classmethod
+    def rendered_outputs(cls, params: BaseModel) -> frozenset[str]:
+        """The own names of the outputs drawn by a GL renderer (camera images): their bits
+        depend on the renderer and its version (GPU or software), not only on the inputs,
+        so digest comparisons can be asked to leave them out. None by default."""
+        return frozenset()
+
+    @classmethod
     def input_types(cls, params: BaseModel) -> dict[str, type]:
         """Input topic -> the message class this node takes on it, where it cares; the
         scenario is refused when the topic's producer publishes another type. ``type_keys``
@@ -95,6 +102,15 @@ class StepNode:
         checked when the scenario loads: (key, problem, accepted) per problem, the key
         relative to the node's entry (e.g. 'params.start') or, starting with 'goal', the
         scenario's goal. Nothing by default."""
+        return []
+
+    @classmethod
+    def period_problems(cls, params: BaseModel, model: Any, period_ns: int
+                        ) -> list[tuple[str, str, str]]:
+        """What makes this node's period ``period_ns`` unusable in the world ``model`` (a
+        physics node whose period is not a whole number of the world's timesteps), checked
+        when the scenario loads: (key, problem, accepted) as in ``world_problems``. Nothing
+        by default."""
         return []
 
     @classmethod

@@ -16,7 +16,8 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from nodes.contract import StepNode, Tick
-from nodes.foreign_program import installed_types, message_class
+from nodes.foreign_program import installed_types
+from plan.ros_types import message_class
 
 
 class ExternalParams(BaseModel):

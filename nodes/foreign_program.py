@@ -1,34 +1,22 @@
 """Foreign nodes: ordinary ROS 2 programs that know nothing of cosim, run in lockstep.
 
 A scenario names the program's ``command``, its inputs, and in ``params`` the type of each
-output and how many messages it publishes on it per activation. The orchestrator starts
-it (with ``use_sim_time``), delivers its inputs through the normal topics, counts its
-outputs to know it has finished a tick, and hashes what it published. The run stays
-deterministic as long as the program is a deterministic function of its inputs.
+output and, where it wants that checked, how many messages it publishes on it per
+activation. The orchestrator starts it (with ``use_sim_time``), feeds it its inputs, learns
+from its gate's acknowledgement that it has finished a tick and how many messages that tick
+published (an ungated program: by counting them against the declared count, default 1),
+and hashes what it published. The run stays deterministic as long as the program is a
+deterministic function of its inputs.
 """
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from nodes.contract import StepNode, Tick
-
-
-def message_class(name: str) -> type:
-    """'geometry_msgs/msg/Twist' (or 'geometry_msgs/Twist') -> the rclpy message class."""
-    parts = name.split("/")
-    if len(parts) == 2:
-        parts = [parts[0], "msg", parts[1]]
-    if len(parts) != 3 or not all(parts):
-        raise ValueError(f"{name!r} is not a message type like 'geometry_msgs/msg/Twist'")
-    try:
-        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
-        return getattr(module, parts[2])
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"message type {name!r} is not installed ({exc})") from None
+from plan.ros_types import message_class
 
 
 def installed_types(topics: dict[str, str]) -> dict[str, str]:
@@ -45,18 +33,28 @@ class ForeignParams(BaseModel):
     outputs: dict[str, str] = Field(min_length=1, description="topic -> message type, e.g. "
                                     "{/cmd_vel: geometry_msgs/msg/Twist}")
     per_activation: dict[str, int] = Field(default_factory=dict, description="topic -> "
-                                           "messages per activation (default 1)")
+                                           "the exact number of messages per activation, "
+                                           "checked at every tick (a Python program: any "
+                                           "number where not declared; any other: 1)")
     silent_at_start: bool = Field(False, description="true: the program publishes nothing "
-                                  "at tick 0 (a sim-time timer first fires one period in); "
-                                  "then no node may consume its outputs")
+                                  "at tick 0 (checked for a Python program; needed for any "
+                                  "other, whose outputs then no node may consume)")
 
     _types_exist = field_validator("outputs")(lambda cls, value: installed_types(value))
 
     def count(self, topic: str, activation: int = 1) -> int:
-        """Messages the program publishes on ``topic`` at its ``activation``-th activation."""
+        """Messages an ungated program publishes on ``topic`` at its ``activation``-th
+        activation (what the orchestrator counts to know the activation is done)."""
         if activation == 0 and self.silent_at_start:
             return 0
         return self.per_activation.get(topic, 1)
+
+    def exact(self, topic: str, activation: int) -> int | None:
+        """The count the scenario declares for a gated program's ``activation`` on
+        ``topic`` (checked against its gate's acknowledgement), or None: any number."""
+        if activation == 0 and self.silent_at_start:
+            return 0
+        return self.per_activation.get(topic)
 
 
 class ForeignNode(StepNode):

@@ -8,7 +8,7 @@ import time
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
-from std_msgs.msg import Float64, Int64
+from std_msgs.msg import Float64, Int64, String
 
 from nodes.contract import StepNode, Tick
 
@@ -121,3 +121,41 @@ class FaultyNode(CounterNode):
                 while True:
                     time.sleep(1)
         return super().step(tick, inputs)
+
+
+class ChatterParams(BaseModel):
+    """Parameters of a chatter: the text it publishes on each topic, every activation, and
+    the text it publishes once, latched."""
+
+    model_config = ConfigDict(extra="forbid")
+    outputs: dict[str, str] = {}
+    latched: dict[str, str] = {}
+
+
+class ChatterNode(StepNode):
+    """Publishes fixed std_msgs/String texts (the rosbridge conformance cases' messages);
+    takes any input and ignores it."""
+
+    Params = ChatterParams
+
+    @classmethod
+    def outputs(cls, params: ChatterParams) -> dict[str, type]:
+        """A String topic per entry of ``outputs``."""
+        return dict.fromkeys(params.outputs, String)
+
+    @classmethod
+    def latched_outputs(cls, params: ChatterParams) -> dict[str, type]:
+        """A String topic per entry of ``latched``."""
+        return dict.fromkeys(params.latched, String)
+
+    def setup(self) -> None:
+        """The latched texts go out at the first step after each reset."""
+        self.first = True
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Every text of ``outputs`` (and of ``latched`` the first time)."""
+        out = {topic: String(data=text) for topic, text in self.params.outputs.items()}
+        if self.first:
+            out.update({topic: String(data=text) for topic, text in self.params.latched.items()})
+            self.first = False
+        return out

@@ -18,6 +18,8 @@ exit codes:
   2    bad input: the scenario or an option is invalid; nothing was started or written
   3    a node failed: crashed, reported an error, or missed its deadline
   4    the run finished but its digest is not the one --expect-digest (or --against) names
+       (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
+       or a rendered frame is below the --rendered-psnr floor
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
 
 outputs go to runs/<scenario>-<timestamp>/ (see --out): manifest.json with the run
@@ -49,7 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "cannot reach, an output nobody reads, ...): exit 2, nothing started")
     p.add_argument("--paused", action="store_true",
                    help="start paused: play or step with the simulation_interfaces services\n"
-                        "/cosim/set_simulation_state, /cosim/step_simulation (ros2 runs)")
+                        "/set_simulation_state, /step_simulation (ros2 runs)")
+    p.add_argument("--sim-namespace", metavar="NS",
+                   help="serve simulation_interfaces under NS (e.g. /cosim:\n"
+                        "/cosim/step_simulation, as Gazebo under /gzserver) instead of the\n"
+                        "root names Isaac Sim and O3DE use (simulation_interfaces.namespace)")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
                         "body transforms (usdview, Omniverse); built from the bag afterwards")
@@ -59,6 +65,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a recorded run directory: on a digest mismatch, name the first topic\n"
                         "and tick that differ from it; its digest is expected unless\n"
                         "--expect-digest is given")
+    p.add_argument("--ignore-rendered", action="store_true",
+                   help="--expect-digest and --against compare the digest without the\n"
+                        "rendered topics (camera images: their pixels depend on the GL\n"
+                        "renderer and its version); the message names the topics left out")
+    p.add_argument("--rendered-psnr", type=float, metavar="DB",
+                   help="with --against: compare the rest as --ignore-rendered does, and the\n"
+                        "rendered images frame by frame, each at least DB dB PSNR against\n"
+                        "the reference run's (exit 4 below it, naming the frame)")
     live = p.add_argument_group("watch and drive the run from outside (loopback unless an "
                                 "address is given)")
     live.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="ADDR:PORT",
@@ -68,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--rosbridge", nargs="?", const="127.0.0.1:9090", metavar="ADDR:PORT",
                       help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
                            "publish the scenario's external: topics (entering at a tick,\n"
-                           "recorded), call /cosim/* services (default 127.0.0.1:9090)")
+                           "recorded), call the run's services (default 127.0.0.1:9090)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -112,7 +126,26 @@ def overrides_from(args: argparse.Namespace) -> dict:
         overrides["seed"] = args.seed
     if args.duration:
         overrides["duration"] = args.duration
+    if args.sim_namespace is not None:
+        overrides["simulation_interfaces.namespace"] = args.sim_namespace
     return overrides
+
+
+def _images_pass(args: argparse.Namespace, outcome) -> bool:
+    """--rendered-psnr: every rendered frame at or above the floor against --against's;
+    says how each rendered topic compared either way."""
+    from orchestrator.outputs.diff import read_manifest
+    from orchestrator.outputs.image_compare import lowest_psnr
+
+    topics = set(outcome.rendered_topics) | set(read_manifest(args.against).get(
+        "rendered_topics") or [])
+    results = lowest_psnr(args.against, outcome.run_dir, sorted(topics))
+    failed = [r for r in results if not r.passes(args.rendered_psnr)]
+    lines = "; ".join(r.describe() for r in results) or "none in this run"
+    verdict = "below" if failed else "at or above"
+    print(f"cosim-orchestrate: rendered topics against {args.against}, {verdict} the PSNR "
+          f"floor of {args.rendered_psnr:g} dB: {lines}", file=sys.stderr)
+    return not failed
 
 
 def _interrupt(signum, _frame):
@@ -121,16 +154,33 @@ def _interrupt(signum, _frame):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     args = build_parser().parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
-    from orchestrator.outputs.diff import digest_mismatch, expected_digest
+    from orchestrator.outputs.diff import (
+        digest_mismatch,
+        expected_digest,
+        left_out_text,
+        read_manifest,
+    )
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
-    from plan.scenario import load_scenario
+    from plan.load import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, overrides_from(args))
-        expected = expected_digest(args.expect_digest, args.against)
+        if args.rendered_psnr is not None:
+            if args.against is None:
+                raise ValueError("--rendered-psnr needs --against DIR (a recorded run whose "
+                                 "images are the reference)")
+            if not args.rendered_psnr > 0:
+                raise ValueError(f"--rendered-psnr {args.rendered_psnr}: expected a floor in "
+                                 "dB above 0, e.g. 40")
+            args.ignore_rendered = True
+        expected = expected_digest(args.expect_digest, args.against, args.ignore_rendered)
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
@@ -155,10 +205,17 @@ def main(argv: list[str] | None = None) -> int:
     print_outcome(outcome, quiet=args.quiet)
     code = {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
             "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)
+    if args.ignore_rendered and outcome.digest:
+        value = read_manifest(outcome.run_dir).get("digest_without_rendered")
+        print(f"cosim-orchestrate: digest {left_out_text(outcome.rendered_topics)}: {value}",
+              file=sys.stderr)
     if expected and outcome.digest and code in (EXIT_SUCCESS, EXIT_GOAL_NOT_MET):
-        mismatch = digest_mismatch(expected, outcome.digest, outcome.run_dir, args.against)
+        mismatch = digest_mismatch(expected, outcome.run_dir, args.against,
+                                   args.ignore_rendered)
         if mismatch:
             print(f"cosim-orchestrate: {mismatch}", file=sys.stderr)
+            return EXIT_DIGEST_MISMATCH
+        if args.rendered_psnr is not None and not _images_pass(args, outcome):
             return EXIT_DIGEST_MISMATCH
     return code
 

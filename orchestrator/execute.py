@@ -9,20 +9,20 @@ must not load rclpy or zenoh: what needs them is imported after the nodes are st
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
-import random
 import shutil
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import partial
 from pathlib import Path
 
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
-from orchestrator.lockstep.supervisor import Supervisor, fork_is_safe, node_argv, signals_ignored
+from orchestrator.lockstep.starters import Site, join_all, start_all
+from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
+from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -58,6 +58,8 @@ class RunOutcome:
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)  # what nodes told people, in tick order
     live: dict = field(default_factory=dict)  # what the live endpoints did (--live, --rosbridge)
+    rendered_topics: list[str] = field(default_factory=list)  # drawn by a GL renderer
+    renderer: RendererProbe | None = None  # which GL draws them (for the manifest)
 
     @property
     def digest(self) -> str | None:
@@ -95,6 +97,9 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         log.warning("%s", warning)
     started = time.monotonic()
     outcome = RunOutcome("failed", run_dir, warnings=warnings)
+    outcome.rendered_topics = rendered_topics(scenario)
+    if outcome.rendered_topics:
+        outcome.renderer = RendererProbe()
     try:
         if options.in_process:
             outcome.start_s = time.monotonic() - started
@@ -193,26 +198,24 @@ def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.lockstep.inprocess import run_in_process
 
-    writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
-    arrivals = external.take if isinstance(external, Arrivals) else external
-
-    def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
-        writers[name].write(k, items)
-
-    endpoints = _start_live(scenario, options, external)
-    if endpoints is not None:
-        from orchestrator.live.view import in_process_observer
-
-        live_observe, live_tick = in_process_observer(endpoints, scenario)
-        observe = _both(observe, live_observe)
-        on_tick = _both(on_tick, live_tick) if on_tick else live_tick
-    try:
-        return run_in_process(scenario, observe, on_tick, arrivals)
-    finally:
-        if endpoints is not None:
-            outcome.live = endpoints.close()
+    with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
+        writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
         for writer in writers.values():
-            writer.close()
+            run.callback(writer.close)
+        arrivals = external.take if isinstance(external, Arrivals) else external
+
+        def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
+            writers[name].write(k, items)
+
+        endpoints = _start_live(scenario, options, external)
+        if endpoints is not None:
+            from orchestrator.live.view import in_process_observer
+
+            run.callback(_close_endpoints, outcome, endpoints)
+            live_observe, live_tick = in_process_observer(endpoints, scenario)
+            observe = _both(observe, live_observe)
+            on_tick = _both(on_tick, live_tick) if on_tick else live_tick
+        return run_in_process(scenario, observe, on_tick, arrivals)
 
 
 def _both(first: Callable, second: Callable) -> Callable:
@@ -238,87 +241,76 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                    outcome: RunOutcome, started: float, on_tick: OnTick | None,
                    external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    master = transport = mirror = endpoints = tail = None
-    participants: dict = {}
+    site = Site(scenario, paths, options, supervisor, external)
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
     # then start as fresh interpreters: a process with a session open must not fork).
     opens_first = settings.kind == "zenoh"
-    try:
-        if opens_first:
-            transport = _open_transport(settings)
+    with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
+        # the transport (and its DDS mirror) go last, whenever they were opened
+        network = run.enter_context(contextlib.ExitStack())
+        transport = _open_transport(settings) if opens_first else None
+        if transport is not None:
+            network.callback(transport.close)
             if settings.mirror_to_dds:  # its publishers are discovered while nodes start
                 from orchestrator.live.dds_mirror import DdsMirror
 
-                mirror = DdsMirror(transport.session, transport.domain,
-                                   list(settings.mirror_to_dds), scenario.topics,
-                                   scenario.latched_topics)
-        if not _start_nodes(scenario, paths, options, supervisor):
+                network.callback(DdsMirror(transport.session, transport.domain,
+                                           list(settings.mirror_to_dds), scenario.topics,
+                                           scenario.latched_topics).close)
+        run.callback(supervisor.shutdown)
+        starting = start_all(site)
+        if not any(p.started == "fork" for p in supervisor.processes()):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
             import orchestrator.outputs.picture  # noqa: F401
         from orchestrator.lockstep.master import LockstepMaster
-        from orchestrator.lockstep.participants import CosimNode
-        from orchestrator.proxies.external import ExternalSource
-        from orchestrator.proxies.foreign_proxy import ForeignProxy
 
-        if not opens_first:
+        if transport is None:
             transport = _open_transport(settings)
+            network.callback(transport.close)
+        participants = join_all(site, starting, transport)
+        for participant in participants.values():
+            if participant.foreign or participant.in_orchestrator:
+                run.callback(participant.recorder.close)
+        master = LockstepMaster(scenario, transport, supervisor, participants, options,
+                                on_tick, paths)
+        run.callback(_keep_node_stats, outcome, master, supervisor)
+        # the arrivals that ROS 2 servers put into (None: a replay, or no external node)
+        live = next((p.arrivals for p in participants.values()
+                     if p.in_orchestrator and isinstance(p.arrivals, Arrivals)), None)
+        control, services = _ros_interfaces(scenario, options, paths, live)
+        if services:
+            run.callback(services.close)
         # Clients may connect while the nodes start; they see the run once it is ready.
         endpoints = _start_live(scenario, options, external,
                                 control_later=settings.kind == "ros2")
-        participants = {}
-        live = None  # the arrivals ROS 2 servers put into (None: a replay, or no external)
-        for name, plan in scenario.nodes.items():
-            if plan.foreign:
-                participants[name] = ForeignProxy(plan, scenario.schedule, transport,
-                                                  PartWriter(paths.part(name)))
-            elif plan.in_orchestrator:
-                source = external if external is not None else Arrivals(plan.outputs)
-                live = source if isinstance(source, Arrivals) else None
-                participants[name] = ExternalSource(scenario, plan, transport,
-                                                    PartWriter(paths.part(name)), source,
-                                                    options.pack)
-            else:
-                participants[name] = CosimNode(plan, scenario.schedule)
-        master = LockstepMaster(scenario, transport, supervisor, participants, options,
-                                on_tick, paths.parts)
-        control, services = _ros_interfaces(scenario, options, paths, live)
-        try:
-            master.wait_ready(started)
-            outcome.start_s = time.monotonic() - started
-            outcome.command_to_first_tick_s = _since_process_start()
-            log.info("all nodes ready after %.3f s", outcome.start_s)
-            if endpoints is not None:
-                from orchestrator.live.view import attach_control, follow_parts
+        if endpoints is not None:
+            run.callback(_close_endpoints, outcome, endpoints)
+        master.wait_ready(started)
+        outcome.start_s = time.monotonic() - started
+        outcome.command_to_first_tick_s = _since_process_start()
+        log.info("all nodes ready after %.3f s", outcome.start_s)
+        if endpoints is not None:
+            from orchestrator.live.view import attach_control, follow_parts
 
-                attach_control(endpoints, services)
-                tail = follow_parts(endpoints, scenario, paths)
-            result = master.run(control)
-            outcome.loop_s = time.monotonic() - master.loop_started
-        finally:
-            if tail is not None:
-                tail.stop()
-            if endpoints is not None:
-                outcome.live, endpoints = endpoints.close(), None
-            if services:
-                services.close()
+            attach_control(endpoints, services)
+            run.callback(follow_parts(endpoints, scenario, paths).stop)
+        result = master.run(control)
+        outcome.loop_s = time.monotonic() - master.loop_started
         return result
-    finally:
-        if endpoints is not None:  # the run failed before its loop
-            outcome.live = endpoints.close()
-        if master is not None:
-            outcome.ticks_done = max(master.tick, 0)
-            outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
-                                  for name in scenario.nodes}
-        supervisor.shutdown()
-        for participant in participants.values():
-            if participant.foreign or participant.in_orchestrator:
-                participant.recorder.close()
-        if mirror is not None:
-            mirror.close()
-        if transport is not None:
-            transport.close()
+
+
+def _keep_node_stats(outcome: RunOutcome, master, supervisor: Supervisor) -> None:
+    """What the tick loop and the supervisor saw of each node, for the manifest."""
+    outcome.ticks_done = max(master.tick, 0)
+    outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
+                          for name in master.scenario.nodes}
+
+
+def _close_endpoints(outcome: RunOutcome, endpoints) -> None:
+    """Stop the live endpoints and keep what they did."""
+    outcome.live = endpoints.close()
 
 
 def _open_transport(settings: TransportSettings):
@@ -330,47 +322,6 @@ def _open_transport(settings: TransportSettings):
                  f"{list(settings.zenoh_connect)})" if settings.kind == "zenoh" else "")
         raise SimulationError(f"the orchestrator could not open its {settings.kind} "
                               f"transport{where}: {exc}", node="orchestrator") from exc
-
-
-def _start_nodes(scenario: Scenario, paths: RunPaths, options: RunOptions,
-                 supervisor: Supervisor) -> bool:
-    """Start every node process: cosim nodes (alone or packed, ``plan.packing``) forked
-    from this process when that is safe (and no launch prefix wraps them), fresh
-    interpreters otherwise; foreign programs by their command; external nodes are announced
-    for the user to start. True when any node was forked."""
-    from orchestrator.proxies.foreign_launch import foreign_argv, foreign_env
-    from plan.packing import process_groups
-    from runtime.cosim_node import run_lockstep, run_packed
-
-    groups = process_groups(scenario, options.pack)
-    if options.shuffle_start is not None:
-        random.Random(options.shuffle_start).shuffle(groups)
-    # Foreign programs first: they take longest to start and join.
-    for name, plan in scenario.nodes.items():
-        if plan.foreign:
-            supervisor.spawn(name, foreign_argv(plan, scenario.file.parent),
-                             prefix=plan.launch_prefix, env=foreign_env(plan, scenario.schedule),
-                             cwd=scenario.file.parent.resolve())
-        elif plan.spec.external:
-            _announce_external(name, node_argv(scenario.file, plan.spec.kind or "any", [name],
-                                               paths.root, scenario.overrides, options))
-    for names in groups:
-        plan = scenario.nodes[names[0]]
-        argv = node_argv(scenario.file, plan.spec.kind or "any", names, paths.root,
-                         scenario.overrides, options)
-        label = "+".join(names)
-        prefix = plan.launch_prefix
-        if options.spawn == "fork" and fork_is_safe() and not prefix:
-            target = (partial(run_lockstep, scenario, names[0], paths.root, options)
-                      if len(names) == 1 else
-                      partial(run_packed, scenario, names, paths.root, options))
-            proc = supervisor.fork(label, target)
-        else:
-            proc = supervisor.spawn(label, argv, prefix=prefix)
-        if len(names) > 1:
-            supervisor.pack(proc, names)
-    log.info("started %s", ", ".join("+".join(g) for g in groups))
-    return any(p.started == "fork" for p in supervisor.processes())
 
 
 def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
@@ -386,14 +337,6 @@ def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
     control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
     return control, start_services(scenario, control, live, paths)
-
-
-def _announce_external(name: str, argv: list[str]) -> None:
-    """Tell the user how to start an external node (it joins the run when ready)."""
-    command = " ".join(["cosim-node", *argv[3:]])
-    log.info("waiting for external node %s: %s", name, command)
-    print(f"cosim-orchestrate: waiting for external node {name}; start it with:\n  {command}",
-          file=sys.stderr, flush=True)
 
 
 def _since_process_start() -> float | None:

@@ -10,9 +10,13 @@ is enough.
   among its descendants, on Linux).
 - ``@pytest.mark.cosim_seeds(1, 2, 3)``: the test runs once per seed; ``cosim.run`` uses it.
 - Golden digests: ``pytest --cosim-update-golden`` records every run's digest (and a compact
-  per-topic, per-tick hash list) in ``<test file stem>.golden.json`` beside the test, keyed by
+  per-topic, per-tick hash list, the rendered topics, the digest without them, and the
+  versions a digest depends on) in ``<test file stem>.golden.json`` beside the test, keyed by
   test name; later runs fail when the digest changes, naming the first topic and tick that
-  differ.
+  differ and the versions that differ from the golden run's.
+- ``pytest --cosim-ignore-rendered`` (or ``cosim.run(..., ignore_rendered=True)``): golden
+  checks compare the digest without the rendered topics (camera images, whose pixels depend
+  on the GL renderer), and say which topics were left out.
 
 Nothing heavy is imported until a test uses the fixture.
 """
@@ -21,14 +25,16 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from orchestrator.domains import DOMAINS, DomainLease, domains_in_use  # noqa: F401 - also here
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 TOKEN_ENV = "COSIM_PYTEST_TOKEN"
 """Set in every process a test starts, so the clean-up finds them wherever they went."""
@@ -43,6 +49,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--cosim-update-golden", action="store_true", default=False,
                     help="record the digest of every cosim run into <test file>.golden.json "
                          "instead of checking it")
+    group.addoption("--cosim-ignore-rendered", action="store_true", default=False,
+                    help="golden checks compare the digest without the rendered topics "
+                         "(camera images: their pixels depend on the GL renderer)")
     group.addoption("--cosim-out", default=None, metavar="DIR",
                     help="write cosim run directories under DIR (default: pytest's tmp dir)")
 
@@ -51,7 +60,8 @@ def pytest_configure(config: pytest.Config) -> None:
     """Declare the marker and set up the golden store."""
     config.addinivalue_line("markers", "cosim_seeds(*seeds): run the test once per seed; "
                             "the cosim fixture's runs use that seed")
-    config.stash[GOLDEN_KEY] = GoldenStore(config.getoption("cosim_update_golden"))
+    config.stash[GOLDEN_KEY] = GoldenStore(config.getoption("cosim_update_golden"),
+                                           config.getoption("cosim_ignore_rendered"))
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
@@ -105,16 +115,18 @@ class Cosim:
         self.token = uuid.uuid4().hex
         self.children_before = _child_pids()
 
-    def load(self, scenario, **overrides: Any):
+    def load(self, scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
         """Load a scenario with overrides (and this test's seed); see orchestrator.api.load."""
         from orchestrator.api import load
 
         return load(scenario, **self._with_seed(overrides))
 
-    def run(self, scenario, *, in_process: bool = False, check: bool = True,
-            golden: bool = True, **overrides: Any):
+    def run(self, scenario: str | Path | Scenario, *, in_process: bool = False,
+            check: bool = True, golden: bool = True, ignore_rendered: bool | None = None,
+            **overrides: Any):
         """Run a scenario (see orchestrator.api.run) with this test's seed, in this test's ROS
-        domain; check (or with --cosim-update-golden, record) its golden digest."""
+        domain; check (or with --cosim-update-golden, record) its golden digest, without the
+        rendered topics when ``ignore_rendered`` (default: --cosim-ignore-rendered)."""
         from orchestrator.api import run
 
         result = run(scenario, in_process=in_process, out=self.out, check=check,
@@ -123,7 +135,7 @@ class Cosim:
         if golden and result.digest:
             store: GoldenStore = self.request.config.stash[GOLDEN_KEY]
             key = self._golden_key(len(self.runs))
-            problem = store.check(_golden_file(self.request), key, result)
+            problem = store.check(_golden_file(self.request), key, result, ignore_rendered)
             if problem:
                 pytest.fail(problem, pytrace=False)
         return result
@@ -149,8 +161,9 @@ def _golden_file(request: pytest.FixtureRequest) -> Path:
 class GoldenStore:
     """Golden digests: read lazily per test file, checked per run, written at session end."""
 
-    def __init__(self, update: bool):
+    def __init__(self, update: bool, ignore_rendered: bool = False):
         self.update = update
+        self.ignore_rendered = ignore_rendered
         self.files: dict[Path, dict[str, Any]] = {}
         self.changed: set[Path] = set()
         self.unrecorded = 0
@@ -162,26 +175,43 @@ class GoldenStore:
                 if file.exists() else {}
         return self.files[file]
 
-    def check(self, file: Path, key: str, result) -> str | None:
-        """Record (when updating) or compare a run with its golden entry; a message when the
-        digest changed, else None."""
-        from orchestrator.outputs.diff import fingerprint, run_dir_entries
+    def check(self, file: Path, key: str, result, ignore_rendered: bool | None = None
+              ) -> str | None:
+        """Record (when updating) or compare a run with its golden entry (without its rendered
+        topics when ``ignore_rendered``, default the store's); a message when the digest
+        changed, else None."""
+        from orchestrator.outputs.diff import (
+            DIGEST_KEYS,
+            fingerprint,
+            read_manifest,
+            run_dir_entries,
+        )
 
         entries = self.entries(file)
+        manifest = read_manifest(result.run_dir)
         if self.update:
             found = run_dir_entries(result.run_dir)[0] if result.bag else []
             entries[key] = {"digest": result.digest, "scenario": result.scenario.name,
                             "seed": result.scenario.model.seed,
-                            "tick_ns": result.scenario.tick_ns, "messages": fingerprint(found)}
+                            "tick_ns": result.scenario.tick_ns, "messages": fingerprint(found),
+                            "digest_without_rendered": manifest.get("digest_without_rendered"),
+                            "rendered_topics": manifest.get("rendered_topics", []),
+                            "versions": manifest.get("digest_versions", {})}
             self.changed.add(file)
             return None
         golden = entries.get(key)
         if golden is None:
             self.unrecorded += 1
             return None
-        if golden["digest"] == result.digest:
+        ignore = self.ignore_rendered if ignore_rendered is None else ignore_rendered
+        field = DIGEST_KEYS[ignore]
+        if ignore and not golden.get(field):
+            return (f"cosim: the golden entry {key} in {file.name} has no {field} (recorded "
+                    "before cosim kept per-topic digests); record it again with "
+                    "pytest --cosim-update-golden")
+        if golden[field] == manifest.get(field):
             return None
-        return mismatch_message(file, key, golden, result)
+        return mismatch_message(file, key, golden, result, ignore)
 
     def write(self) -> list[Path]:
         """Write every golden file that changed; return them."""
@@ -192,21 +222,49 @@ class GoldenStore:
         return sorted(self.changed)
 
 
-def mismatch_message(file: Path, key: str, golden: dict[str, Any], result) -> str:
-    """The failure text of a changed digest, naming the first topic and tick that differ."""
-    from orchestrator.outputs.diff import fingerprint_entries, first_difference, run_dir_entries
+def mismatch_message(file: Path, key: str, golden: dict[str, Any], result,
+                     ignore_rendered: bool = False) -> str:
+    """The failure text of a changed digest: the first topic and tick that differ, the
+    rendered topics left out (``ignore_rendered``), the versions that differ."""
+    from orchestrator.outputs.diff import (
+        DIGEST_KEYS,
+        fingerprint_entries,
+        first_difference,
+        left_out_text,
+        read_manifest,
+        run_dir_entries,
+        versions_text,
+    )
 
+    manifest = read_manifest(result.run_dir)
+    rendered = sorted(set(manifest.get("rendered_topics") or [])
+                      | set(golden.get("rendered_topics") or []))
     actual, tick_ns = run_dir_entries(result.run_dir) if result.bag else ([], None)
-    diff = first_difference(fingerprint_entries(golden.get("messages", {})), actual, tick_ns)
+    reference = fingerprint_entries(golden.get("messages", {}))
+    if ignore_rendered:
+        actual = [e for e in actual if e[1] not in rendered]
+        reference = [e for e in reference if e[1] not in rendered]
+    diff = first_difference(reference, actual, tick_ns)
     where = diff.describe() if diff else ("every recorded message matches the golden hashes; "
                                           "what else the digest covers changed (nodes, schedule)")
-    return (f"cosim: the run digest of {key} changed.\n"
-            f"  golden: {golden['digest']}  ({file.name}, seed {golden.get('seed')})\n"
-            f"  now:    {result.digest}  (seed {result.scenario.model.seed})\n"
-            f"  first difference: {where}\n"
-            f"  this run: {result.run_dir}\n"
-            "If the change is intended, record the new digests with: "
-            "pytest --cosim-update-golden")
+    field = DIGEST_KEYS[ignore_rendered]
+    what = f"digest {left_out_text(rendered)}" if ignore_rendered else "run digest"
+    lines = [f"cosim: the {what} of {key} changed.",
+             f"  golden: {golden.get(field)}  ({file.name}, seed {golden.get('seed')})",
+             f"  now:    {manifest.get(field)}  (seed {result.scenario.model.seed})",
+             f"  first difference: {where}"]
+    versions = versions_text(golden.get("versions"), manifest.get("digest_versions"))
+    if versions:
+        lines.append(f"  versions:{versions}")
+    if not ignore_rendered and rendered and golden.get("digest_without_rendered") and \
+            golden["digest_without_rendered"] == manifest.get("digest_without_rendered"):
+        lines.append(f"  only the rendered topics ({', '.join(rendered)}) differ: their pixels "
+                     "depend on the renderer; pytest --cosim-ignore-rendered (or "
+                     "cosim.run(..., ignore_rendered=True)) compares without them")
+    lines += [f"  this run: {result.run_dir}",
+              "If the change is intended, record the new digests with: "
+              "pytest --cosim-update-golden"]
+    return "\n".join(lines)
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
@@ -293,6 +351,8 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
     had to be stopped."""
     import psutil
 
+    from orchestrator.lockstep.supervisor import escalate
+
     me = psutil.Process()
     procs = {p.pid: p for p in me.children(recursive=True) if p.pid not in before}
     for proc in psutil.process_iter():
@@ -301,14 +361,5 @@ def stop_processes(token: str, before: set[int]) -> list[int]:
                 procs[proc.pid] = proc
         except (psutil.Error, OSError):
             continue
-    alive = list(procs.values())
-    for sig in ("SIGINT", "SIGTERM", "SIGKILL"):
-        for proc in alive:
-            try:
-                proc.send_signal(getattr(signal, sig))
-            except psutil.Error:
-                pass
-        _, alive = psutil.wait_procs(alive, timeout=3 if sig != "SIGKILL" else 5)
-        if not alive:
-            break
+    escalate(list(procs.values()))
     return sorted(procs)

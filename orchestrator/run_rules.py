@@ -37,6 +37,15 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
             raise ScenarioError(scenario.file, key, f"{problem}.", "a command that exists: "
                                 "[python, path/to/program.py, ...] (paths relative to this "
                                 "file) or a program on PATH.")
+        fed_by = [inp for inp in plan.inputs if scenario.nodes[inp.producer].foreign]
+        if fed_by:
+            inp = fed_by[0]
+            raise ScenarioError(
+                scenario.file, f"nodes[{i}] ({name}).inputs", f"{inp.graph_topic} comes from "
+                f"foreign program {inp.producer!r}: one foreign program feeding another is "
+                "not covered (the orchestrator reads each foreign program's outputs once, to "
+                "hash them, and cannot yet feed them on with their per-tick counts).",
+                "a cosim node between them, or the two programs' work in one program.")
         if not is_python(plan) and len(plan.inputs) > 1:
             raise ScenarioError(
                 scenario.file, key, f"{plan.spec.command[0]!r} is not a Python program, so "

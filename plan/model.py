@@ -115,6 +115,16 @@ class ExternalSpec(Strict):
                                      "{/goal_pose: geometry_msgs/msg/PoseStamped}")
 
 
+class SimulationInterfacesSpec(Strict):
+    """Where a run serves simulation_interfaces (ros2 runs, multi-process)."""
+
+    namespace: str = Field(
+        "", pattern=r"^(/?|(/[A-Za-z][A-Za-z0-9_]*)+/?)$",
+        description="'' (the root: /get_simulator_features, /step_simulation, ..., as Isaac "
+                    "Sim and O3DE serve them) or a namespace such as /cosim "
+                    "(/cosim/step_simulation, as Gazebo serves them under /gzserver)")
+
+
 class ScenarioModel(Strict):
     """A whole scenario file."""
 
@@ -133,4 +143,6 @@ class ScenarioModel(Strict):
                               "(NavigateToPose goals, SetEntityState, parameter sets); each "
                               "change enters at a tick boundary through the external node "
                               "and is recorded (see plan/interactive.py)")
+    simulation_interfaces: SimulationInterfacesSpec = Field(
+        default_factory=SimulationInterfacesSpec)
     nodes: list[NodeSpec] = Field(min_length=1)

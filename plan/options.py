@@ -13,9 +13,12 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from plan.listen import LIVE_DEFAULT, ROSBRIDGE_DEFAULT, ListenAddress, parse_listen
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 SPAWN_MODES = ("fork", "exec")
 PACKINGS = ("node", "robot", "kind")
@@ -117,7 +120,7 @@ class TransportSettings:
     mirror_to_dds: tuple[str, ...] = field(default=())
 
     @classmethod
-    def of(cls, scenario, options: RunOptions | None = None) -> TransportSettings:
+    def of(cls, scenario: Scenario, options: RunOptions | None = None) -> TransportSettings:
         """The settings of a checked scenario run with ``options``."""
         model = scenario.model
         return cls(kind=model.transport, zenoh_listen=tuple(model.zenoh.listen),

@@ -49,16 +49,16 @@ def _model_at(model: type[BaseModel], loc: tuple) -> type[BaseModel] | None:
         info = field_of(current, part)
         if info is None:
             return None
-        current = _inner_model(info.annotation)
+        current = inner_model(info.annotation)
     return current if isinstance(current, type) and issubclass(current, BaseModel) else None
 
 
-def _inner_model(annotation: Any) -> Any:
+def inner_model(annotation: Any) -> type[BaseModel] | None:
     """The BaseModel inside list[...], X | None and friends."""
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return annotation
     for arg in typing.get_args(annotation):
-        found = _inner_model(arg)
+        found = inner_model(arg)
         if found is not None:
             return found
     return None
@@ -113,7 +113,7 @@ def _field_at(model: type[BaseModel], loc: tuple) -> tuple[str | None, Any, Any]
                 return None, None, None
             current, info, name = items, None, f"{name}[{part}]" if name else f"[{part}]"
             continue
-        owner = _inner_model(current)
+        owner = inner_model(current)
         info = field_of(owner, part) if owner is not None else None
         if info is None:
             return None, None, None

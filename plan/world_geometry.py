@@ -15,6 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plan.poses import yaw
+from plan.rot3 import mat_vec, rotate_rows
+
 ROUND = ("cylinder", "capsule")
 
 
@@ -97,7 +100,7 @@ def obstacle(model, data, g: int) -> Obstacle:
     rot = data.geom_xmat[g].reshape(3, 3)
     size = model.geom_size[g]
     upright = abs(rot[2, 2]) > 0.999
-    half = np.abs(rot) @ _local_half_extents(model, g, kind)
+    half = mat_vec(np.abs(rot), _local_half_extents(model, g, kind))
     name = model.geom(g).name or f"geom {g}"
     common = dict(name=name, geom=g, kind=kind, centre=(float(pos[0]), float(pos[1])),
                   z_range=(float(pos[2] - half[2]), float(pos[2] + half[2])),
@@ -109,7 +112,7 @@ def obstacle(model, data, g: int) -> Obstacle:
     else:
         centre, extent = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    points = pos + (centre + corners * extent) @ rot.T
+    points = pos + rotate_rows(centre + corners * extent, rot)
     return Obstacle(polygon=convex_hull(points[:, :2]), **common)
 
 
@@ -207,8 +210,7 @@ def site_offset(model, name: str) -> tuple[float, float, float]:
     if sid < 0:
         return 0.0, 0.0, 0.0
     w, x, y, z = model.site_quat[sid]
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw
+    return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw(w, x, y, z)
 
 
 def robot_footprint_radius(model, base_body: str) -> float:

@@ -6,6 +6,10 @@ import argparse
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -44,7 +48,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def pick_node(scenario, kind: str, name: str | None) -> str:
+def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
     """The node to run: by name, or the only node of ``kind``."""
     if name:
         if name not in scenario.nodes:
@@ -60,15 +64,19 @@ def pick_node(scenario, kind: str, name: str | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-node."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     from runtime.parent import die_with_parent
 
     die_with_parent()
     args = parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from plan.errors import ScenarioError
+    from plan.load import load_scenario
     from plan.options import RunOptions
     from plan.overrides import parse_overrides
-    from plan.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario, parse_overrides(args.set))
@@ -93,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     return run_lockstep(scenario, names[0], args.run_dir, options)
 
 
-def run_realtime(scenario, name: str, rtf: float, options=None, live=None) -> int:
+def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=None) -> int:
     """Run node ``name`` free-running on wall time until Ctrl-C; ``live`` (RunOptions with
     ``live``/``rosbridge``) adds the live endpoints."""
     import signal
@@ -140,7 +148,7 @@ def run_realtime(scenario, name: str, rtf: float, options=None, live=None) -> in
         transport.close()
 
 
-def _start_endpoints(scenario, name: str, runtime, live):
+def _start_endpoints(scenario: Scenario, name: str, runtime, live):
     """The realtime node's live endpoints, when asked for: its outputs, inputs and /clock
     to watch, its inputs to drive, pause and step when it paces itself."""
     if live is None or not (live.live or live.rosbridge):
@@ -167,28 +175,21 @@ def _start_endpoints(scenario, name: str, runtime, live):
     return endpoints
 
 
-def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int:
+def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=None) -> int:
     """Run node ``name`` under an orchestrator until told to stop."""
-    from plan.options import RunOptions, TransportSettings
+    from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
     from runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
     from runtime.notes import NoteWriter
     from runtime.recording import PartWriter
-    from runtime.transport.factory import create_transport
 
     options = options or RunOptions()
     paths = RunPaths(run_dir) if run_dir else None
 
     # Publishers and subscriptions first: DDS discovery then runs in the transport's own
     # threads while the node builds its model (MuJoCo compile, renderer set-up).
-    # The transport's threads start with SIGALRM blocked (they inherit this thread's mask),
-    # so the alarm that reports before a slow step always lands on this thread.
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
-    try:
-        transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
-    finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+    transport = _open_transport(scenario, options, f"cosim_{name}")
     recorder = PartWriter(paths.part(name)) if paths else None
     notes = NoteWriter(paths.notes(name)) if paths else None
     runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
@@ -210,9 +211,9 @@ def run_lockstep(scenario, name: str, run_dir: Path | None, options=None) -> int
         transport.close()
 
 
-def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -> int:
+def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options=None) -> int:
     """Run several nodes in this process, on one transport session with one wait."""
-    from plan.options import RunOptions, TransportSettings
+    from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
     from runtime.lockstep import LockstepRuntime, NodeFailure
@@ -220,16 +221,10 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
     from runtime.packed import PackedRuntimes, install_packed_stop_handlers
     from runtime.recording import PartWriter
     from runtime.shared_transport import SharedTransport
-    from runtime.transport.factory import create_transport
 
     options = options or RunOptions()
     paths = RunPaths(run_dir) if run_dir else None
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})  # see run_lockstep
-    try:
-        base = create_transport(TransportSettings.of(scenario, options),
-                                "cosim_" + "_".join(names))
-    finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+    base = _open_transport(scenario, options, "cosim_" + "_".join(names))
     shared = SharedTransport(base)
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
     notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
@@ -256,6 +251,20 @@ def run_packed(scenario, names: list[str], run_dir: Path | None, options=None) -
             if writer:
                 writer.close()
         shared.close()
+
+
+def _open_transport(scenario: Scenario, options, participant: str):
+    """The node process's transport, its threads started with SIGALRM blocked (they inherit
+    this thread's mask), so the alarm that reports before a slow step always lands on the
+    thread that runs the step."""
+    from plan.options import TransportSettings
+    from runtime.transport.factory import create_transport
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+    try:
+        return create_transport(TransportSettings.of(scenario, options), participant)
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
 
 
 def _failed(runtime, exc) -> int:

@@ -16,10 +16,9 @@ from builtin_interfaces.msg import Time
 from tf2_msgs.msg import TFMessage
 
 from nodes.contract import Tick
+from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
 from runtime.cdr.encode import encode
-
-NS_PER_S = 1_000_000_000
 
 
 class StepContractError(RuntimeError):

@@ -14,6 +14,7 @@ import sys
 import time
 import traceback
 from collections import deque
+from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
@@ -22,7 +23,9 @@ from std_msgs.msg import String
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from plan.packing import subscribers
-from runtime.exchange import InputHistory, output_digest, prepare_outputs
+from runtime.activation import Activation
+from runtime.exchange import InputHistory, output_digest
+from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, ack_topic, decode_ack
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,
@@ -44,6 +47,9 @@ from runtime.protocol import (
 from runtime.recording import PartWriter
 from runtime.timing import TimeSplit
 from runtime.transport.base import Received, Transport
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
@@ -82,6 +88,11 @@ class InputChannel:
         self.received += 1
         return tick
 
+    def accept_ticks(self, rec: Received) -> list[int]:
+        """``accept``, as the list of producer ticks resolved (a GatedChannel's interface)."""
+        tick = self.accept(rec)
+        return [tick] if tick >= 0 else []
+
     def rebase(self, sent_before: int) -> None:
         """Start over after a reset: the producer had sent ``sent_before`` messages."""
         self.base = sent_before
@@ -93,7 +104,7 @@ class LockstepRuntime:
     """Runs one node of a scenario in lockstep with the orchestrator (its step ``node`` may
     be attached after construction, before ``run``)."""
 
-    def __init__(self, scenario, name: str, node: StepNode | None, transport: Transport,
+    def __init__(self, scenario: Scenario, name: str, node: StepNode | None, transport: Transport,
                  recorder: PartWriter | None = None, notes: NoteWriter | None = None,
                  pack: str | None = None):
         self.scenario = scenario
@@ -101,7 +112,8 @@ class LockstepRuntime:
         self.name = name
         self.plan = scenario.nodes[name]
         self.sched = scenario.schedule
-        self.node = node
+        self.activation: Activation | None = None
+        self.node = node  # builds the activation (a packed process attaches it later)
         self.transport = transport
         self.recorder = recorder
         self.notes = notes
@@ -114,10 +126,18 @@ class LockstepRuntime:
         self.unreported: list[Done] = []  # activations served since the last 'done' report
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
-        self.params_input = ParamsInput.of(self.plan)  # parameter changes from outside
-        self.first = True  # the next activation is the first since the start or a reset
         self._last_start_report = -STATUS_PERIOD_S
         self._wire()
+
+    @property
+    def node(self) -> StepNode | None:
+        """The node's step class (None until attached)."""
+        return self.activation.node if self.activation else None
+
+    @node.setter
+    def node(self, node: StepNode | None) -> None:
+        self.activation = (Activation(self.plan, node, self.write_note, ParamsInput.of(self.plan))
+                           if node is not None else None)
 
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
@@ -127,16 +147,30 @@ class LockstepRuntime:
         self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
                                                        latched=t in latched)
                            for t, msg in plan.outputs.items()}
-        self.inputs: dict[str, InputChannel] = {}
+        self.inputs: dict[str, InputChannel | GatedChannel] = {}
         self.input_subs = {}
+        self.acks: dict[str, list[GatedChannel]] = {}  # a gated producer's ack topic -> inputs
         driver = sched.driving_edge(self.name)
         for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
             period = sched.periods[inp.producer]
             drives = sched.periods[self.name] if edge == driver else None
-            self.inputs[inp.graph_topic] = InputChannel(inp.topic, inp.graph_topic,
-                                                        inp.msg_type, period, drives)
+            depth = sched.history_depth(edge)
+            producer = self.scenario.nodes[inp.producer]
+            if producer.gated:  # any number of messages per tick: its gate says how many
+                channel = GatedChannel(inp.topic, inp.graph_topic, inp.msg_type, period,
+                                       producer.gated_outputs.index(inp.graph_topic), drives)
+                acks = ack_topic(inp.producer)
+                if acks not in self.acks:
+                    self.acks[acks] = []
+                    self.input_subs[acks] = self.transport.subscription(
+                        acks, ACK_TYPE, depth, latched=True)
+                self.acks[acks].append(channel)
+                depth = max(depth, 1000)  # a burst of messages in one tick is not lost
+            else:
+                channel = InputChannel(inp.topic, inp.graph_topic, inp.msg_type, period, drives)
+            self.inputs[inp.graph_topic] = channel
             self.input_subs[inp.graph_topic] = self.transport.subscription(
-                inp.graph_topic, inp.msg_type, sched.history_depth(edge))
+                inp.graph_topic, inp.msg_type, depth)
         # A node told of its ticks by a same_tick input does not wake for /clock.
         self.clock_sub = (self.transport.subscription(CLOCK_TOPIC, Clock, 1000)
                           if driver is None else None)
@@ -182,10 +216,18 @@ class LockstepRuntime:
             if rec.topic == COMMAND_TOPIC:
                 self.on_command(decode_command(rec.data))
                 continue
-            channel = self.inputs[rec.topic]
-            tick = channel.accept(rec)
-            if channel.drives and tick >= 0 and tick % channel.drives == 0:
-                self.clocks.append(tick)
+            try:
+                if rec.topic in self.acks:
+                    tick, counts = decode_ack(rec.data)
+                    resolved = [(c, c.acknowledged(tick, counts)) for c in self.acks[rec.topic]]
+                else:
+                    channel = self.inputs[rec.topic]
+                    resolved = [(channel, channel.accept_ticks(rec))]
+            except SequenceError as exc:
+                raise NodeFailure(str(exc)) from None
+            for channel, ticks in resolved:
+                if channel.drives:
+                    self.clocks.extend(t for t in ticks if t % channel.drives == 0)
 
     def run(self) -> None:
         """Serve ticks until stopped (SIGINT/SIGTERM) or the parent goes away."""
@@ -242,10 +284,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
-            self.first = True
-            self.node.reset(self.scenario.model.seed, self.node.config)
-            if self.params_input:
-                self.params_input.forget()
+            self.activation.restart(self.scenario.model.seed)
             if self.recorder:
                 self.recorder.truncate()
             if self.notes:
@@ -275,6 +314,8 @@ class LockstepRuntime:
             wanted[inp.topic] = (inp.graph_topic, r)
         taken = time.perf_counter_ns()
         inputs = {own: self.inputs[g].history.take(r) for own, (g, r) in wanted.items()}
+        # a gated foreign producer's output before its first message: none yet, no entry
+        inputs = {own: msg for own, msg in inputs.items() if msg is not None}
         self.timing.add("deserialise", taken)
         self.activate(Tick(k, self.sched.time_ns(k)), inputs)
         return True
@@ -289,23 +330,15 @@ class LockstepRuntime:
         start = time.perf_counter_ns()
         self.in_step = True
         try:
-            if self.params_input:
-                inputs = self.params_input.apply(self.node, inputs)
-            outputs = self.node.step(tick, inputs)
-            stepped = self.timing.add("step", start)
-            self.take_notes(tick)
-            items = prepare_outputs(self.name, self.plan.declared_outputs,
-                                    self.plan.output_names, tick, outputs,
-                                    self.plan.latched, self.first)
-            self.first = False
+            items = self.activation(tick, inputs)
         except Exception as exc:
-            self.take_notes(tick)
             self.report_error(tick.index, exc)
             raise NodeFailure(f"step failed at tick {tick.index}") from exc
         finally:
             self.in_step = False
             if armed:
                 signal.setitimer(signal.ITIMER_REAL, 0)
+        stepped = self.timing.span("step", start, self.activation.stepped_ns)
         now = self.timing.add("serialise", stepped)
         step_ns = now - start
         for topic, data in items:
@@ -322,13 +355,11 @@ class LockstepRuntime:
         if len(self.unreported) >= MAX_BATCH:
             self.report_done()
 
-    def take_notes(self, tick: Tick) -> None:
-        """Write what the node noted in this step to its log and its notes file."""
-        for text in self.node.take_notes():
-            note = Note(self.name, tick.index, tick.time_ns, text)
-            print(f"note: {note.line()}", file=sys.stderr, flush=True)
-            if self.notes:
-                self.notes.write(note)
+    def write_note(self, note: Note) -> None:
+        """Write what the node noted to its log and its notes file."""
+        print(f"note: {note.line()}", file=sys.stderr, flush=True)
+        if self.notes:
+            self.notes.write(note)
 
     def report_done(self, *_signal) -> None:
         """Report the activations served since the last report, in one message. Also the

@@ -26,12 +26,12 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
+from plan.timeutil import NS_PER_S
 from runtime.cdr.canonical import LE_HEADER
 
 CLOCK_TOPIC = "/clock"
 STATUS_TOPIC = "/cosim/status"
 COMMAND_TOPIC = "/cosim/command"
-NS_PER_S = 1_000_000_000
 
 WAITING, READY, DONE, ERROR, RESETTING = "waiting", "ready", "done", "error", "resetting"
 _LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,

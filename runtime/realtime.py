@@ -16,17 +16,21 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from nodes.contract import StepNode, Tick
+from runtime.activation import Activation
 from runtime.arrivals import Arrivals
-from runtime.exchange import prepare_outputs
 from runtime.notes import Note
 from runtime.protocol import CLOCK_TOPIC, decode_clock, encode_clock
 from runtime.realtime_control import RealtimeControl
 from runtime.transport.base import Transport
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 POLL_NS = 50_000_000
 PAUSED_POLL_NS = 10_000_000
@@ -35,7 +39,7 @@ PAUSED_POLL_NS = 10_000_000
 class RealtimeRuntime:
     """Runs node ``name`` of a scenario on wall time until stopped."""
 
-    def __init__(self, scenario, name: str, node: StepNode, transport: Transport,
+    def __init__(self, scenario: Scenario, name: str, node: StepNode, transport: Transport,
                  rtf: float = 1.0, publish_clock: bool | None = None):
         if rtf <= 0:
             raise ValueError(f"--rtf must be greater than zero, got {rtf}")
@@ -44,6 +48,7 @@ class RealtimeRuntime:
         self.tick_ns = scenario.tick_ns
         self.period = self.plan.period_ticks
         self.node = node
+        self.activation = Activation(self.plan, node, _print_note)
         self.transport = transport
         self.rtf = rtf
         if publish_clock is None:
@@ -124,15 +129,13 @@ class RealtimeRuntime:
     def _step(self, k: int) -> None:
         tick = Tick(k, k * self.tick_ns)
         self.latest.update({self.own_topic[g][0]: msg for g, msg in self.inbox.take(k).items()})
-        outputs = self.node.step(tick, dict(self.latest))
-        for text in self.node.take_notes():
-            print(f"note: {Note(self.plan.name, k, tick.time_ns, text).line()}", file=sys.stderr,
-                  flush=True)
-        items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
-                                self.plan.output_names, tick, outputs, self.plan.latched,
-                                first=self.served < 0)
+        items = self.activation(tick, dict(self.latest))
         for topic, data in items:
             self.publishers[topic].publish(data)
             if self.observe is not None:
                 self.observe(topic, data)
         self.served = k
+
+
+def _print_note(note: Note) -> None:
+    print(f"note: {note.line()}", file=sys.stderr, flush=True)

@@ -11,6 +11,7 @@ from typing import Any
 
 from std_srvs.srv import SetBool, Trigger
 
+from plan.timeutil import NS_PER_S
 from runtime.live.endpoints import ServiceUnavailable
 
 
@@ -59,4 +60,4 @@ class RealtimeControl:
     def _state(self) -> str:
         word = "paused" if self.paused else "running"
         ns = self.tick * self.tick_ns
-        return f"{word} at tick {self.tick} (sim time {ns // 10**9}.{ns % 10**9:09d} s)"
+        return f"{word} at tick {self.tick} (sim time {ns // NS_PER_S}.{ns % NS_PER_S:09d} s)"

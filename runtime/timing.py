@@ -30,6 +30,11 @@ class TimeSplit:
         self.ns[part] += now - since_ns
         return now
 
+    def span(self, part: str, start_ns: int, end_ns: int) -> int:
+        """Charge ``start_ns``..``end_ns`` to ``part``; return ``end_ns``."""
+        self.ns[part] += end_ns - start_ns
+        return end_ns
+
     def start(self) -> None:
         """The run loop begins (the first tick may come); what came before does not count."""
         self.ns.clear()

@@ -34,10 +34,12 @@ class Goal:
 
 
 class SimClient:
-    """Calls a run's services and actions from the test's rclpy node."""
+    """Calls a run's services and actions from the test's rclpy node; its
+    simulation_interfaces are at ``namespace`` (the root unless the run was given one)."""
 
-    def __init__(self, ros):
+    def __init__(self, ros, namespace: str = "/"):
         self.node, self.executor = ros
+        self.ns = namespace.rstrip("/") + "/"
         self.clocks: list[int] = []
         self._clock_sub = self.node.create_subscription(
             Clock, "/clock", lambda m: self.clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
@@ -83,18 +85,18 @@ class SimClient:
 
     def step(self, n: int) -> Result:
         """StepSimulation of ``n`` ticks; returns its result once they are done."""
-        return self.call(StepSimulation, "/cosim/step_simulation",
+        return self.call(StepSimulation, self.ns + "step_simulation",
                          StepSimulation.Request(steps=n)).result
 
     def state(self) -> int:
         """The simulation state (SimulationState.STATE_*)."""
-        return self.call(GetSimulationState, "/cosim/get_simulation_state",
+        return self.call(GetSimulationState, self.ns + "get_simulation_state",
                          GetSimulationState.Request()).state.state
 
     def set_state(self, state: int) -> Result:
         """SetSimulationState."""
         request = SetSimulationState.Request(state=SimulationState(state=state))
-        return self.call(SetSimulationState, "/cosim/set_simulation_state", request).result
+        return self.call(SetSimulationState, self.ns + "set_simulation_state", request).result
 
     def send_goal(self, action_type, name: str, goal) -> Goal:
         """Send an action goal (accepted), collecting its feedback; ask for its result."""

@@ -128,3 +128,59 @@ def test_cli_expect_digest(reference, tmp_path, capsys):
     assert main([str(PROTOCOL), "--out", str(tmp_path), "--against", str(tmp_path / "no")]) == 2
     assert "not a run directory" in capsys.readouterr().err
     assert set(tmp_path.iterdir()) == before
+
+
+NAV = ROOT / "scenarios" / "nav.yaml"
+NAV_SHORT = ("--in-process", "--quiet", "--duration", "1s")  # 3 camera frames; no goal: exit 1
+DEPTH_ONLY = ("--set", "nodes.camera.params.camera.max_depth=1.0")  # changes the depth image
+LEFT_OUT = ("without the rendered topics (/camera/color/image_raw, /camera/depth/image_rect: "
+            "left out of the comparison)")
+
+
+@pytest.fixture(scope="module")
+def nav_reference(tmp_path_factory):
+    """One short in-process nav run with its camera, through the CLI."""
+    ref = orchestrate(NAV, tmp_path_factory.mktemp("nav_ref"), *NAV_SHORT)
+    assert ref.code == 1, ref.stderr
+    return ref
+
+
+def test_cli_ignore_rendered_leaves_the_camera_images_out_and_says_so(nav_reference, tmp_path):
+    """A change that reaches only the rendered topics (the depth image's range) fails
+    --against, naming them as the only difference, the renderer and --ignore-rendered. With
+    --ignore-rendered a change elsewhere still fails, and the message names what was left
+    out."""
+    ref = nav_reference
+    strict = orchestrate(NAV, tmp_path, *NAV_SHORT, *DEPTH_ONLY, "--against", str(ref.run_dir))
+    assert strict.code == 4, strict.stderr
+    assert "topic /camera/depth/image_rect at tick 0" in strict.stderr
+    assert ("Only the rendered topics (/camera/color/image_raw, /camera/depth/image_rect) "
+            "differ") in strict.stderr and "--ignore-rendered" in strict.stderr
+    assert "egl: " in strict.stderr  # the renderer is named
+    other = orchestrate(NAV, tmp_path, *NAV_SHORT, "--set",
+                        "nodes.lidar.params.lidar.noise_stddev=0.02", "--expect-digest",
+                        ref.manifest["digest_without_rendered"], "--ignore-rendered")
+    assert other.code == 4, other.stderr
+    assert f"the digest {LEFT_OUT} mismatch" in other.stderr
+
+
+def test_cli_rendered_psnr_floor_compares_the_images_frame_by_frame(nav_reference, tmp_path):
+    """--rendered-psnr DB: the rest must be equal (as with --ignore-rendered, which it
+    implies); the images of the same run pass, identical; a depth image of another range
+    falls below the floor while the colour image passes."""
+    ref = nav_reference
+    same = orchestrate(NAV, tmp_path, *NAV_SHORT, "--against", str(ref.run_dir),
+                       "--rendered-psnr", "40")
+    assert same.code == 1, same.stderr
+    assert "at or above the PSNR floor of 40 dB" in same.stderr
+    assert "/camera/color/image_raw: 3 frames, all identical" in same.stderr
+    assert "/camera/depth/image_rect: 3 frames, all identical" in same.stderr
+    depth = orchestrate(NAV, tmp_path, *NAV_SHORT, *DEPTH_ONLY, "--against", str(ref.run_dir),
+                        "--rendered-psnr", "40")
+    assert depth.code == 4, depth.stderr
+    assert f"digest {LEFT_OUT}: {ref.manifest['digest_without_rendered']}" in depth.stderr
+    assert "mismatch" not in depth.stderr  # everything but the images is equal
+    assert "below the PSNR floor of 40 dB" in depth.stderr
+    assert "/camera/color/image_raw: 3 frames, all identical" in depth.stderr
+    assert "/camera/depth/image_rect: lowest " in depth.stderr
+    assert main([str(NAV), "--out", str(tmp_path), "--rendered-psnr", "40"]) == 2

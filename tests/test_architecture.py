@@ -117,3 +117,36 @@ def test_settings_do_not_travel_through_the_environment():
         for path in (ROOT / pkg).rglob("*.py"):
             read |= set(re.findall(r"COSIM_[A-Z_]+", path.read_text()))
     assert read <= plumbing, sorted(read - plumbing)
+
+
+BLAS_CALLS = {"dot", "matmul", "einsum", "inner", "outer", "tensordot", "vdot", "linalg",
+              "multi_dot", "kron"}
+"""numpy functions that reach BLAS/LAPACK (or, for einsum, SIMD reductions): their last bits
+depend on the kernels the CPU gets (OPENBLAS_CORETYPE). plan.rot3 is the way instead."""
+PUBLISHING = ("plan", "nodes", "runtime")
+"""The packages whose arithmetic ends up in published messages (the orchestrator's report
+picture and outputs do not)."""
+
+
+def test_no_matrix_product_on_the_way_to_published_values():
+    found = []
+    for pkg in PUBLISHING:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, (ast.BinOp, ast.AugAssign)) and isinstance(node.op,
+                                                                               ast.MatMult):
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno}: @")
+                elif isinstance(node, ast.Attribute) and node.attr in BLAS_CALLS:
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno}: .{node.attr}")
+    assert not found, ("matrix products whose bits depend on the CPU's BLAS kernels; use "
+                       "plan.rot3 instead:\n" + "\n".join(found))
+
+
+def test_the_floor_plan_keeps_its_limits():
+    """Rooms stay small enough to read: no module of plan/ over 400 lines, at most 12
+    modules at orchestrator/'s top level (the rest live in its folders)."""
+    long = [f"{p.name}: {n} lines" for p in sorted((ROOT / "plan").glob("*.py"))
+            if (n := len(p.read_text().splitlines())) > 400]
+    assert not long, long
+    top = sorted(p.name for p in (ROOT / "orchestrator").glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= 12, top

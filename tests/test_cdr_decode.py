@@ -57,7 +57,7 @@ def test_the_difference_check_sees_a_type_change():
 
 
 def test_decoded_messages_encode_back_to_the_same_bytes():
-    from nodes.control.plan import path_message
+    from nodes.control.global_planner import path_message
     msg = path_message(np.cumsum(np.full((20, 2), 0.1), axis=0), "map", 0.5)
     data = encode(msg)
     assert encode(decode(data, type(msg))) == data

@@ -14,7 +14,7 @@ from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 from sensor_msgs.msg import JointState, LaserScan
 
-from nodes.control.plan import path_message
+from nodes.control.global_planner import path_message
 from runtime.cdr.canonical import canonical_cdr
 from runtime.cdr.encode import encode, encoder_for
 

@@ -13,9 +13,9 @@ from sensor_msgs.msg import LaserScan
 
 from nodes.contract import NodeConfig, Tick
 from nodes.control.follow import arc_clearance
+from nodes.control.global_planner import Planner
 from nodes.control.grid import astar, world_grid
 from nodes.control.node import ControlNode
-from nodes.control.plan import Planner
 from tests.worlds import write_world
 
 WALL = '<geom name="wall" type="box" pos="0 0 0.5" size="0.1 1.5 0.5"/>'

@@ -15,7 +15,7 @@ from std_msgs.msg import Float64MultiArray
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.exchange import StepContractError, prepare_outputs
 from tests.helpers import ROOT
 from tests.worlds import write_world

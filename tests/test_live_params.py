@@ -12,7 +12,7 @@ from nodes.control.node import ControlParams
 from nodes.live_params import ParamsInput, change_message, changes_in, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.arrivals import Arrivals
 from tests.helpers import ROOT, SCENARIOS
 

@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

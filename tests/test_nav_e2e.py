@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 
 SCENARIOS = ROOT / "scenarios"

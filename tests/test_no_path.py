@@ -13,10 +13,10 @@ import pytest
 
 from nodes.contract import NodeConfig, Tick
 from nodes.control.diagnose import explain_no_path
+from nodes.control.global_planner import Planner
 from nodes.control.node import ControlNode
-from nodes.control.plan import Planner
 from orchestrator.api import RunOptions, ScenarioError, ScenarioWarning, run
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 from tests.test_control import empty_scan, odom
 from tests.worlds import write_world

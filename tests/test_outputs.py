@@ -18,7 +18,7 @@ from mcap_ros2.decoder import DecoderFactory
 from orchestrator.outputs.picture import write_report_png
 from orchestrator.outputs.report import print_outcome
 from orchestrator.progress import REDRAW_S, Progress
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.timing import PARTS
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
@@ -264,3 +264,37 @@ def test_no_bag_no_picture(tmp_path):
     assert write_report_png(load_scenario(PROTOCOL), tmp_path, None) is None
     assert write_report_png(load_scenario(PROTOCOL), tmp_path, tmp_path / "missing") is None
     assert not (tmp_path / "report.png").exists()
+
+
+def test_manifest_has_a_digest_per_topic_and_the_digest_without_rendered_topics(any_run):
+    """Per-topic digests, recomputed here from the MCAP file with another reader: sha256 over
+    (tick, length, bytes) of each message; the rendered topics (the camera's images) are
+    named, the digest without them covers every other topic, and the versions a digest
+    depends on name the renderer exactly when images are covered."""
+    import hashlib
+    import struct
+
+    run, scenario = any_run
+    m = run.manifest
+    hashes: dict[str, hashlib._Hash] = {}
+    with sorted((run.run_dir / "bag").glob("*.mcap"))[0].open("rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
+            if channel.topic != "/clock":
+                h = hashes.setdefault(channel.topic, hashlib.sha256())
+                h.update(struct.pack("<qQ", message.log_time // scenario.tick_ns,
+                                     len(message.data)))
+                h.update(message.data)
+    assert m["topic_digests"] == {t: h.hexdigest() for t, h in sorted(hashes.items())}
+    has_camera = "camera" in scenario.nodes
+    rendered = ["/camera/color/image_raw", "/camera/depth/image_rect"] if has_camera else []
+    assert m["rendered_topics"] == rendered
+    whole = hashlib.sha256()
+    for topic, digest in sorted(m["topic_digests"].items()):
+        if topic not in rendered:
+            whole.update(topic.encode() + b"\0" + bytes.fromhex(digest))
+    assert m["digest_without_rendered"] == whole.hexdigest()
+    versions = m["digest_versions"]
+    assert {"python", "numpy", "mujoco", "machine"} <= set(versions)
+    assert ("renderer" in versions) == has_camera
+    if has_camera:
+        assert versions["renderer"].startswith("egl: ") and "unknown" not in versions["renderer"]

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

@@ -77,6 +77,14 @@ def test_changed_digest_names_first_topic_and_tick(pytester, monkeypatch):
                          ".golden.json").read_text())
     entry = golden["runs"]["test_golden"]
     assert len(entry["digest"]) == 64 and entry["messages"]["/loop"]["ticks"] == "0:2:51"
+    assert len(entry["digest_without_rendered"]) == 64 and entry["rendered_topics"] == []
+    assert {"python", "numpy", "mujoco"} <= set(entry["versions"])
+    assert "renderer" not in entry["versions"]  # no images covered
+    # as if recorded with another MuJoCo: the failure says which versions differ
+    golden_file = pytester.path / "test_changed_digest_names_first_topic_and_tick.golden.json"
+    now_mujoco = entry["versions"]["mujoco"]
+    entry["versions"]["mujoco"] = "0.0.0-golden"
+    golden_file.write_text(json.dumps(golden))
     monkeypatch.setenv("SINK_NOISE", "3")
     result = pytester.runpytest_subprocess()
     result.assert_outcomes(passed=1, failed=1)
@@ -84,7 +92,16 @@ def test_changed_digest_names_first_topic_and_tick(pytester, monkeypatch):
         "*the run digest of test_golden changed*",
         f"*golden: {entry['digest']}*",
         "*first difference: topic /sink at tick 1 (t = 0.010 s): the message differs*",
+        f"*versions: The versions a digest depends on differ*mujoco 0.0.0-golden -> "
+        f"{now_mujoco}*",
         "*--cosim-update-golden*"])
+    result = pytester.runpytest_subprocess("--cosim-ignore-rendered")
+    result.assert_outcomes(passed=1, failed=1)
+    result.stdout.fnmatch_lines([
+        "*the digest without the rendered topics (none in this run: left out of the "
+        "comparison) of test_golden changed*",
+        f"*golden: {entry['digest_without_rendered']}*",
+        "*first difference: topic /sink at tick 1*"])
 
 
 def test_no_process_left_after_a_failing_test(pytester, tmp_path):

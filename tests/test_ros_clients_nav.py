@@ -20,8 +20,9 @@ from simulation_interfaces.srv import (
 )
 
 from orchestrator.lockstep.inprocess import run_in_process
-from orchestrator.outputs.bag import BagReader, message_class
-from plan.scenario import load_scenario
+from orchestrator.outputs.bag import BagReader
+from plan.load import load_scenario
+from plan.ros_types import message_class
 from tests.helpers import ROOT
 from tests.sim_client import OK, SimClient, orchestrate
 
@@ -60,10 +61,10 @@ def session(sim: SimClient, checks: bool) -> int:
     """The client's session, all while paused; ``checks``: assert what the replies say.
     Returns the tick the run was stopped before."""
     assert sim.step(10).result == OK
-    features = sim.call(GetSimulatorFeatures, "/cosim/get_simulator_features",
+    features = sim.call(GetSimulatorFeatures, "/get_simulator_features",
                         GetSimulatorFeatures.Request()).features.features
-    entities = sim.call(GetEntities, "/cosim/get_entities", GetEntities.Request()).entities
-    state = sim.call(GetEntityState, "/cosim/get_entity_state",
+    entities = sim.call(GetEntities, "/get_entities", GetEntities.Request()).entities
+    state = sim.call(GetEntityState, "/get_entity_state",
                      GetEntityState.Request(entity="base_link"))
     if checks:
         assert {SimulatorFeatures.ENTITY_STATE_GETTING,
@@ -87,12 +88,12 @@ def session(sim: SimClient, checks: bool) -> int:
     request = SetEntityState.Request(entity="base_link")
     request.state.pose.position.x, request.state.pose.position.y = -1.5, -2.6  # box_a
     request.state.pose.orientation.w = 1.0
-    inside = sim.call(SetEntityState, "/cosim/set_entity_state", request).result
+    inside = sim.call(SetEntityState, "/set_entity_state", request).result
     x, y, yaw = TELEPORT
     request.state.pose.position.x, request.state.pose.position.y = x, y
     request.state.pose.orientation.z = math.sin(yaw / 2)
     request.state.pose.orientation.w = math.cos(yaw / 2)
-    moved = sim.call(SetEntityState, "/cosim/set_entity_state", request).result
+    moved = sim.call(SetEntityState, "/set_entity_state", request).result
     if checks:
         assert inside.result == SetEntityState.Response.INVALID_POSE, inside.error_message
         assert "box_a" in inside.error_message
@@ -115,6 +116,13 @@ def session(sim: SimClient, checks: bool) -> int:
         assert times == sorted(set(times)) and len(times) > 30
         assert fb[0].distance_remaining > 1.2 > 0.3 > fb[-1].distance_remaining
         assert all(f.number_of_recoveries == 0 for f in fb)
+        # Nav2's estimate: distance left over speed, zero until the robot moves
+        etas = [f.estimated_time_remaining.sec + f.estimated_time_remaining.nanosec / 1e9
+                for f in fb]
+        moving = [(eta, f.distance_remaining) for eta, f in zip(etas, fb, strict=True)
+                  if eta > 0]
+        assert etas[0] == 0.0 and len(moving) > len(fb) // 2, etas
+        assert all(eta >= left / 0.35 for eta, left in moving), moving  # at most ~0.3 m/s
         assert fb[-1].current_pose.header.frame_id == "odom"
         assert math.hypot(fb[-1].current_pose.pose.position.x - NEAR[0],
                           fb[-1].current_pose.pose.position.y - NEAR[1]) < 0.25

@@ -15,7 +15,7 @@ from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import COSIM_NODE, ORCHESTRATE, ROOT, SCENARIOS, orchestrate
 from tests.test_supervision import bag_counts
 
@@ -65,13 +65,14 @@ def test_foreign_program_runs_in_lockstep_twice_alike(tmp_path):
 
 
 @pytest.mark.parametrize("copies,expected", [
-    (2, "foreign node echo published more than 1 message(s) on /echoed"),
-    (0, "it published 0 of 1 message(s) on /echoed (foreign program)")])
-def test_foreign_program_publishing_too_much_or_too_little_is_named(tmp_path, copies,
-                                                                     expected):
+    (2, "foreign node echo published 2 message(s) on /echoed at tick 0, and the scenario "
+        "declares exactly 1 (params.per_activation./out)"),
+    (0, "foreign node echo published 0 message(s) on /echoed at tick 0, and the scenario "
+        "declares exactly 1 (params.per_activation./out)")])
+def test_a_declared_count_that_the_program_breaks_is_named(tmp_path, copies, expected):
     doc = yaml.safe_load(ECHO.read_text())
     doc["nodes"][1]["command"][-1] = f"copies:={copies}"
-    doc["deadlines"]["tick"] = "1s"
+    doc["nodes"][1]["params"]["per_activation"] = {"/out": 1}
     path = SCENARIOS / f"_echo_{copies}_{os.getpid()}.yaml"  # beside the program it runs
     path.write_text(yaml.safe_dump(doc))
     try:

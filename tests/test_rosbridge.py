@@ -266,3 +266,57 @@ def test_a_taken_port_is_bad_input_and_nothing_starts(tmp_path):
         result = orchestrate_cli(NAV, tmp_path, "--rosbridge", f"127.0.0.1:{port}", timeout=60)
     assert result.code == 2 and result.run_dir is None
     assert f"--rosbridge 127.0.0.1:{port}: cannot listen there" in result.stderr
+
+
+def test_a_navigate_to_pose_goal_over_rosbridge(tmp_path):
+    """roslibjs-style send_action_goal to the run's NavigateToPose, with feedback (Nav2's
+    estimate of the time left included), then play: the goal succeeds."""
+    import math
+
+    from tests.live_helpers import nav_doc, write
+
+    doc = nav_doc("30s")
+    doc["interactive"] = True
+    doc["success"]["stop_on_goal"] = False
+    doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    scenario = write(tmp_path, doc, "nav_interactive")
+    port = free_port()
+    orch = orchestrate(scenario, tmp_path / "runs", "--paused", "--rosbridge",
+                       f"127.0.0.1:{port}")
+    try:
+        wait_listening(port, orch)
+        with connect(f"ws://127.0.0.1:{port}", max_size=None) as ws:
+            yaw = 0.785  # 1 m straight ahead of the start (-3, -3)
+            ws.send(json.dumps({
+                "op": "send_action_goal", "id": "nav1", "action": "/navigate_to_pose",
+                "action_type": "nav2_msgs/NavigateToPose", "feedback": True,
+                "args": {"pose": {"header": {"frame_id": "map"}, "pose": {
+                    "position": {"x": -2.3, "y": -2.3},
+                    "orientation": {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}}}}}))
+            ws.send(json.dumps({"op": "call_service", "id": "play",
+                                "service": "/set_simulation_state",
+                                "args": {"state": {"state": 1}}}))  # STATE_PLAYING
+            feedback, replies = [], []
+            while True:
+                reply = json.loads(ws.recv(timeout=120))
+                if reply["op"] == "action_feedback":
+                    feedback.append(reply["values"])
+                elif reply["op"] == "action_result":
+                    break
+                else:
+                    replies.append(reply)
+            ws.send(json.dumps({"op": "call_service", "service": "/set_simulation_state",
+                                "args": {"state": {"state": 0}}}))  # STATE_STOPPED
+            code, _, err = finish(orch)
+    finally:
+        if orch.poll() is None:
+            orch.terminate()
+            finish(orch)
+    assert reply["id"] == "nav1" and reply["status"] == 4 and reply["result"] is True, reply
+    assert reply["values"]["error_code"] == 0
+    played = next(r for r in replies if r.get("id") == "play")
+    assert played["result"] is True and played["values"]["result"]["result"] == 1, played
+    assert len(feedback) > 5
+    assert feedback[0]["distance_remaining"] > 0.8 > 0.3 > feedback[-1]["distance_remaining"]
+    assert any(f["estimated_time_remaining"]["sec"] > 0 for f in feedback), feedback
+    assert code == 0, err  # stopped by the client, the control node's goal reached

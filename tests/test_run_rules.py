@@ -99,3 +99,15 @@ def test_plugin_refuses_and_warns_like_the_api(tmp_path, cosim):
         warnings.simplefilter("always")
         cosim.run(with_unread_remap(tmp_path), in_process=True, golden=False)
     assert any(issubclass(w.category, ScenarioWarning) for w in seen)
+
+
+def test_one_foreign_program_feeding_another_is_refused(tmp_path):
+    doc = yaml.safe_load(ECHO.read_text())
+    second = dict(doc["nodes"][1], name="echo2", remap={"/in": "/echoed", "/out": "/twice"})
+    doc["nodes"].insert(2, second)
+    path = variant(tmp_path, ECHO, nodes=doc["nodes"])
+    done = orchestrate(path, tmp_path / "r")
+    assert done.code == 2, done.stderr
+    assert "nodes[2] (echo2).inputs" in done.stderr
+    assert "/echoed comes from foreign program 'echo'" in done.stderr
+    assert not (tmp_path / "r").exists()

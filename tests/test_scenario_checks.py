@@ -6,11 +6,12 @@ are used, so no world file is needed.
 """
 
 import textwrap
+from pathlib import Path
 
 import pytest
 
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 
 VALID = """
 name: pair
@@ -125,7 +126,7 @@ def test_non_text_key_refused(tmp_path, key, as_type):
 @pytest.mark.parametrize(("text", "key", "accepted"), [
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, "
-     "external, interactive, nodes"),
+     "external, interactive, simulation_interfaces, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
      "name, kind, module, rate, params, inputs, remap, debug, command, external, process, "
      "prefix"),
@@ -462,3 +463,30 @@ def test_kind_whose_code_cannot_load_is_an_error_not_a_traceback(tmp_path, monke
     err = refused(tmp_path, VALID.replace("kind: integrator", "kind: broken"))
     check(err, "nodes[1] (b).kind", "'broken' cannot be loaded", "nodes.not_installed",
           accepted=("installed",))
+
+
+# ---------------------------------------------------------------- found at load, not at start
+
+
+def test_empty_special_file_is_empty_not_missing():
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("/dev/null")
+    assert "does not exist" not in str(info.value)
+    assert info.value.problem == "the file is empty."
+
+
+def test_physics_period_not_a_whole_number_of_timesteps_is_bad_input(tmp_path):
+    """nav's world has a 2 ms timestep: a 1 ns physics period is refused at load time (exit
+    2, no run directory), not by the physics node once the run has started (exit 3)."""
+    from tests.helpers import SCENARIOS, orchestrate
+
+    nav = SCENARIOS.parent.parent / "scenarios" / "nav.yaml"
+    for args in (["--set", "nodes.physics.rate=1000000000"], ["--set", "nodes.physics.rate=400"]):
+        proc = orchestrate(nav, tmp_path / "runs", *args, "--duration", "1s")
+        assert proc.code == 2, proc.stderr
+        assert "nodes[0] (physics).rate" in proc.stderr and "2000000 ns" in proc.stderr
+        assert "Traceback" not in proc.stderr
+        assert not (tmp_path / "runs").exists()
+    proc = orchestrate(Path("/dev/null"), tmp_path / "runs")
+    assert proc.code == 2 and "the file is empty" in proc.stderr, proc.stderr
+    assert not (tmp_path / "runs").exists()

@@ -8,7 +8,7 @@ import time
 from std_srvs.srv import SetBool, Trigger
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

@@ -1,5 +1,6 @@
 """simulation_interfaces on a real multi-process run, from a plain rclpy client: features,
-state, stepping (the service and the action, with feedback and a cancel), reset, stop."""
+state, stepping (the service and the action, with feedback and a cancel), reset, stop; at the
+root names by default (as Isaac Sim and O3DE serve them), under a namespace on request."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from simulation_interfaces.srv import (
 )
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import SCENARIOS
 from tests.sim_client import OK, SimClient, orchestrate
 
@@ -33,8 +34,12 @@ PAUSED, PLAYING, STOPPED = (SimulationState.STATE_PAUSED, SimulationState.STATE_
 def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
     sim = SimClient(ros_node)
     with orchestrate(PROTOCOL, tmp_path, "--paused", "--duration", DURATION) as run:
-        features = sim.call(GetSimulatorFeatures, "/cosim/get_simulator_features",
+        features = sim.call(GetSimulatorFeatures, "/get_simulator_features",
                             GetSimulatorFeatures.Request()).features
+        services = dict(sim.node.get_service_names_and_types())
+        assert services["/step_simulation"] == ["simulation_interfaces/srv/StepSimulation"]
+        assert not any(n.startswith("/cosim/") and "simulation" in n for n in services)
+        assert "/cosim/pause" in services  # the std_srvs services stay where they were
         assert sorted(features.features) == sorted([
             F.SIMULATION_STATE_GETTING, F.SIMULATION_STATE_SETTING, F.SIMULATION_STATE_PAUSE,
             F.STEP_SIMULATION_SINGLE, F.STEP_SIMULATION_MULTIPLE, F.STEP_SIMULATION_ACTION,
@@ -55,10 +60,10 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
         # action client drops feedback that comes before it has heard its goal accepted.
         feedback = []
         sim.node.create_subscription(
-            SimulateSteps.Impl.FeedbackMessage, "/cosim/simulate_steps/_action/feedback",
+            SimulateSteps.Impl.FeedbackMessage, "/simulate_steps/_action/feedback",
             lambda m: feedback.append((m.feedback.completed_steps, m.feedback.remaining_steps)),
             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-        goal = sim.send_goal(SimulateSteps, "/cosim/simulate_steps", SimulateSteps.Goal(steps=5))
+        goal = sim.send_goal(SimulateSteps, "/simulate_steps", SimulateSteps.Goal(steps=5))
         status, result = _status_result(sim.result(goal))
         sim.spin_until(lambda: len(feedback) >= 5 and len(sim.clocks) >= 25)
         assert result.result.result == OK, result.result.error_message
@@ -66,7 +71,7 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
         assert sim.clocks[-1] == 24 * TICK_NS
 
         # ... cancelled: no tick starts after the cancel, the result says how many ran
-        goal = sim.send_goal(SimulateSteps, "/cosim/simulate_steps",
+        goal = sim.send_goal(SimulateSteps, "/simulate_steps",
                              SimulateSteps.Goal(steps=10_000))
         sim.spin_until(lambda: len(feedback) >= 8)
         sim.cancel(goal)
@@ -78,17 +83,17 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
         assert sim.clocks == [k * TICK_NS for k in range(25 + ran)]
 
         # reset: only time and state together; then the run equals a fresh one
-        reply = sim.call(ResetSimulation, "/cosim/reset_simulation",
+        reply = sim.call(ResetSimulation, "/reset_simulation",
                          ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_TIME))
         assert reply.result.result == Result.RESULT_FEATURE_UNSUPPORTED
-        reply = sim.call(ResetSimulation, "/cosim/reset_simulation", ResetSimulation.Request())
+        reply = sim.call(ResetSimulation, "/reset_simulation", ResetSimulation.Request())
         assert reply.result.result == OK, reply.result.error_message
         assert sim.state() == PAUSED
         assert sim.step(3).result == OK
 
         # no robot here: no entities
-        assert sim.call(GetEntities, "/cosim/get_entities", GetEntities.Request()).entities == []
-        reply = sim.call(GetEntityState, "/cosim/get_entity_state",
+        assert sim.call(GetEntities, "/get_entities", GetEntities.Request()).entities == []
+        reply = sim.call(GetEntityState, "/get_entity_state",
                          GetEntityState.Request(entity="base_link"))
         assert reply.result.result == Result.RESULT_NOT_FOUND
 
@@ -123,3 +128,20 @@ def test_stepping_needs_a_pause_and_stopping_ends_the_run(tmp_path, ros_node):
 
 def _status_result(response):
     return response.status, response.result
+
+
+def test_a_namespace_moves_them(tmp_path, ros_node):
+    sim = SimClient(ros_node, "/cosim")
+    with orchestrate(PROTOCOL, tmp_path, "--paused", "--sim-namespace", "/cosim") as run:
+        assert sim.state() == PAUSED  # /cosim/get_simulation_state
+        features = sim.call(GetSimulatorFeatures, "/cosim/get_simulator_features",
+                            GetSimulatorFeatures.Request()).features
+        assert "under /cosim/" in features.custom_info
+        assert sim.step(3).result == OK
+        services = {n for n, _ in sim.node.get_service_names_and_types()}
+        assert {"/cosim/step_simulation", "/cosim/simulate_steps/_action/send_goal",
+                "/cosim/get_entity_state"} <= services
+        assert not {"/step_simulation", "/get_simulator_features"} & services
+        assert sim.set_state(STOPPED).result == OK
+        out, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err

@@ -23,8 +23,8 @@ import psutil
 import pytest
 
 from orchestrator.sweep.cli import main
+from orchestrator.sweep.combinations import parse_seeds, parse_sweep_sets, plan_runs, run_id
 from orchestrator.sweep.one_run import flat_metrics
-from orchestrator.sweep.plan import parse_seeds, parse_sweep_sets, plan_runs, run_id
 from orchestrator.sweep.results import _column, to_skip
 from tests.helpers import ROOT, SCENARIOS
 

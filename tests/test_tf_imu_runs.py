@@ -20,7 +20,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.typesys import Stores, get_typestore
 
 from orchestrator.api import run
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, ROOT, orchestrate
 from tests.test_sim_control import call, wait_paused_at
 

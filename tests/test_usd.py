@@ -17,7 +17,7 @@ from nodes.sensors.node import SensorsNode
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.usd_export import world_states
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from plan.worldfile import WorldError, load_world_model
 from tests.helpers import ROOT, orchestrate
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from plan.errors import ScenarioError
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 from tests.worlds import write_world
 

@@ -12,7 +12,7 @@ import pytest
 from bench.free_space import FreeSpace, Shape
 from bench.worldgen import CLEARANCE, DOOR, FAMILIES, generate, robot_radius
 from orchestrator.api import run
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from plan.world_geometry import static_obstacles
 from plan.worldfile import load_world_model
 

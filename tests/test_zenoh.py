@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.scenario import load_scenario
+from plan.load import load_scenario
 from runtime.transport.zenoh import liveliness_key, topic_key, type_hash
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 

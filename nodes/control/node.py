@@ -4,7 +4,7 @@
   node loads, distances measured to the obstacles' true footprints), with a lethal radius
   around obstacles and a cost that decays with distance, so paths keep to the middle of
   free space; where no way keeps the lethal radius, one that keeps robot_radius +
-  safety_margin (``nodes.control.plan``). Recoveries add what the scan saw and the map
+  safety_margin (``nodes.control.global_planner``). Recoveries add what the scan saw and the map
   did not know to the map before replanning.
 - Local planner: regulated pure pursuit (rotate in place towards the path when facing
   away; slow down on sharp curvature, near the goal, and before scan points on the arc).
@@ -44,10 +44,12 @@ from pydantic import BaseModel, ConfigDict, Field
 from nodes.contract import StepNode, Tick
 from nodes.control import follow as f
 from nodes.control.diagnose import connected, explain_no_path
-from nodes.control.plan import Planner, path_message
+from nodes.control.global_planner import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
+from plan.poses import pose_of
+from plan.rot3 import mat_t_mul, mat_t_vec
+from plan.timeutil import NS_PER_S
 
-NS = 1_000_000_000
 IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
 RETRY_S = 2.0  # s between plans while none exists (a failed plan searches the whole map)
 ESCAPE_REACH = 0.2  # m of arc a creeping escape must find clear
@@ -221,7 +223,7 @@ class ControlNode(StepNode):
                 self.active, self.path, self.recovery = False, None, None
                 self.plan_msg = path_message(None, self.params.frame_id, 0.0)
             return
-        new = _pose_of(msg.pose)
+        new = pose_of(msg.pose)
         if self.active and max(abs(a - b) for a, b in zip(new, self.goal, strict=True)) <= 1e-9:
             return
         self.goal, self.active, self.outside = new, True, True
@@ -238,7 +240,7 @@ class ControlNode(StepNode):
             self.tail = np.append(np.cumsum(seg[::-1])[::-1], 0.0)
             self.why_no_path = None
             return
-        self.retry_ns = now_ns + round(RETRY_S * NS)
+        self.retry_ns = now_ns + round(RETRY_S * NS_PER_S)
         why = explain_no_path(self.planner, pose[:2], self.goal[:2])
         if why != self.why_no_path:
             self.note(f"{why} Standing still; trying again every {RETRY_S:g} s.")
@@ -321,7 +323,7 @@ class ControlNode(StepNode):
         if cp is None or math.hypot(pose[0] - cp[0], pose[1] - cp[1]) > p.progress_distance:
             self.checkpoint = (pose[0], pose[1], tick.time_ns)
             return False
-        if tick.time_ns - self.checkpoint[2] > round(p.progress_window * NS):
+        if tick.time_ns - self.checkpoint[2] > round(p.progress_window * NS_PER_S):
             self.checkpoint = (pose[0], pose[1], tick.time_ns)
             return True
         return False
@@ -334,7 +336,7 @@ class ControlNode(StepNode):
         elapsed = tick.time_ns - r["since"]
         free = f.arc_clearance(self.points, pose, -p.backup_speed, 0.0, 0.3,
                                p.robot_radius + p.safety_margin)
-        if moved < p.backup_distance and elapsed < 3 * NS and free >= 0.1:
+        if moved < p.backup_distance and elapsed < 3 * NS_PER_S and free >= 0.1:
             return -p.backup_speed, 0.0
         self.recovery = None
         self.planner.mark(self.points)
@@ -349,7 +351,7 @@ class ControlNode(StepNode):
         the plan)."""
         done = self.reached_ns is not None and self.active
         out = {"goal_reached": 1.0 if done else 0.0,
-               "time_to_goal": self.reached_ns / NS if done else -1.0,
+               "time_to_goal": self.reached_ns / NS_PER_S if done else -1.0,
                "path_length": self.path_length,
                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
                "recoveries": float(self.recoveries)}
@@ -380,14 +382,8 @@ def _turn(w: float, limit: float, floor: float = 0.25) -> float:
     return math.copysign(max(abs(w), floor), w)
 
 
-def _pose_of(pose: Any) -> tuple[float, float, float]:
-    q = pose.orientation
-    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-    return float(pose.position.x), float(pose.position.y), yaw
-
-
 def _pose(odom: Any) -> tuple[float, float, float]:
-    return _pose_of(odom.pose.pose)
+    return pose_of(odom.pose.pose)
 
 
 def _laser_mount(model: mujoco.MjModel, base: str, site: str) -> tuple[float, float, float]:
@@ -396,7 +392,6 @@ def _laser_mount(model: mujoco.MjModel, base: str, site: str) -> tuple[float, fl
     mujoco.mj_kinematics(model, data)
     b = body_id(model, base)
     s = named_id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-    rb = data.xmat[b].reshape(3, 3)
-    rel = rb.T @ (data.site_xpos[s] - data.xpos[b])
-    rs = rb.T @ data.site_xmat[s].reshape(3, 3)
-    return float(rel[0]), float(rel[1]), math.atan2(rs[1, 0], rs[0, 0])
+    rel = mat_t_vec(data.xmat[b], data.site_xpos[s] - data.xpos[b])
+    rs = mat_t_mul(data.xmat[b], data.site_xmat[s])
+    return rel[0], rel[1], math.atan2(rs[1][0], rs[0][0])

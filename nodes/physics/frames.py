@@ -27,6 +27,8 @@ import numpy as np
 from geometry_msgs.msg import TransformStamped
 from pydantic import BaseModel, ConfigDict
 
+from plan.rot3 import mat_mul, mat_t_mul, mat_t_vec
+
 BODY = mujoco.mjtObj.mjOBJ_BODY
 SITE = mujoco.mjtObj.mjOBJ_SITE
 CAMERA = mujoco.mjtObj.mjOBJ_CAMERA
@@ -90,7 +92,7 @@ def transform(parent: str, child: str, pos, quat_wxyz) -> TransformStamped:
 def quat_of(mat: np.ndarray) -> np.ndarray:
     """The MuJoCo quaternion (w, x, y, z) of a rotation matrix, with w >= 0."""
     quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(mat).ravel())
+    mujoco.mju_mat2Quat(quat, np.asarray(mat, dtype=np.float64).ravel())
     return -quat if quat[0] < 0 else quat
 
 
@@ -189,8 +191,8 @@ class RobotFrames:
         self._chain(body)
         cam_in_body = np.empty(9)
         mujoco.mju_quat2Mat(cam_in_body, model.cam_quat[cid])
-        link = cam_in_body.reshape(3, 3) @ LINK_IN_CAMERA
-        optical = LINK_IN_CAMERA.T @ OPTICAL_IN_CAMERA  # the optical frame in camera_link
+        link = mat_mul(cam_in_body, LINK_IN_CAMERA)
+        optical = mat_t_mul(LINK_IN_CAMERA, OPTICAL_IN_CAMERA)  # the optical frame in camera_link
         self.static.append(transform(self._frame_of(body), cam.link_frame,
                                      model.cam_pos[cid], quat_of(link)))
         for frame in (cam.color_optical_frame, cam.depth_optical_frame):
@@ -208,8 +210,7 @@ class RobotFrames:
         conj = np.empty(4)
         quat = np.empty(4)
         for m in self.moving:
-            rot = data.xmat[m.parent].reshape(3, 3)
-            pos = rot.T @ (data.xpos[m.body] - data.xpos[m.parent])
+            pos = mat_t_vec(data.xmat[m.parent], data.xpos[m.body] - data.xpos[m.parent])
             mujoco.mju_negQuat(conj, data.xquat[m.parent])
             mujoco.mju_mulQuat(quat, conj, data.xquat[m.body])
             out.append(transform(m.parent_frame, m.frame, pos, quat))

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import array
+import math
 
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from plan.rot3 import mat_t_vec
 
 # Ground truth: tiny but non-zero variances, so consumers that invert them do not blow up.
 TRUTH_COVARIANCE = array.array("d", np.diag(np.full(6, 1e-9)).ravel().tobytes())
@@ -34,10 +37,8 @@ def odometry(qpos: np.ndarray, qvel: np.ndarray, odom_frame: str, base_frame: st
     p.position.x, p.position.y, p.position.z = (float(v) for v in qpos[:3])
     w, x, y, z = (float(v) for v in qpos[3:7])
     p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = x, y, z, w
-    rot = quat_to_mat(qpos[3:7])
-    lin = rot.T @ qvel[:3]
     t = msg.twist.twist
-    t.linear.x, t.linear.y, t.linear.z = (float(v) for v in lin)
+    t.linear.x, t.linear.y, t.linear.z = mat_t_vec(quat_to_mat(qpos[3:7]), qvel[:3])
     t.angular.x, t.angular.y, t.angular.z = (float(v) for v in qvel[3:6])
     msg.pose.covariance = TRUTH_COVARIANCE
     msg.twist.covariance = TRUTH_COVARIANCE
@@ -55,8 +56,8 @@ def quat_to_mat(q: np.ndarray) -> np.ndarray:
 
 def yaw_of(q: np.ndarray) -> float:
     """Heading (rotation about z) of a quaternion (w, x, y, z)."""
-    w, x, y, z = q
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def joint_state(names: list[str], pos: np.ndarray, vel: np.ndarray,

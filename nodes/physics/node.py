@@ -31,6 +31,7 @@ from nodes.physics.drive import DiffDrive
 from nodes.physics.frames import RobotFrames, TfParams, frame_problems
 from nodes.physics.imu import ImuParams, SimulatedImu, imu_problems
 from nodes.physics.world import (
+    NS_PER_S,
     load_model,
     named_id,
     robot_geoms,
@@ -142,6 +143,25 @@ class PhysicsNode(StepNode):
                 return [("params.start", f"the start {problem}.",
                          "a start pose inside the world with the robot clear of obstacles.")]
         return []
+
+    @classmethod
+    def period_problems(cls, params: PhysicsParams, model, period_ns: int
+                        ) -> list[tuple[str, str, str]]:
+        """The period must be a whole number of the world's timesteps (the substeps)."""
+        try:
+            step = timestep_ns(model, "")
+        except ValueError:
+            return []  # the world's own problem, reported when it loads
+        if period_ns % step == 0:
+            return []
+        fits = [NS_PER_S // (k * step) for k in range(1, 1000)
+                if NS_PER_S % (k * step) == 0][:5]
+        example = f", e.g. {', '.join(map(str, fits))} Hz" if fits else ""
+        return [("rate", f"the period {period_ns} ns is not a whole number of the world's "
+                 f"timesteps ({step} ns, <option timestep={model.opt.timestep!r}>): physics "
+                 "integrates whole timesteps in each period.",
+                 f"a rate whose period is a multiple of {step} ns{example}; or change "
+                 "<option timestep> in the world.")]
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:

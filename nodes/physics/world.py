@@ -7,9 +7,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from plan.timeutil import NS_PER_S
 from plan.worldfile import load_world_model
-
-NS_PER_S = 1_000_000_000
 
 
 def load_model(world: Path | str) -> mujoco.MjModel:

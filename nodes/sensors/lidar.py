@@ -18,6 +18,7 @@ from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 
 from nodes.physics.world import named_id
 from nodes.sensors.mirror import WorldMirror, group_mask
+from plan.rot3 import rotate_rows, row_dots
 
 
 class LidarParams(BaseModel):
@@ -66,8 +67,7 @@ class RayCaster:
     def cast(self, rng: np.random.Generator) -> np.ndarray:
         """Noisy ranges (inf = no return, -inf = closer than range_min) per ray."""
         d = self.mirror.data
-        rot = d.site_xmat[self.site].reshape(3, 3)
-        vec = (self.local @ rot.T).ravel()
+        vec = rotate_rows(self.local, d.site_xmat[self.site]).ravel()
         p = self.params
         mujoco.mj_multiRay(self.mirror.model, d, d.site_xpos[self.site].copy(), vec,
                            self.groups, 1, -1, self.geomid, self.dist, self.normal, self.n,
@@ -129,10 +129,9 @@ class Lidar3D:
         r = self.caster.cast(rng)
         ok = np.isfinite(r)
         pts = self.dirs[ok] * r[ok, None]
-        rot = self.caster.mirror.data.site_xmat[self.caster.site].reshape(3, 3)
+        rot = self.caster.mirror.data.site_xmat[self.caster.site]
         normals = self.caster.normal.reshape(-1, 3)[ok]
-        world_dirs = self.dirs[ok] @ rot.T
-        intensity = np.abs(np.einsum("ij,ij->i", normals, world_dirs))
+        intensity = np.abs(row_dots(normals, rotate_rows(self.dirs[ok], rot)))
         cloud = np.empty((len(pts), 4), dtype=np.float32)
         cloud[:, :3] = pts
         cloud[:, 3] = intensity

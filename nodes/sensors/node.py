@@ -57,6 +57,13 @@ class SensorsNode(StepNode):
         return out
 
     @classmethod
+    def rendered_outputs(cls, params: SensorsParams) -> frozenset[str]:
+        """The camera's colour and depth images (its CameraInfo is not rendered)."""
+        if params.camera is None:
+            return frozenset()
+        return frozenset({COLOR_TOPIC, DEPTH_TOPIC} if params.camera.depth else {COLOR_TOPIC})
+
+    @classmethod
     def accepted_inputs(cls, params: SensorsParams) -> set[str]:
         """Only the world state."""
         return {WORLD_STATE}

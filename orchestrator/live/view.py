@@ -66,6 +66,32 @@ class SimControlServices:
         return task.result()
 
 
+class SimControlActions:
+    """The action servers of the run's simulation services node (SimulateSteps, and
+    NavigateToPose in an interactive run): a goal runs their own callbacks, as a ROS 2
+    client's goal does (``orchestrator.ros_surface.local_goals``)."""
+
+    def __init__(self, control):
+        self._actions = dict(control.local_actions)
+
+    def types(self) -> dict[str, type]:
+        """Action name -> action class."""
+        return {name: action.action_type for name, action in self._actions.items()}
+
+    def run_goal(self, name: str, goal: Any, on_feedback, cancelled, timeout_s: float):
+        """Serve ``goal`` to its end, relaying its feedback and cancelling it when
+        ``cancelled()``: (status, result message)."""
+        from orchestrator.ros_surface.local_goals import GoalRejected
+
+        action = self._actions.get(name)
+        if action is None:
+            raise ServiceUnavailable(f"no action {name}")
+        try:
+            return action.run(goal, on_feedback, cancelled)
+        except GoalRejected as exc:
+            raise ServiceUnavailable(f"{name}: {exc}") from None
+
+
 def catalog_for(scenario: Scenario, arrivals) -> Catalog:
     """What the endpoints of this run offer: its topics and /clock, its external topics
     (when ``arrivals`` is live); services come with ``attach_control``."""
@@ -100,7 +126,7 @@ def attach_control(endpoints: LiveEndpoints, services) -> None:
     """Offer the run's simulation services (a SimServices, once built) to the endpoints'
     clients."""
     if services is not None and services.wait_built():
-        endpoints.attach_services(SimControlServices(services))
+        endpoints.attach_services(SimControlServices(services), SimControlActions(services))
 
 
 def follow_parts(endpoints: LiveEndpoints, scenario: Scenario, paths):

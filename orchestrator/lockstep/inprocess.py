@@ -10,8 +10,9 @@ from nodes.live_params import ParamsInput
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from plan.errors import SimulationError
 from plan.scenario import Scenario
+from runtime.activation import Activation
 from runtime.build import make_node
-from runtime.exchange import InputHistory, RunDigest, output_digest, prepare_outputs
+from runtime.exchange import InputHistory, RunDigest, output_digest
 from runtime.notes import Note
 
 Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
@@ -26,8 +27,10 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     external node."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
-    params_inputs = {name: p for name in sched.order
-                     if (p := ParamsInput.of(scenario.nodes[name])) is not None}
+    notes: list[Note] = []
+    activations = {name: Activation(scenario.nodes[name], nodes[name], notes.append,
+                                    ParamsInput.of(scenario.nodes[name]))
+                   for name in sched.order}
     histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
                  for plan in scenario.nodes.values() for inp in plan.inputs}
     consumers: dict[str, list[InputHistory]] = {}
@@ -36,9 +39,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             consumers.setdefault(inp.graph_topic, []).append(histories[(plan.name, inp.topic)])
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
-    notes: list[Note] = []
     stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
-    activated: set[str] = set()  # a node's first activation also returns its latched outputs
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
         for name in sched.due(k):
@@ -51,13 +52,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 inputs = external(k)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:
-                if name in params_inputs:
-                    inputs = params_inputs[name].apply(nodes[name], inputs)
-                outputs = nodes[name].step(tick, inputs)
-                notes += [Note(name, k, tick.time_ns, t) for t in nodes[name].take_notes()]
-                items = prepare_outputs(name, plan.declared_outputs, plan.output_names,
-                                        tick, outputs, plan.latched, name not in activated)
-                activated.add(name)
+                items = activations[name](tick, inputs)
             except Exception as exc:
                 raise SimulationError(f"node {name} failed at tick {k}: "
                                       f"{type(exc).__name__}: {exc}", node=name, tick=k) from exc

@@ -11,7 +11,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
@@ -24,6 +23,7 @@ from orchestrator.lockstep.supervisor import Supervisor
 from plan.errors import SimulationError
 from plan.options import RunOptions
 from plan.packing import process_groups
+from plan.run_paths import RunPaths
 from plan.scenario import Scenario
 from plan.schedule import PIPELINE_WINDOW
 from runtime.protocol import (
@@ -73,13 +73,13 @@ class LockstepMaster:
 
     def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
                  participants: dict[str, Participant], options: RunOptions,
-                 on_tick: Callable[[int], None] | None = None, parts_dir: Path | None = None):
+                 on_tick: Callable[[int], None] | None = None, paths: RunPaths | None = None):
         self.scenario = scenario
         self.sched = scenario.schedule
         self.transport = transport
         self.supervisor = supervisor
         self.on_tick = on_tick
-        self.parts_dir = parts_dir  # where nodes record: tells the tick a dead node was at
+        self.paths = paths  # where nodes record: tells the tick a dead node was at
         self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 1000)
         self.command_pub = transport.publisher(COMMAND_TOPIC, String, 10)
         self.epoch = 0
@@ -359,7 +359,7 @@ class LockstepMaster:
         if self.book is None:
             return None
         ticks = [self.book.oldest_owed().get(name, -1)]
-        part = self.parts_dir / f"{name}.rec" if self.parts_dir else None
+        part = self.paths.part(name) if self.paths else None
         if part is not None and part.exists():
             last = max((tick for tick, _, _ in read_part(part)), default=None)
             if last is not None:

@@ -22,8 +22,9 @@ import psutil
 from plan.options import RunOptions
 from runtime.parent import PR_SET_PDEATHSIG, die_with_parent, name_this_process
 
-SIGINT_TIMEOUT_S = 3.0
-SIGTERM_TIMEOUT_S = 2.0
+ESCALATION = ((signal.SIGINT, 3.0), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0))
+"""How a process tree is stopped, like ros2 launch: each signal, then that many seconds'
+wait for the processes still alive, before the next."""
 
 
 def _arm_parent_death() -> None:  # runs in the child between fork and exec
@@ -187,16 +188,7 @@ class Supervisor:
             self.sample(with_children=True)
             pending = list({ps.pid: ps for p in self.processes()
                             for ps in self._tree(p)}.values())
-            for sig, timeout in ((signal.SIGINT, SIGINT_TIMEOUT_S),
-                                 (signal.SIGTERM, SIGTERM_TIMEOUT_S), (signal.SIGKILL, 5.0)):
-                pending = [ps for ps in pending if _alive(ps)]
-                if not pending:
-                    break
-                for ps in pending:
-                    _signal(ps, sig)
-                    _signal(ps, signal.SIGCONT)  # a stopped process must run to see it
-                gone, pending = psutil.wait_procs(pending, timeout=timeout)
-                self._note_exit_codes(gone)
+            escalate(pending, on_gone=self._note_exit_codes)
             for proc in self.processes():
                 try:
                     proc.popen.wait(timeout=1.0)
@@ -268,6 +260,26 @@ def _forked_child(name: str, log_fd: int, parent: int, target: Callable[[], int]
             with contextlib.suppress(Exception):
                 stream.flush()
         os._exit(code)
+
+
+def escalate(procs: list[psutil.Process], steps: tuple[tuple[int, float], ...] = ESCALATION,
+             on_gone: Callable[[list[psutil.Process]], None] | None = None
+             ) -> list[psutil.Process]:
+    """Stop ``procs``: each step's signal to those still alive, then its wait; returns the
+    ones that outlived every step. ``on_gone`` sees each batch that exited (psutil reaps
+    them: their exit codes are only there)."""
+    pending = list(procs)
+    for sig, timeout in steps:
+        pending = [ps for ps in pending if _alive(ps)]
+        if not pending:
+            break
+        for ps in pending:
+            _signal(ps, sig)
+            _signal(ps, signal.SIGCONT)  # a stopped process must run to see it
+        gone, pending = psutil.wait_procs(pending, timeout=timeout)
+        if on_gone is not None:
+            on_gone(gone)
+    return pending
 
 
 def _signal(ps: psutil.Process, sig: int) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import heapq
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import (
     Qos,
@@ -25,9 +25,13 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from plan.ros_types import message_class, ros_type
 from plan.run_paths import RunPaths
 from runtime.protocol import CLOCK_TOPIC, encode_clock
 from runtime.recording import read_part
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 UNSPECIFIED = QosTime(0, 0)  # the middleware's default (infinite), as rosbag2 reads it
 LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
@@ -37,12 +41,8 @@ LATCHED_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
 offers, so that ``ros2 bag play`` republishes it latched and Foxglove treats it so."""
 
 
-def ros_type_name(msg_class: type) -> str:
-    """'sensor_msgs/msg/LaserScan' for the rclpy class."""
-    return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
-
-
-def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) -> Path | None:
+def write_bag(scenario: Scenario, run_dir: Path, ticks_run: int, finished: bool = True
+              ) -> Path | None:
     """Write ``<run dir>/bag`` from the node parts and the clock; None when nothing ran.
 
     A finished run keeps ticks ``0 .. ticks_run - 1`` only: nodes may have worked ahead
@@ -67,7 +67,7 @@ def write_bag(scenario, run_dir: Path, ticks_run: int, finished: bool = True) ->
         latched = scenario.latched_topics
         for topic, msg_class in sorted(scenario.topics.items()):
             qos = [LATCHED_QOS] if topic in latched else []
-            connections[topic] = writer.add_connection(topic, ros_type_name(msg_class),
+            connections[topic] = writer.add_connection(topic, ros_type(msg_class),
                                                        typestore=typestore,
                                                        offered_qos_profiles=qos)
         for tick, _, topic, data in heapq.merge(clock, *streams):
@@ -89,7 +89,7 @@ def register_installed(typestore, classes: Iterable[type]) -> None:
     todo = [c for c in classes]
     while todo:
         cls = todo.pop()
-        name = ros_type_name(cls)
+        name = ros_type(cls)
         if name in typestore.fielddefs:
             continue
         lines = []
@@ -178,9 +178,3 @@ class BagReader:
             yield stamp, decode(raw, cls)
 
 
-def message_class(ros_type: str) -> type:
-    """'sensor_msgs/msg/LaserScan' -> sensor_msgs.msg.LaserScan."""
-    import importlib
-
-    package, _, name = ros_type.rpartition("/")
-    return getattr(importlib.import_module(package.replace("/", ".")), name)

@@ -142,9 +142,21 @@ def _expand(runs: str) -> list[int]:
     return [start + step * i for start, step, count in triples for i in range(count)]
 
 
-def expected_digest(given: str | None, against: Path | None) -> str | None:
-    """The digest a run must have (--expect-digest, else --against DIR's); ValueError when
-    the hex is malformed or DIR is not a recorded run with a digest and a bag."""
+DIGEST_KEYS = {False: "digest", True: "digest_without_rendered"}
+"""The manifest key compared: the run digest, or (ignoring rendered topics) the digest of
+every topic but the rendered ones."""
+
+
+def read_manifest(run_dir: Path) -> dict:
+    """A run directory's manifest.json as a dict."""
+    return json.loads(RunPaths(Path(run_dir)).manifest.read_text())
+
+
+def expected_digest(given: str | None, against: Path | None,
+                    ignore_rendered: bool = False) -> str | None:
+    """The digest a run must have (--expect-digest, else --against DIR's; with
+    ``ignore_rendered`` DIR's digest without its rendered topics); ValueError when the hex is
+    malformed or DIR is not a recorded run with that digest and a bag."""
     if against is not None:
         manifest = RunPaths(Path(against)).manifest
         if not manifest.is_file():
@@ -152,7 +164,12 @@ def expected_digest(given: str | None, against: Path | None) -> str | None:
         recorded = json.loads(manifest.read_text())
         if not (Path(against) / (recorded.get("outputs", {}).get("bag") or "bag")).is_dir():
             raise ValueError(f"--against {against}: the run has no bag to compare with")
-        given = given or recorded.get("digest")
+        key = DIGEST_KEYS[ignore_rendered]
+        if not given and key not in recorded:
+            raise ValueError(f"--against {against}: its manifest has no {key} (recorded before "
+                             "cosim kept per-topic digests); record it again, or give "
+                             "--expect-digest HEX")
+        given = given or recorded.get(key)
         if not given:
             raise ValueError(f"--against {against}: the run has no digest (it did not finish); "
                              "give --expect-digest HEX")
@@ -165,20 +182,68 @@ def expected_digest(given: str | None, against: Path | None) -> str | None:
     return text
 
 
-def digest_mismatch(expected: str, digest: str, run_dir: Path,
-                    against: Path | None) -> str | None:
-    """None when the digest is the expected one, else a message naming the first topic and
-    tick that differ from the run directory ``against`` (when given)."""
-    if digest == expected:
+def left_out_text(rendered: list[str]) -> str:
+    """'without the rendered topics /a, /b (left out of the comparison)'."""
+    names = ", ".join(rendered) if rendered else "none in this run"
+    return f"without the rendered topics ({names}: left out of the comparison)"
+
+
+def digest_mismatch(expected: str, run_dir: Path, against: Path | None,
+                    ignore_rendered: bool = False) -> str | None:
+    """None when the run in ``run_dir`` has the expected digest (with ``ignore_rendered``:
+    its digest without the rendered topics), else a message naming the first topic and tick
+    that differ from the run directory ``against`` (when given), the rendered topics left
+    out, and the versions a digest depends on that differ between the two runs."""
+    manifest = read_manifest(run_dir)
+    got = manifest.get(DIGEST_KEYS[ignore_rendered])
+    if got == expected:
         return None
-    text = f"digest mismatch: expected {expected}, got {digest}."
+    rendered = list(manifest.get("rendered_topics") or [])
+    which = f"the digest {left_out_text(rendered)}" if ignore_rendered else "digest"
+    text = f"{which} mismatch: expected {expected}, got {got}."
     if against is None:
-        return text + (" Give --against DIR (a recorded run with the expected digest) to "
-                       "name the first topic and tick that differ.")
+        return text + _rendered_hint(manifest, None, ignore_rendered) + (
+            " Give --against DIR (a recorded run with the expected digest) to name the first "
+            "topic and tick that differ.")
     reference, tick_ns = run_dir_entries(Path(against))
     actual, _ = run_dir_entries(Path(run_dir))
+    if ignore_rendered:
+        left_out = set(rendered) | set(read_manifest(against).get("rendered_topics") or [])
+        reference = [e for e in reference if e[1] not in left_out]
+        actual = [e for e in actual if e[1] not in left_out]
     diff = first_difference(reference, actual, tick_ns)
     if diff is None:
-        return text + (f" Every recorded message equals {against}'s; the runs differ in what "
-                       "the digest covers beyond the messages (nodes, schedule).")
-    return text + f" First difference from {against}: {diff.describe()}."
+        text += (f" Every recorded message equals {against}'s; the runs differ in what "
+                 "the digest covers beyond the messages (nodes, schedule).")
+    else:
+        text += f" First difference from {against}: {diff.describe()}."
+    reference_manifest = read_manifest(against)
+    text += _rendered_hint(manifest, reference_manifest, ignore_rendered)
+    return text + versions_text(reference_manifest.get("digest_versions"),
+                                manifest.get("digest_versions"))
+
+
+def _rendered_hint(manifest: dict, reference: dict | None, ignore_rendered: bool) -> str:
+    """When only rendered topics differ (or may): say so and how to leave them out."""
+    rendered = list(manifest.get("rendered_topics") or [])
+    if ignore_rendered or not rendered:
+        return ""
+    renderer = (manifest.get("digest_versions") or {}).get("renderer", "unknown")
+    if reference is not None and reference.get("digest_without_rendered") is not None and \
+            reference.get("digest_without_rendered") == manifest.get("digest_without_rendered"):
+        return (f" Only the rendered topics ({', '.join(rendered)}) differ; their pixels "
+                f"depend on the renderer (this run: {renderer}). --ignore-rendered compares "
+                "without them.")
+    return (f" The digest covers rendered topics ({', '.join(rendered)}), whose pixels depend "
+            f"on the renderer (this run: {renderer}); --ignore-rendered compares without them.")
+
+
+def versions_text(before: dict | None, after: dict | None) -> str:
+    """' The versions a digest depends on differ: mujoco 3.3.0 -> 4.0.0.' or ''."""
+    from orchestrator.outputs.topic_digests import version_changes
+
+    changes = version_changes(before, after)
+    if not changes:
+        return ""
+    return (" The versions a digest depends on differ (reference -> this run): "
+            + "; ".join(changes) + ".")

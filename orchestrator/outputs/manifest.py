@@ -4,14 +4,21 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import platform
 import resource
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.run_paths import RunPaths
+from runtime.gated_output import FOREIGN_OUTPUT_RULE
 from runtime.timing import read_summary
+
+log = logging.getLogger("cosim")
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 
 def software_versions() -> dict[str, str]:
@@ -56,7 +63,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
-def in_process_entries(scenario, ticks: int, result=None) -> dict[str, Any]:
+def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str, Any]:
     """Per-node entries of an in-process run: activations served, mean and worst step time
     (CPU and memory are the one process's, under 'orchestrator')."""
     out = {}
@@ -95,7 +102,7 @@ def file_entry(path: Path | None) -> dict[str, Any] | None:
     return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
 
 
-def scenario_entry(scenario) -> dict[str, Any]:
+def scenario_entry(scenario: Scenario) -> dict[str, Any]:
     """Which scenario ran: name, file, hash, overrides, world, planned length."""
     return {"name": scenario.name, "file": str(scenario.file), "sha256": scenario.sha256,
             "overrides": scenario.overrides, "world": file_entry(scenario.world),
@@ -105,13 +112,52 @@ def scenario_entry(scenario) -> dict[str, Any]:
 def outputs_entry(outcome) -> dict[str, Any]:
     """Where the outputs are, relative to the run directory (None: not written)."""
     run_dir = outcome.run_dir
-    parts = RunPaths(run_dir).parts
+    paths = RunPaths(run_dir)
     return {"bag": relative(outcome.bag, run_dir), "report": relative(outcome.report, run_dir),
-            "usd": relative(getattr(outcome, "usd", None), run_dir), "logs": "logs",
-            "parts": "parts" if parts.exists() else None}
+            "usd": relative(getattr(outcome, "usd", None), run_dir),
+            "logs": relative(paths.logs, run_dir),
+            "parts": relative(paths.parts, run_dir) if paths.parts.exists() else None}
 
 
-def build_manifest(scenario, outcome, options) -> dict[str, Any]:
+def digests_entry(scenario: Scenario, outcome) -> dict[str, Any]:
+    """Per-topic digests (from the bag), the rendered topics, the digest without them, and
+    the versions a digest depends on (see orchestrator.outputs.topic_digests)."""
+    rendered = list(getattr(outcome, "rendered_topics", []))
+    topics: dict[str, str] = {}
+    if outcome.bag is not None:
+        try:
+            topics = topic_digests(outcome.bag, scenario.tick_ns)
+        except Exception as exc:  # noqa: BLE001 - the manifest must still be written
+            log.error("could not compute the per-topic digests: %s", exc)
+    finished = outcome.result is not None and bool(topics)
+    return {"digest_without_rendered": (digest_of_topics(topics, set(rendered))
+                                        if finished else None),
+            "rendered_topics": rendered,
+            "topic_digests": topics,
+            "digest_versions": digest_versions(getattr(outcome, "renderer", None))}
+
+
+def foreign_entry(scenario: Scenario) -> dict[str, Any]:
+    """Per foreign program, the rule its outputs follow: what its consumers see, and the
+    message counts the scenario declares exactly (checked at every tick)."""
+    out = {}
+    for name, plan in scenario.nodes.items():
+        if not plan.foreign:
+            continue
+        params = plan.params
+        if plan.gated:
+            rule = FOREIGN_OUTPUT_RULE
+            exact = {plan.output_names[own]: n for own, n in params.per_activation.items()}
+        else:
+            rule = ("not gated: counted, its n-th message on an output is its sample of its "
+                    "n-th activation")
+            exact = {graph: params.count(own) for own, graph in plan.output_names.items()}
+        out[name] = {"gated": plan.gated, "outputs": rule, "exact_counts": exact,
+                     "silent_at_start": params.silent_at_start}
+    return out
+
+
+def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
     ticks = result.ticks if result else 0
@@ -126,6 +172,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "transport": "in-process" if options.in_process else scenario.model.transport,
         "versions": software_versions(),
         "digest": result.digest if result else None,
+        **digests_entry(scenario, outcome),
         "outcome": {"status": outcome.status, "success": outcome.success,
                     "collisions": outcome.collisions, "error": outcome.error,
                     "metrics": metrics, "stopped_early": bool(result and result.stopped_early),
@@ -142,6 +189,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
         "loop_real_time_factor": round(sim_s / outcome.loop_s, 2) if outcome.loop_s else None,
         "orchestrator": own_cost(),
         "nodes": nodes,
+        "foreign": foreign_entry(scenario),
         "outputs": outputs_entry(outcome),
         "options": options.as_dict(),
         "warnings": list(getattr(outcome, "warnings", [])),
@@ -150,7 +198,7 @@ def build_manifest(scenario, outcome, options) -> dict[str, Any]:
     }
 
 
-def write_manifest(scenario, outcome, options) -> None:
+def write_manifest(scenario: Scenario, outcome, options) -> None:
     """Write manifest.json into the run directory."""
     manifest = build_manifest(scenario, outcome, options)
     RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -27,7 +28,11 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
+from plan.poses import yaw_of
 from plan.run_paths import RunPaths
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 NAV_TOPICS = ("/odom", "/plan", "/scan", "/cmd_vel")
 SNAPSHOTS = 4
@@ -66,7 +71,8 @@ class Track:
         return float(self.x[i]), float(self.y[i]), float(self.yaw[i])
 
 
-def write_report_png(scenario, run_dir: Path, bag: Path | None, outcome=None) -> Path | None:
+def write_report_png(scenario: Scenario, run_dir: Path, bag: Path | None, outcome=None
+                     ) -> Path | None:
     """Draw the run from its bag into ``<run dir>/report.png``; None when there is nothing.
 
     ``outcome`` (a RunOutcome) adds the status, digest and collisions to the title.
@@ -119,11 +125,6 @@ def _decode(reader, topic: str, raw: bytes, last: dict[str, tuple[bytes, object]
     if hasattr(msg, "header"):  # a message without one differs in its first bytes too
         last[topic] = (bytes(raw[12:]), msg)
     return msg
-
-
-def yaw_of(q) -> float:
-    """Heading of a geometry_msgs Quaternion."""
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
 def odom_track(messages: list[tuple[int, object]]) -> Track:
@@ -191,7 +192,7 @@ def scan_points(scan, pose: tuple[float, float, float],
 # --- the navigation picture --------------------------------------------------------------
 
 
-def nav_figure(scenario, data: BagData, outcome) -> Figure:
+def nav_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     """Map on the left, speeds, turn rate and distances over time on the right."""
     track = odom_track(data.messages["/odom"])
     scans = data.messages.get("/scan", [])
@@ -247,7 +248,7 @@ def snapshot_scans(scans: list[tuple[int, object]]) -> list[tuple[int, object, s
             for j, i in enumerate(picks)]
 
 
-def draw_map(ax, fig, scenario, world: World, track: Track, data: BagData, snaps) -> None:
+def draw_map(ax, fig, scenario: Scenario, world: World, track: Track, data: BagData, snaps) -> None:
     """Obstacles, plans, the driven trajectory, lidar snapshots, start and goal."""
     draw_obstacles(ax, world)
     draw_plans(ax, data.messages.get("/plan", []))
@@ -332,7 +333,7 @@ def draw_robot(ax, pose: tuple[float, float, float], colour: str) -> None:
     ax.plot(x, y, "o", color=colour, markeredgecolor="black", ms=7, zorder=6)
 
 
-def draw_start_goal(ax, scenario, track: Track) -> None:
+def draw_start_goal(ax, scenario: Scenario, track: Track) -> None:
     """Start (first odometry pose) and the goal with its tolerance circle and heading."""
     ax.plot(track.x[0], track.y[0], "s", color="white", markeredgecolor="black", ms=10,
             zorder=7, label=f"start ({track.x[0]:.2f}, {track.y[0]:.2f})")
@@ -350,13 +351,13 @@ def draw_start_goal(ax, scenario, track: Track) -> None:
                 arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.5})
 
 
-def scenario_goal(scenario):
+def scenario_goal(scenario: Scenario):
     """The scenario's goal, or None."""
     model = getattr(scenario, "model", None)
     return getattr(model, "goal", None)
 
 
-def map_limits(world: World, track: Track, scenario):
+def map_limits(world: World, track: Track, scenario: Scenario):
     """x and y limits that hold the obstacles, the trajectory and the goal, with a margin."""
     xs, ys = [track.x.min(), track.x.max()], [track.y.min(), track.y.max()]
     for poly in world.polygons:
@@ -405,7 +406,7 @@ def draw_turn(ax, track: Track, cmds) -> None:
     ax.legend(loc="best", fontsize=8)
 
 
-def draw_distances(ax, scenario, track: Track, scans) -> None:
+def draw_distances(ax, scenario: Scenario, track: Track, scans) -> None:
     """Distance to the goal and the nearest lidar return, over time."""
     goal = scenario_goal(scenario)
     if goal is not None:
@@ -430,7 +431,7 @@ def nearest_return(scan) -> float:
     return float(r.min()) if len(r) else math.nan
 
 
-def goal_time(scenario, track: Track, outcome) -> float | None:
+def goal_time(scenario: Scenario, track: Track, outcome) -> float | None:
     """When the goal was reached: the control node's time_to_goal, else by odometry."""
     metrics = outcome_metrics(outcome)
     if metrics.get("goal_reached", 0) >= 1 and "time_to_goal" in metrics:
@@ -464,7 +465,7 @@ def outcome_metrics(outcome) -> dict[str, float]:
     return {k: v for m in result.metrics.values() for k, v in m.items()}
 
 
-def title(scenario, outcome, track: Track | None = None) -> str:
+def title(scenario: Scenario, outcome, track: Track | None = None) -> str:
     """'nav: SUCCESS, 0 collisions, digest 4cb73072' (what is known)."""
     parts = [f"{getattr(scenario, 'name', 'run')}:"]
     if outcome is not None:
@@ -481,7 +482,7 @@ def title(scenario, outcome, track: Track | None = None) -> str:
     return " ".join(parts)
 
 
-def subtitle(scenario, track: Track, data: BagData, outcome) -> str:
+def subtitle(scenario: Scenario, track: Track, data: BagData, outcome) -> str:
     """Sim time, distance driven, final distance to the goal, messages recorded."""
     driven = float(np.hypot(np.diff(track.x), np.diff(track.y)).sum())
     text = [f"{track.t[-1]:.2f} s simulated", f"{driven:.2f} m driven",
@@ -500,7 +501,7 @@ def subtitle(scenario, track: Track, data: BagData, outcome) -> str:
 # --- the generic picture -----------------------------------------------------------------
 
 
-def counts_figure(scenario, data: BagData, outcome) -> Figure:
+def counts_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     """Messages recorded per topic: when each was published over sim time, and totals."""
     fig = Figure(figsize=(13, 6))
     grid = fig.add_gridspec(1, 2, width_ratios=(1.6, 1), wspace=0.35, left=0.06, right=0.97,

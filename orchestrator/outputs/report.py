@@ -15,6 +15,8 @@ import json
 import sys
 from typing import Any
 
+from plan.run_paths import RunPaths
+
 STATUS_STYLE = {"success": "bold green", "goal_not_met": "bold yellow", "failed": "bold red",
                 "interrupted": "bold magenta"}
 METRICS = (("time_to_goal", "time to goal", "{:.2f} s"),
@@ -61,7 +63,7 @@ def print_summary(outcome) -> None:
 def read_manifest(outcome) -> dict[str, Any]:
     """The run's manifest.json, or {} when it is missing or unreadable."""
     try:
-        return json.loads((outcome.run_dir / "manifest.json").read_text())
+        return json.loads(RunPaths(outcome.run_dir).manifest.read_text())
     except (OSError, ValueError, TypeError):
         return {}
 
@@ -149,11 +151,11 @@ def cost_text(manifest: dict[str, Any]) -> str | None:
 
 def output_rows(outcome) -> list[tuple[str, str]]:
     """Where the run's files are."""
-    run_dir = outcome.run_dir
-    rows = [("run directory", str(run_dir)), ("manifest", str(run_dir / "manifest.json"))]
+    paths = RunPaths(outcome.run_dir)
+    rows = [("run directory", str(paths.root)), ("manifest", str(paths.manifest))]
     rows.append(("bag (MCAP)", str(outcome.bag) if outcome.bag else "not written"))
     rows.append(("report.png", str(outcome.report) if outcome.report else "not drawn"))
-    rows.append(("logs", str(run_dir / "logs")))
+    rows.append(("logs", str(paths.logs)))
     return rows
 
 

@@ -20,10 +20,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from plan.timeutil import NS_PER_S
 from plan.worldfile import compile_world, is_usd, load_world_spec, open_stage
 
 WORLD_STATE = "/cosim/world_state"
-NS_PER_S = 1_000_000_000
 
 
 def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path) -> Path:

@@ -14,9 +14,10 @@ from nodes.contract import Tick
 from orchestrator.lockstep.participants import Participant
 from plan.packing import subscribers
 from plan.scenario import NodePlan, Scenario
+from runtime.activation import Activation
 from runtime.arrivals import Arrivals, Replay
 from runtime.build import make_node
-from runtime.exchange import output_digest, prepare_outputs
+from runtime.exchange import output_digest
 from runtime.protocol import DONE, Done, Status
 from runtime.recording import PartWriter
 from runtime.transport.base import Transport
@@ -35,6 +36,7 @@ class ExternalSource(Participant):
         self.scenario = scenario
         self.schedule = scenario.schedule
         self.node = make_node(scenario, plan.name)
+        self.activation = Activation(plan, self.node)
         self.arrivals = arrivals
         self.recorder = recorder
         depth = self.schedule.output_depths(self.name, plan.outputs)
@@ -65,8 +67,7 @@ class ExternalSource(Participant):
         inputs = (self.arrivals(tick) if callable(self.arrivals)
                   else self.arrivals.take(tick))
         when = Tick(tick, self.schedule.time_ns(tick))
-        items = prepare_outputs(self.name, self.plan.declared_outputs, self.plan.output_names,
-                                when, self.node.step(when, inputs))
+        items = self.activation(when, inputs)
         for topic, data in items:
             self.publishers[topic].publish(data)
             self.sent[topic] += 1
@@ -83,7 +84,7 @@ class ExternalSource(Participant):
 
     def reset(self) -> None:
         """Back to tick 0 (the run's reset): the node starts over, the record too."""
-        self.node.reset(self.scenario.model.seed, self.node.config)
+        self.activation.restart(self.scenario.model.seed)
         self.pending.clear()
         if isinstance(self.arrivals, Arrivals):
             self.arrivals.take(0)  # what came before the reset is no part of the new run

@@ -5,9 +5,10 @@ A Python program (its command runs ``python``/``python3`` or a ``.py`` file) is 
 inputs and its ``/clock`` are remapped onto private feed topics that the orchestrator alone
 publishes, one tick's bundle at a time, and cosim's gate (``runtime/foreign_gate``,
 injected through ``sitecustomize`` on its ``PYTHONPATH``) holds the program's executor until
-a whole bundle is in its readers (see the README's delivery contract). Any other program
-reads the run's topics directly: deterministic only with a single input, so the run rules
-refuse it with more.
+a whole bundle is in its readers, and acknowledges each tick with how many messages it
+published on each output (see the README's delivery contract). Any other program reads the
+run's topics directly: deterministic only with a single input and a fixed message count,
+so the run rules refuse it otherwise.
 """
 
 from __future__ import annotations
@@ -20,15 +21,14 @@ from pathlib import Path
 
 from plan.scenario import NodePlan
 from plan.schedule import DELAYED, Schedule
+from runtime.gated_output import ack_topic, feed_prefix
+
+__all__ = ["ack_topic", "clock_topic", "feed_prefix", "feed_topic", "foreign_argv",
+           "foreign_env", "gate_config", "is_python", "missing_program"]
 
 GATE_DIR = Path(__file__).resolve().parents[2] / "runtime" / "foreign_gate"
 GATE_ENV = "COSIM_GATE"
 PYTHONS = ("python", "python3")
-
-
-def feed_prefix(name: str) -> str:
-    """The private topic prefix of a foreign program's feed: '/cosim/feed/<node>/'."""
-    return f"/cosim/feed/{name}/"
 
 
 def feed_topic(name: str, own_topic: str) -> str:
@@ -41,16 +41,9 @@ def clock_topic(name: str) -> str:
     return feed_prefix(name) + "clock"
 
 
-def ack_topic(name: str) -> str:
-    """Where the gate acknowledges each bundle taken (std_msgs/Int64; -1: ready)."""
-    return feed_prefix(name) + "taken"
-
-
 def is_python(plan: NodePlan) -> bool:
-    """Whether the program runs on a Python interpreter (and so can carry the gate)."""
-    first = plan.spec.command[0]
-    return (first in PYTHONS or Path(first).name.startswith("python")
-            or first.endswith(".py") or first == sys.executable)
+    """Whether the program runs on a Python interpreter (and so carries the gate)."""
+    return plan.gated
 
 
 def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
@@ -76,8 +69,9 @@ def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
 
 
 def gate_config(plan: NodePlan, schedule: Schedule) -> dict:
-    """The gate's configuration: the feed prefix, the program's period and, per input, the
-    ticks its sample comes with (a delayed input has none at tick 0)."""
+    """The gate's configuration: the feed prefix, the program's period, per input the ticks
+    its sample comes with (a delayed input has none at tick 0), and the outputs it counts
+    in each acknowledgement."""
     period = plan.period_ticks
     inputs = []
     for inp, edge in zip(plan.inputs, schedule.inputs_of[plan.name], strict=True):
@@ -87,7 +81,7 @@ def gate_config(plan: NodePlan, schedule: Schedule) -> dict:
         inputs.append(entry)
     return {"prefix": feed_prefix(plan.name), "node": plan.name, "tick_ns": schedule.tick_ns,
             "period": period, "start": 0, "inputs": inputs, "reliable_clock": True,
-            "callback_order": "inputs"}
+            "callback_order": "inputs", "outputs": plan.gated_outputs}
 
 
 def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:

@@ -9,10 +9,14 @@ declaration order, the bytes as the producer sent them), then the tick's Clock. 
 the next due tick only after the program's gate acknowledged that it took this one, so
 nothing of tick k+1 reaches the program before it has handled tick k.
 
-Counting: an activation is done once every output carries its declared number of messages;
-the digest covers exactly those bytes. A program that publishes more than it declared is
-an error the moment it happens; one that publishes too few is caught by the tick deadline,
-naming what is missing.
+Completion, for a gated program: its gate acknowledges each fed tick with how many messages
+the tick published on each output (zero, one or several: from callbacks and timers alike),
+and the activation is done once those messages are here; the digest covers exactly them,
+in order. Where the scenario declares an exact count (``per_activation``,
+``silent_at_start``) a different count is an error naming the topic, the tick and both
+counts. An ungated program (not Python) is counted: an activation is done once every output
+carries its declared number of messages (default 1); more is an error the moment it
+happens, fewer is caught by the tick deadline, naming what is missing.
 """
 
 from __future__ import annotations
@@ -20,23 +24,21 @@ from __future__ import annotations
 import time
 
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Int64
 
 from orchestrator.lockstep.participants import Participant
-from orchestrator.proxies.foreign_launch import ack_topic, clock_topic, feed_topic, is_python
+from orchestrator.proxies.foreign_launch import ack_topic, clock_topic, feed_topic
 from plan.errors import SimulationError
 from plan.scenario import NodePlan
 from plan.schedule import Schedule
 from runtime.cdr.canonical import canonical_cdr
-from runtime.cdr.decode import decode
 from runtime.exchange import output_digest
+from runtime.gated_output import ACK_TYPE, READY_TICK, decode_ack
 from runtime.lockstep import InputChannel, NodeFailure
 from runtime.protocol import DONE, Done, Status, encode_clock
 from runtime.recording import PartWriter
 from runtime.transport.base import Received, Transport
 
 SETTLE_S = 0.5
-READY = -1  # what the gate acknowledges once its feed subscriptions are matched
 
 
 class ForeignProxy(Participant):
@@ -62,7 +64,10 @@ class ForeignProxy(Participant):
         self.clock_tick = -1  # the latest tick the master published /clock for
         self.pending: list[Status] = []  # activations done without a message (silent)
         self._matched_since: float | None = None
-        self.gated = is_python(plan)
+        self.gated = plan.gated
+        self.own_of = {graph: own for own, graph in plan.output_names.items()}
+        # gated: per output, how many of its messages the acknowledged activations hold
+        self.ends: dict[str, list[int]] = {t: [] for t in self.classes}
         self.follows_clock = not self.gated  # a gated program sees only its fed clock
         self.channels: dict[str, InputChannel] = {}
         self.feeds = {}
@@ -80,7 +85,7 @@ class ForeignProxy(Participant):
                                                         inp.msg_type, 10)
         self.clock_feed = transport.publisher(clock_topic(self.name), Clock, 10)
         self.ack = ack_topic(self.name)
-        self.ack_sub = transport.subscription(self.ack, Int64, 10, latched=True)
+        self.ack_sub = transport.subscription(self.ack, ACK_TYPE, 1000, latched=True)
         self.gate_ready = False
         self.next_feed = 0  # the next due tick to feed
         self.awaiting: int | None = None  # a fed tick the gate has not acknowledged yet
@@ -120,7 +125,7 @@ class ForeignProxy(Participant):
                       f"{feed_topic(self.name, own)})" for own in self._unsubscribed()]
             if not parts and not self.gate_ready:
                 parts.append(f"its cosim gate never reported ready on {self.ack} (is it an "
-                             "rclpy program run by this interpreter?)")
+                             "rclpy program run by this interpreter, with use_sim_time true?)")
         missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
         if missing:
             parts.append("its outputs are not advertised yet: "
@@ -152,18 +157,32 @@ class ForeignProxy(Participant):
             self._pump()
             return []
         if self.gated and rec.topic == self.ack:
-            self._acknowledged(decode(rec.data, Int64).data, current_tick)
-            return []
+            self._acknowledged(*decode_ack(rec.data), current_tick)
+            return self._done_so_far()
         return self._count(rec, current_tick)
 
-    def _acknowledged(self, tick: int, current_tick: int) -> None:
-        if tick == READY:
+    def _acknowledged(self, tick: int, counts: list[int], current_tick: int) -> None:
+        if tick == READY_TICK:
             self.gate_ready = True
             return
         if tick != self.awaiting:
             raise SimulationError(f"foreign node {self.name}: its gate acknowledged tick "
                                   f"{tick}, but tick {self.awaiting} was fed", node=self.name,
                                   tick=current_tick)
+        activation = tick // self.period
+        for topic, count in zip(self.plan.gated_outputs, counts, strict=True):
+            own = self.own_of[topic]
+            exact = self.plan.params.exact(own, activation)
+            if exact is not None and count != exact:
+                key = ("params.silent_at_start" if activation == 0
+                       and self.plan.params.silent_at_start else f"params.per_activation.{own}")
+                raise SimulationError(
+                    f"foreign node {self.name} published {count} message(s) on {topic} at "
+                    f"tick {tick}, and the scenario declares exactly {exact} ({key}). Leave "
+                    f"{key} out to allow any number (its consumers see the latest sample).",
+                    node=self.name, tick=tick)
+            ends = self.ends[topic]
+            ends.append((ends[-1] if ends else 0) + count)
         self.awaiting = None
         self._pump()
 
@@ -187,6 +206,8 @@ class ForeignProxy(Participant):
     def _count(self, rec: Received, current_tick: int) -> list[Status]:
         messages = self.received[rec.topic]
         messages.append(canonical_cdr(rec.data, self.classes[rec.topic]))
+        if self.gated:  # the gate's acknowledgement says which tick it belongs to
+            return self._done_so_far()
         activation = (len(messages) - 1 + self.skip[rec.topic]) // self.per[rec.topic]
         if activation * self.period > current_tick:
             raise SimulationError(
@@ -208,10 +229,15 @@ class ForeignProxy(Participant):
 
     def _span(self, topic: str, activation: int) -> tuple[int, int]:
         """Which of the messages received on ``topic`` belong to ``activation``."""
+        if self.gated:
+            ends = self.ends[topic]
+            return (ends[activation - 1] if activation else 0), ends[activation]
         n, skip = self.per[topic], self.skip[topic]
         return max(activation * n - skip, 0), (activation + 1) * n - skip
 
     def _complete(self, activation: int) -> bool:
+        if self.gated and activation >= len(self.ends[next(iter(self.ends))]):
+            return False  # not acknowledged yet
         return all(len(self.received[t]) >= self._span(t, activation)[1] for t in self.per)
 
     def _finish(self, activation: int) -> Status:
@@ -228,14 +254,22 @@ class ForeignProxy(Participant):
     def owed_text(self, tick: int) -> str:
         """What the program still owes for ``tick``, e.g. '0 of 1 messages on /cmd_vel'."""
         activation = tick // self.period
+        if self.gated and activation >= len(self.ends[next(iter(self.ends))]):
+            if self.awaiting is not None:
+                return (f"tick {self.awaiting} was fed and its gate has not acknowledged it: "
+                        "a callback or timer of that tick is still running, or blocked "
+                        "(foreign program)")
+            return (f"tick {self.next_feed} not fed yet (waiting for its inputs; "
+                    "foreign program)")
         parts = []
         for t in sorted(self.per):
             first, end = self._span(t, activation)
             parts.append(f"{max(0, len(self.received[t]) - first)} of {end - first} "
                          f"message(s) on {t}")
-        fed = ""
-        if self.gated and self.awaiting is not None:
-            fed = f"; tick {self.awaiting} was fed and not yet taken"
-        elif self.gated and self.next_feed <= tick:
-            fed = f"; tick {self.next_feed} not fed yet (waiting for its inputs)"
-        return "it published " + ", ".join(parts) + f" (foreign program{fed})"
+        if self.gated:
+            return ("its gate acknowledged the tick, but of the messages it counted only "
+                    + ", ".join(parts) + " arrived (foreign program)")
+        return ("it published " + ", ".join(parts) + " (a foreign program that is not "
+                "Python, so not gated: it must publish exactly the declared count per tick, "
+                "params.per_activation and params.silent_at_start; if it publishes fewer, "
+                "declare that)")

@@ -7,7 +7,11 @@ one that takes /goal_pose, cosim's control node) tells how the goal goes in the 
 every activation (``nav_state``, its pose, its goal, the distance left, recoveries); the
 server follows them tick by tick in the order the master decides them:
 
-- feedback at every activation of the navigation node while it works on this goal;
+- feedback at every activation of the navigation node while it works on this goal, with
+  ``estimated_time_remaining`` as Nav2's navigator computes it: the distance left over the
+  robot's speed, when it moves faster than 1 cm/s with more than 10 cm to go (zero
+  otherwise); the speed is the robot's travel over the last 0.3 s of reports, as Nav2
+  smooths odometry over 0.3 s;
 - succeeded when the node reports this goal reached;
 - aborted when the node finds no path (the robot is then stopped), when a newer goal
   replaces it, when the run is reset or ends;
@@ -27,7 +31,10 @@ from nav2_msgs.action import NavigateToPose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile
 
+from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import RunControl
+from plan.poses import pose_of
+from plan.timeutil import NS_PER_S
 from runtime.arrivals import Arrivals
 
 FRAMES = ("map", "odom")
@@ -36,6 +43,8 @@ IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # the control node's nav_sta
 SAME = 1e-6  # how close the node's goal must be to this one to be it
 WAIT_S = 0.1
 FEEDBACK_DEPTH = 100  # feedback comes in bursts when the run goes faster than real time
+SPEED_WINDOW_NS = 300_000_000  # Nav2's odometry smoother's default window
+MIN_SPEED, MIN_DISTANCE = 0.01, 0.1  # Nav2: below these, no estimate (zero)
 
 log = logging.getLogger("cosim")
 
@@ -64,6 +73,10 @@ class NavigateServer:
                                    cancel_callback=self._on_cancel,
                                    feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))
         control.observers.append(self._observe)
+
+    def local_action(self) -> LocalAction:
+        """This server's callbacks, for goals from the live endpoints."""
+        return LocalAction(NavigateToPose, self._on_goal, self._execute, self._on_cancel)
 
     def _observe(self, tick: int, reports: dict) -> None:
         """The master decided ``tick``: keep the navigation node's report of it."""
@@ -112,6 +125,7 @@ class NavigateServer:
         with self._cond:
             seen, epoch = self._put_at.pop(id(request)), self.control.epoch
         started = recoveries = None
+        track: deque[tuple[int, float, float]] = deque()  # (tick, x, y) of this goal
         while True:
             # read before the reports: a run's last reports come before its end or reset
             run_over, epoch_now = self.control.ended, self.control.epoch
@@ -131,7 +145,9 @@ class NavigateServer:
                     continue
                 if started is None:
                     started, recoveries = tick, m.get("recoveries", 0.0)
-                handle.publish_feedback(self._feedback(tick, started, recoveries, m))
+                track.append((tick, m["nav_x"], m["nav_y"]))
+                handle.publish_feedback(self._feedback(tick, started, recoveries, m,
+                                                       self._speed(track)))
                 if m["nav_state"] == REACHED:
                     return _finish(handle, "succeed", 0, "")
                 if m["nav_state"] == FAILED:
@@ -145,19 +161,34 @@ class NavigateServer:
             if run_over is not None:
                 return _finish(handle, how, UNKNOWN, f"the run ended: {run_over}")
 
+    def _speed(self, track: deque[tuple[int, float, float]]) -> float:
+        """The robot's speed (m/s): its travel from the oldest report within the last
+        0.3 s (at least the previous one) to the newest; drops older reports."""
+        now = track[-1][0]
+        while len(track) > 2 and (now - track[1][0]) * self.tick_ns >= SPEED_WINDOW_NS:
+            track.popleft()
+        (t0, x0, y0), (t1, x1, y1) = track[0], track[-1]
+        if t1 == t0:
+            return 0.0
+        return math.hypot(x1 - x0, y1 - y0) / ((t1 - t0) * self.tick_ns / 1e9)
+
     def _feedback(self, tick: int, started: int, recoveries: float,
-                  m: dict[str, float]) -> NavigateToPose.Feedback:
+                  m: dict[str, float], speed: float) -> NavigateToPose.Feedback:
         fb = NavigateToPose.Feedback()
         pose = fb.current_pose
         pose.header.frame_id = "odom"
-        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(tick * self.tick_ns, 10**9)
+        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(tick * self.tick_ns, NS_PER_S)
         pose.pose.position.x, pose.pose.position.y = m["nav_x"], m["nav_y"]
         pose.pose.orientation.z = math.sin(m["nav_yaw"] / 2)
         pose.pose.orientation.w = math.cos(m["nav_yaw"] / 2)
         elapsed = (tick - started) * self.tick_ns
-        fb.navigation_time.sec, fb.navigation_time.nanosec = divmod(elapsed, 10**9)
+        fb.navigation_time.sec, fb.navigation_time.nanosec = divmod(elapsed, NS_PER_S)
         fb.number_of_recoveries = int(m.get("recoveries", 0.0) - recoveries)
         fb.distance_remaining = float(m["nav_distance_remaining"])
+        if speed > MIN_SPEED and fb.distance_remaining > MIN_DISTANCE:
+            eta = round(fb.distance_remaining / speed * 1e9)
+            fb.estimated_time_remaining.sec, fb.estimated_time_remaining.nanosec = divmod(
+                eta, 10**9)
         return fb
 
 
@@ -172,13 +203,6 @@ def goal_problem(goal: PoseStamped) -> tuple[int, str] | None:
     if q.x == q.y == q.z == q.w == 0.0:
         return UNKNOWN, "the goal's quaternion is zero: no orientation"
     return None
-
-
-def pose_of(pose) -> tuple[float, float, float]:
-    """(x, y, yaw) of a geometry_msgs/Pose, as the control node reads it."""
-    q = pose.orientation
-    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-    return float(pose.position.x), float(pose.position.y), yaw
 
 
 def same_goal(m: dict[str, float], goal: tuple[float, float, float]) -> bool:

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import math
 import threading
-import typing
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ValidationError
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -24,8 +23,11 @@ from nodes.live_params import change_message, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.interactive import params_topic
 from plan.scenario import EXTERNAL_NAME, NodePlan
-from plan.validation import describe_validation_error, field_of
+from plan.validation import describe_validation_error, field_of, inner_model
 from runtime.arrivals import Arrivals
+
+if TYPE_CHECKING:
+    from plan.scenario import Scenario
 
 
 class NodeParameters:
@@ -108,7 +110,7 @@ class NodeParameters:
         self.node.destroy_node()
 
 
-def parameter_nodes(context, scenario, arrivals: Arrivals | None, control: RunControl
+def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl
                     ) -> list[NodeParameters]:
     """A NodeParameters for every cosim node of the run (not foreign programs, not the
     external node)."""
@@ -137,7 +139,7 @@ def _field(model: type[BaseModel], name: str):
     current: Any = model
     info = None
     for part in name.split("."):
-        current = _model_in(current)
+        current = inner_model(current)
         if current is None:
             return None
         info = field_of(current, part)
@@ -145,16 +147,6 @@ def _field(model: type[BaseModel], name: str):
             return None
         current = info.annotation
     return info
-
-
-def _model_in(annotation: Any) -> type[BaseModel] | None:
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in typing.get_args(annotation):
-        found = _model_in(arg)
-        if found is not None:
-            return found
-    return None
 
 
 def _plain(value: Any) -> Any:

@@ -1,9 +1,11 @@
 """The ROS 2 interfaces of a running simulation (ros2 runs, multi-process).
 
-- simulation_interfaces (Jazzy's 1.5) under ``/cosim/``, as Gazebo serves them under
-  ``/gzserver/``: ``get_simulator_features``, ``get_simulation_state``,
-  ``set_simulation_state``, ``step_simulation``, the ``simulate_steps`` action,
-  ``reset_simulation``, ``get_entities``, ``get_entity_state`` and ``set_entity_state``;
+- simulation_interfaces (Jazzy's 1.5) at the root names, as Isaac Sim's sim_control and
+  O3DE serve them (or under the scenario's ``simulation_interfaces.namespace``, e.g.
+  ``/cosim``, as Gazebo serves them under ``/gzserver/``): ``get_simulator_features``,
+  ``get_simulation_state``, ``set_simulation_state``, ``step_simulation``, the
+  ``simulate_steps`` action, ``reset_simulation``, ``get_entities``, ``get_entity_state``
+  and ``set_entity_state``;
 - ``/cosim/pause`` (std_srvs/SetBool), ``/cosim/step`` and ``/cosim/reset``
   (std_srvs/Trigger): the same state machine with plain types, for rosbridge and Foxglove
   clients;
@@ -37,13 +39,13 @@ from simulation_interfaces.srv import (
     StepSimulation,
 )
 
+from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import PAUSED, PLAYING, Outcome, RunControl
 from plan.interactive import GOAL_TOPIC
 from plan.run_paths import RunPaths
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
-PREFIX = "/cosim/"
 THREADS = 8  # requests served at once (several may wait for the run)
 FLUSH_S = 0.3  # after the last answer, before the services go away (replies in flight)
 BUILD_WAIT_S = 30.0
@@ -61,6 +63,7 @@ class SimServices:
     def __init__(self, scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
                  paths: RunPaths):
         self.control = control
+        self.prefix = service_prefix(scenario.model.simulation_interfaces.namespace)
         self.last_answer = 0.0
         self.executor = None
         self.robot = _robot(scenario, control, arrivals, paths)
@@ -109,7 +112,7 @@ class SimServices:
                 (GetEntities, "get_entities", self._entities),
                 (GetEntityState, "get_entity_state", self._get_entity),
                 (SetEntityState, "set_entity_state", self._set_entity)):
-            self.node.create_service(srv, PREFIX + name, self._answering(handler),
+            self.node.create_service(srv, self.prefix + name, self._answering(handler),
                                      callback_group=group)
         from std_srvs.srv import SetBool, Trigger
 
@@ -117,17 +120,23 @@ class SimServices:
                                    (Trigger, "/cosim/step", self._step_one),
                                    (Trigger, "/cosim/reset", self._reset_soon)):
             self.node.create_service(srv, name, self._answering(handler), callback_group=group)
-        self.steps_server = ActionServer(self.node, SimulateSteps, PREFIX + "simulate_steps",
+        self.steps_server = ActionServer(self.node, SimulateSteps,
+                                         self.prefix + "simulate_steps",
                                          self._simulate_steps, callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
         self.navigate = _navigate(self.node, group, scenario, self.control, arrivals)
+        # the same callbacks, for goals from the live endpoints (rosbridge's send_action_goal)
+        self.local_actions = {self.prefix + "simulate_steps": LocalAction(
+            SimulateSteps, None, self._simulate_steps)}
+        if self.navigate is not None:
+            self.local_actions["/navigate_to_pose"] = self.navigate.local_action()
         self.parameters = parameter_nodes(self.context, scenario, arrivals, self.control)
         executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:
             executor.add_node(node)
         self.executor = executor
         log.info("ROS 2 interfaces up in %.3f s: %sget_simulator_features and the rest, "
-                 "%s%d nodes' parameters", time.monotonic() - started, PREFIX,
+                 "%s%d nodes' parameters", time.monotonic() - started, self.prefix,
                  "/navigate_to_pose, " if self.navigate else "", len(self.parameters))
 
     def wait_built(self) -> bool:
@@ -176,7 +185,7 @@ class SimServices:
         response.features.features = sorted(features)
         response.features.custom_info = (
             "cosim: a deterministic lockstep co-simulation; one tick per step; services "
-            f"under {PREFIX}; a reset covers time and state together; one entity, the robot; "
+            f"under {self.prefix}; a reset covers time and state together; one entity, the robot; "
             "see the README, 'ROS 2 interfaces of a run'")
         return response
 
@@ -322,6 +331,11 @@ class SimServices:
     def _not_found(self, entity: str) -> Result:
         known = f"the only entity is {self.robot.name!r}" if self.robot else "there is none"
         return _result(Result.RESULT_NOT_FOUND, f"no entity {entity!r}: {known}")
+
+
+def service_prefix(namespace: str) -> str:
+    """'/' for the root ('' or '/'), '/cosim/' for '/cosim' or '/cosim/'."""
+    return "/" + "".join(f"{part}/" for part in namespace.split("/") if part)
 
 
 def start_services(scenario: Scenario, control: RunControl, arrivals: Arrivals | None,

@@ -12,6 +12,8 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from plan.timeutil import NS_PER_S
+
 PLAYING, PAUSED, STOPPED = "playing", "paused", "stopped"
 POLL_S = 0.05
 SETTLE_WAIT_S = 60.0  # how long a step waits for the ticks in flight when a pause begins
@@ -56,7 +58,7 @@ class RunControl:
     def at(self) -> str:
         """'tick 12 (sim time 0.240000000 s)': the next tick to run."""
         ns = self.boundary * self.tick_ns
-        return f"tick {self.boundary} (sim time {ns // 10**9}.{ns % 10**9:09d} s)"
+        return f"tick {self.boundary} (sim time {ns // NS_PER_S}.{ns % NS_PER_S:09d} s)"
 
     # -- the master's side ------------------------------------------------------------------
 

@@ -17,10 +17,10 @@ from typing import Any
 
 import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from orchestrator.run_rules import check_run
-from orchestrator.sweep.plan import RunSpec, parse_seeds, parse_sweep_sets, plan_runs
+from orchestrator.sweep.combinations import RunSpec, parse_seeds, parse_sweep_sets, plan_runs
 from plan.errors import ScenarioError
+from plan.load import load_scenario
 from plan.options import RunOptions
-from plan.scenario import load_scenario
 
 PLAN_NAME = "sweep.json"
 

@@ -86,6 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-sweep."""
+    if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
+        from runtime.ros_libraries import ensure_own_libraries
+
+        ensure_own_libraries()
     args = build_parser().parse_args(argv)
     from orchestrator.sweep.checks import check_sweep
     from plan.errors import ScenarioError

@@ -31,9 +31,9 @@ from typing import Any
 
 import psutil
 
-from orchestrator.lockstep.supervisor import signals_ignored
+from orchestrator.lockstep.supervisor import escalate, signals_ignored
+from orchestrator.sweep.combinations import RunSpec
 from orchestrator.sweep.one_run import base_record, find_run_dir, last_log_line, run_logged
-from orchestrator.sweep.plan import RunSpec
 from runtime.parent import die_with_parent
 
 OnRecord = Callable[[dict[str, Any]], None]
@@ -191,9 +191,7 @@ class LocalPool:
         for worker in workers:
             worker.process.join(max(0.0, deadline - time.monotonic()))
         _, alive = psutil.wait_procs(list(trees.values()), timeout=0.5)
-        for proc in alive:
-            _signal(proc.pid, signal.SIGKILL)
-        psutil.wait_procs(alive, timeout=5)
+        escalate(alive, steps=((signal.SIGKILL, 5.0),))
         for worker in workers:
             worker.process.join(5)
             self._forget(worker)

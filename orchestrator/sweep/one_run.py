@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from orchestrator.sweep.plan import RunSpec
+from orchestrator.sweep.combinations import RunSpec
 
 LOG_NAME = "run.log"
 DOMAIN_WAIT_S = 600.0  # a multi-process run waits this long for a ROS domain id to come free

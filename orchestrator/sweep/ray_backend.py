@@ -24,8 +24,8 @@ from collections.abc import Callable
 from typing import Any
 
 from orchestrator.lockstep.supervisor import signals_ignored
+from orchestrator.sweep.combinations import RunSpec
 from orchestrator.sweep.one_run import base_record, find_run_dir, last_log_line, run_logged
-from orchestrator.sweep.plan import RunSpec
 
 OnRecord = Callable[[dict[str, Any]], None]
 POLL_S = 0.1

@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from orchestrator.sweep.plan import RunSpec
+from orchestrator.sweep.combinations import RunSpec
 
 RECORD_NAME = "result.json"
 TABLE_CSV, TABLE_PARQUET = "results.csv", "results.parquet"

@@ -5,8 +5,12 @@ The orchestrator ("feeder") remaps a foreign program's input topics and its
 for every tick ``j`` the program is due at, publishes one message on each
 input scheduled at ``j`` followed by the ``Clock`` of tick ``j``.  It only
 publishes tick ``j + period`` once the program acknowledged, on
-``<prefix>taken`` (``std_msgs/Int64``, reliable, transient-local, depth 1),
-that it has taken and processed tick ``j``.
+``<prefix>taken`` (``std_msgs/Int64MultiArray``, reliable, transient-local, depth
+1000: the program's consumers read it too), that it has taken and processed tick ``j``:
+``[j, n_1, ..., n_m]``, where ``n_i`` is how many messages the program published on its i-th
+output (``outputs`` in the configuration) since the previous acknowledgement, from
+callbacks and timers alike: zero, one or several, so consumers know which messages belong
+to tick ``j`` without counting on a fixed number.
 
 This module makes an unmodified rclpy program honour that protocol.  It is
 injected through ``sitecustomize`` (see ``sitecustomize.py`` next to it) and
@@ -45,7 +49,7 @@ Per executor wait the gate (all in the executor's own thread, no extra thread):
    flight and none of the program's timers is ready any more (so timers due
    at tick ``j`` have run), publishes the acknowledgement ``j``.
 
-Before the first tick the gate publishes ``-1`` on the ack topic once each of
+Before the first tick the gate publishes ``[-1]`` on the ack topic once each of
 its gated subscriptions has matched a publisher ("ready"), so the feeder knows
 that nothing it publishes can be lost to discovery.
 
@@ -60,8 +64,14 @@ Configuration comes from the ``COSIM_GATE`` environment variable (JSON)::
         {"topic": "odom"},                          # due at every fed tick
         {"topic": "scan", "period": 5, "phase": 0}  # due at j % 5 == 0
      ],
+     "outputs": ["/cmd_vel"],        # output topics (resolved names) counted per tick
      "callback_order": "subscription",  # or "inputs" (see below)
      "reliable_clock": true}         # make rclpy's /clock subscription reliable
+
+Fed subscriptions are made reliable whatever QoS the program asks for (a best-effort
+reader, e.g. ``qos_profile_sensor_data``, could lose a fed message), and a node that runs
+with ``use_sim_time`` false while it subscribes to fed inputs stops the program with an
+error naming it (its timers and ``now()`` would follow the wall clock, not the run).
 
 ``bundle(j)`` is ``{prefix + "clock"}`` plus every input with
 ``(j - phase) % period == 0`` (input period defaults to the program's period,
@@ -88,7 +98,7 @@ READY_TICK = -1
 
 # Poll interval bounds used only while the gate waits for an in-flight
 # callback of a MultiThreadedExecutor to finish (no rcl event signals the
-# completion of a Task reliably, see REPORT.md).
+# completion of a Task).
 _POLL_MIN_NS = 200_000
 _POLL_MAX_NS = 5_000_000
 # Poll interval while waiting for discovery before the first tick.
@@ -117,6 +127,7 @@ class GateConfig:
     inputs: tuple[InputSpec, ...]
     reliable_clock: bool = True
     callback_order: str = 'subscription'
+    outputs: tuple[str, ...] = ()
 
     @property
     def clock_topic(self) -> str:
@@ -170,7 +181,8 @@ class GateConfig:
                    tick_ns=int(raw.get('tick_ns', 0)), period=period, start=start,
                    inputs=tuple(inputs),
                    reliable_clock=bool(raw.get('reliable_clock', True)),
-                   callback_order=order)
+                   callback_order=order,
+                   outputs=tuple(str(t) for t in raw.get('outputs', ())))
 
 
 class _Plan:
@@ -204,6 +216,47 @@ class Gate:
         self._probe_key = None
         self._probe_gc = None
         self._probe_ws = None
+        self._counts = [0] * len(config.outputs)  # messages per output since the last ack
+        self._output_of: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+        self._sim_time_checked: set[int] = set()
+
+    # ----------------------------------------------------------------- outputs
+    def published(self, publisher) -> None:
+        """Count one message the program publishes (on a declared output)."""
+        try:
+            index = self._output_of[publisher]
+        except KeyError:
+            try:
+                name = publisher.topic_name
+            except Exception:  # being destroyed: not one of ours to count
+                return
+            outputs = self.config.outputs
+            index = self._output_of[publisher] = \
+                outputs.index(name) if name in outputs else None
+        if index is not None:
+            with self._lock:
+                self._counts[index] += 1
+
+    def check_sim_time(self, nodes) -> None:
+        """Stop the program if a node with fed inputs runs on the wall clock."""
+        for node in nodes:
+            if id(node) in self._sim_time_checked:
+                continue
+            try:
+                sim = node.get_parameter('use_sim_time').value
+            except Exception:  # no such parameter: not a node with a time source
+                sim = True
+            if not sim:
+                import os
+                import sys
+                print(f'cosim gate: fatal: node {node.get_name()!r} of foreign program '
+                      f'{self.config.node!r} runs with use_sim_time false, so its timers and '
+                      'now() would follow the wall clock, not the run. cosim starts every '
+                      'foreign program with use_sim_time:=true: remove what sets it to false '
+                      '(a parameter_overrides entry, a parameter file, set_parameters).',
+                      file=sys.stderr, flush=True)
+                os._exit(78)
+            self._sim_time_checked.add(id(node))
 
     # ----------------------------------------------------------------- view
     def _topic_of(self, sub) -> str:
@@ -225,14 +278,20 @@ class Gate:
         prefix = self.config.prefix
         gated: list[tuple[object, str]] = []
         timers: list[object] = []
+        fed_nodes = []
         for node in executor.get_nodes():
+            fed = False
             for sub in node.subscriptions:
                 topic = self._topic_of(sub)
                 if topic.startswith(prefix):
                     gated.append((sub, topic))
+                    fed = True
             timers.extend(node.timers)
+            if fed:
+                fed_nodes.append(node)
         if not gated:
             return None
+        self.check_sim_time(fed_nodes)
         created = {sub.handle.pointer: i for i, (sub, _) in enumerate(gated)}
         if self.config.callback_order == 'inputs':
             rank = {spec.topic: i for i, spec in enumerate(self.config.inputs, 1)}
@@ -248,19 +307,25 @@ class Gate:
             return
         from rclpy.node import Node
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-        from std_msgs.msg import Int64
+        from std_msgs.msg import Int64MultiArray
         name = '_cosim_gate_' + ''.join(c if c.isalnum() else '_' for c in self.config.node)
         self._ack_node = Node(name, context=context, use_global_arguments=False,
                               enable_rosout=False, start_parameter_services=False)
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+        # deep enough for a consumer that lags the program by the pipeline window
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self._ack_msg_type = Int64
-        self._ack_pub = self._ack_node.create_publisher(Int64, self.config.ack_topic, qos)
+        self._ack_msg_type = Int64MultiArray
+        self._ack_pub = self._ack_node.create_publisher(Int64MultiArray,
+                                                        self.config.ack_topic, qos)
 
     def _ack(self, tick: int) -> None:
         msg = self._ack_msg_type()
-        msg.data = tick
+        if tick == READY_TICK:
+            msg.data = [READY_TICK]
+        else:
+            msg.data = [tick, *self._counts]
+            self._counts = [0] * len(self._counts)
         self._ack_pub.publish(msg)
 
     # ----------------------------------------------------------------- probe
@@ -557,6 +622,50 @@ def _patch_executors(executors_module) -> None:
     executor_cls.wait_for_ready_callbacks = wait_for_ready_callbacks
 
 
+def _patch_publisher(publisher_module) -> None:
+    """Count what the program publishes, per declared output, for the tick's ack."""
+    cls = publisher_module.Publisher
+    original = cls.publish
+
+    def publish(self, msg):
+        original(self, msg)
+        if _gate is not None:
+            _gate.published(self)
+
+    publish.__doc__ = original.__doc__
+    publish.__wrapped__ = original
+    cls.publish = publish
+
+
+def _patch_node(node_module) -> None:
+    """Fed subscriptions are reliable and volatile, whatever QoS the program asks for: a
+    best-effort reader (sensor-data QoS) could lose a fed message, and a transient-local
+    one would not match the feeder."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    cls = node_module.Node
+    original = cls.create_subscription
+
+    def create_subscription(self, msg_type, topic, callback, qos_profile, **kwargs):
+        try:
+            fed = self.resolve_topic_name(topic).startswith(_gate.config.prefix)
+        except Exception:  # an invalid name: let rclpy report it
+            fed = False
+        if fed:
+            if isinstance(qos_profile, int):
+                qos_profile = QoSProfile(depth=qos_profile)
+            keep_all = qos_profile.history == HistoryPolicy.KEEP_ALL
+            qos_profile = QoSProfile(
+                history=qos_profile.history,
+                depth=qos_profile.depth if keep_all else max(qos_profile.depth, 1),
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.VOLATILE)
+        return original(self, msg_type, topic, callback, qos_profile, **kwargs)
+
+    create_subscription.__doc__ = original.__doc__
+    create_subscription.__wrapped__ = original
+    cls.create_subscription = create_subscription
+
+
 def _patch_time_source(time_source_module) -> None:
     """Make rclpy's ``/clock`` subscription reliable (feeder publishes reliable).
 
@@ -569,13 +678,35 @@ def _patch_time_source(time_source_module) -> None:
     time_source_module.ReliabilityPolicy = shim
 
 
+EXIT_UNSUPPORTED = 78  # as sitecustomize's exit when the gate cannot be installed
+
+
+def _refuse_events_executor(events_module) -> None:
+    """rclpy's ``EventsExecutor`` (``rclpy.experimental``) waits in C++, on no wait set of
+    ``rclpy.executors``: the gate never sees it, so a program using it would take no tick
+    and the run would only end at its start deadline. Name it when the program makes one."""
+    def refused(*_args, **_kwargs):
+        import os
+        import sys
+        print("cosim gate: fatal: this program uses rclpy's EventsExecutor "
+              "(rclpy.experimental), which waits without an rclpy wait set, so the cosim gate "
+              "cannot hold its inputs to the lockstep; use rclpy.executors."
+              "SingleThreadedExecutor or MultiThreadedExecutor (rclpy.spin uses the first).",
+              file=sys.stderr, flush=True)
+        os._exit(EXIT_UNSUPPORTED)
+
+    events_module.EventsExecutor = refused
+
+
 def install(config: GateConfig) -> None:
     """Arrange for rclpy to be gated when (or if) the program imports it."""
     global _gate
     if _gate is not None:
         return
     _gate = Gate(config)
-    hooks = {'rclpy.executors': _patch_executors}
+    hooks = {'rclpy.executors': _patch_executors, 'rclpy.publisher': _patch_publisher,
+             'rclpy.node': _patch_node,
+             'rclpy.experimental.events_executor': _refuse_events_executor}
     if config.reliable_clock:
         hooks['rclpy.time_source'] = _patch_time_source
     import sys

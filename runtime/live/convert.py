@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 from rosidl_parser import definition as idl
 
+from plan.ros_types import ros_type
+
 _BYTES = ("uint8", "char", "octet")
 
 
@@ -66,15 +68,15 @@ def _as_bytes(value: Any) -> bytes:
 
 def from_json(cls: type, value: Any, where: str = "") -> Any:
     """A ``cls`` message from a client's JSON object; MessageError naming the bad field."""
-    label = where or type_label(cls)
+    label = where or ros_type(cls)
     if not isinstance(value, dict):
-        raise MessageError(f"{label}: expected a JSON object for {type_label(cls)}, got "
+        raise MessageError(f"{label}: expected a JSON object for {ros_type(cls)}, got "
                            f"{_kind(value)}")
     msg = cls()
     fields = dict(zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES, strict=True))
     for name, given in value.items():
         if name not in fields:
-            owner = f"{label} ({type_label(cls)})" if where else label
+            owner = f"{label} ({ros_type(cls)})" if where else label
             raise MessageError(f"{owner} has no field {name!r} (fields: {', '.join(fields)})")
         path = f"{label}.{name}"
         converted = _value_from_json(fields[name], given, path)
@@ -133,9 +135,6 @@ def _class_of(kind: idl.NamespacedType) -> type:
     return getattr(importlib.import_module(".".join(kind.namespaces)), kind.name)
 
 
-def type_label(cls: type) -> str:
-    """'geometry_msgs/msg/Twist' for a message class."""
-    return f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
 
 
 def _idl_name(kind) -> str:

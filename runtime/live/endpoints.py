@@ -4,10 +4,12 @@ node): the topics a client may watch, the topics it may drive, and the services 
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from plan.timeutil import NS_PER_S
 from runtime.protocol import CLOCK_TOPIC, decode_clock
 
 
@@ -24,6 +26,19 @@ class Services(Protocol):
 
     def call(self, name: str, request: Any, timeout_s: float) -> Any:
         """Serve one call and return the response; ServiceUnavailable when it cannot."""
+
+
+class Actions(Protocol):
+    """Action servers a client may send goals to (SimulateSteps, NavigateToPose)."""
+
+    def types(self) -> dict[str, type]:
+        """Action name -> its rclpy action class."""
+
+    def run_goal(self, name: str, goal: Any, on_feedback: Callable[[Any], None],
+                 cancelled: Callable[[], bool], timeout_s: float) -> tuple[int, Any]:
+        """Send one goal, pass each feedback message to ``on_feedback``, cancel it once
+        ``cancelled()``; return (GoalStatus status, result message). ServiceUnavailable when
+        it cannot be sent or accepted."""
 
 
 class Inbox(Protocol):
@@ -43,9 +58,11 @@ class Catalog:
     topics: dict[str, type]
     inbox: Inbox | None = None
     services: Services | None = None
+    actions: Actions | None = None
     no_inbox_text: str = "this run takes no messages from outside"
     inbox_what: str = "a topic this run takes from outside"
     latched: frozenset[str] = frozenset()  # sent once (/tf_static): a late client gets the last
+    services_ready: threading.Event | None = None  # set once services come (None: no later)
     header_types: set[type] = field(default_factory=set)
 
     def __post_init__(self) -> None:
@@ -62,7 +79,7 @@ class Catalog:
         if self.topics.get(topic) in self.header_types and len(data) >= 12:
             sec = int.from_bytes(data[4:8], "little", signed=True)
             nanosec = int.from_bytes(data[8:12], "little")
-            return sec * 1_000_000_000 + nanosec
+            return sec * NS_PER_S + nanosec
         return fallback_ns
 
 

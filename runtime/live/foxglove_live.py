@@ -27,9 +27,10 @@ from foxglove.websocket import (
 from rclpy.serialization import deserialize_message, serialize_message
 
 from plan.listen import ListenAddress
+from plan.ros_types import ros_type
 from runtime.live.channels import BoundedChannels
 from runtime.live.endpoints import Catalog, ServiceUnavailable
-from runtime.live.schemas import message_schema, ros_type_name, service_schemas
+from runtime.live.schemas import message_schema, service_schemas
 from runtime.protocol import CLOCK_TOPIC, decode_clock
 
 log = logging.getLogger("cosim")
@@ -72,7 +73,7 @@ class FoxgloveLive:
         self.clients_max = 0
 
     def _channel(self, topic: str, cls: type):
-        type_name = ros_type_name(cls)
+        type_name = ros_type(cls)
         schema = foxglove.Schema(name=type_name, encoding="ros2msg",
                                  data=message_schema(type_name).encode())
         return foxglove.Channel(topic, schema=schema, message_encoding="cdr",
@@ -179,7 +180,7 @@ class FoxgloveLive:
     # -- simulation control ---------------------------------------------------------------------
 
     def _service(self, name: str, srv: type):
-        type_name = ros_type_name(srv)
+        type_name = ros_type(srv)
         request_text, response_text = service_schemas(type_name)
         schema = foxglove.ServiceSchema(
             type_name,

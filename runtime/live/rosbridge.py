@@ -5,8 +5,10 @@ It runs an asyncio loop in a thread of its own. The run offers every message it 
 some client subscribed to its topic, and is decoded and encoded once, on the server's
 thread, whatever the number of clients. Client messages enter the run through the
 catalog's inbox (at a tick boundary, recorded); ``call_service`` reaches the catalog's
-services, and a few rosapi services answer what a client may ask a real rosbridge_server
-(``/rosapi/topics``, ``/rosapi/services``, ``/rosapi/topic_type``, ``/rosapi/service_type``).
+services, ``send_action_goal`` its actions (feedback and result as rosbridge sends them), and
+a few rosapi services answer what a client may ask a real rosbridge_server
+(``/rosapi/topics``, ``/rosapi/services``, ``/rosapi/topic_type``, ``/rosapi/service_type``,
+``/rosapi/action_servers``).
 """
 
 from __future__ import annotations
@@ -20,12 +22,14 @@ from typing import Any
 import cbor2
 
 from plan.listen import ListenAddress
+from plan.ros_types import ros_type
+from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
 from runtime.live import convert
 from runtime.live.channels import BoundedChannels
 from runtime.live.endpoints import Catalog, ServiceUnavailable
-from runtime.live.rosbridge_client import ClientError, ClientSession, service_request
-from runtime.live.schemas import ros_type_name, same_type
+from runtime.live.rosbridge_session import ClientError, ClientSession, service_request
+from runtime.live.schemas import same_type
 from runtime.protocol import CLOCK_TOPIC, decode_clock
 
 log = logging.getLogger("cosim")
@@ -34,7 +38,9 @@ MAX_FRAME = 8 * 2**20  # a larger frame from a client gets an error status
 HARD_FRAME = 64 * 2**20  # a larger one closes the connection (websockets' own limit)
 QUEUE_DEPTH = 64  # per topic, between the run and the server's thread
 CLOSE_WAIT_S = 1.0
-ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type")
+ACTION_TIMEOUT_S = 10.0  # for an action server to appear and answer a goal (not its result)
+ROSAPI = ("/rosapi/topics", "/rosapi/services", "/rosapi/topic_type", "/rosapi/service_type",
+          "/rosapi/action_servers")
 
 
 class OutgoingMessage:
@@ -56,7 +62,7 @@ class OutgoingMessage:
 
     def _encode(self, compression: str) -> str | bytes:
         if compression == "cbor-raw":
-            secs, nsecs = divmod(self.stamp_ns, 1_000_000_000)
+            secs, nsecs = divmod(self.stamp_ns, NS_PER_S)
             return cbor2.dumps({"op": "publish", "topic": self.topic,
                                 "msg": {"secs": secs, "nsecs": nsecs, "bytes": self.data}})
         if self._decoded is None:
@@ -219,6 +225,7 @@ class RosbridgeServer:
     async def call_service(self, name: str, type_name: Any, args: Any, timeout_s: float
                            ) -> dict:
         """Serve a call_service op: a rosapi question or a service of the catalog."""
+        await self._services_come(timeout_s)
         if name in ROSAPI:
             return self._rosapi(name, args if isinstance(args, dict) else {})
         services = self.catalog.services
@@ -227,25 +234,53 @@ class RosbridgeServer:
             offered = ", ".join(sorted([*known, *ROSAPI]))
             raise ClientError(f"no service {name}; services: {offered}")
         srv = known[name]
-        if type_name and not same_type(str(type_name), ros_type_name(srv), "srv"):
-            raise ClientError(f"{name} is {ros_type_name(srv)}, not {type_name}")
+        if type_name and not same_type(str(type_name), ros_type(srv), "srv"):
+            raise ClientError(f"{name} is {ros_type(srv)}, not {type_name}")
         request = service_request(srv, args)
         response = await asyncio.to_thread(services.call, name, request, timeout_s)
         return convert.to_json(response)
+
+    async def send_action_goal(self, name: str, type_name: str, args: Any, on_feedback,
+                               cancelled) -> tuple[int, Any]:
+        """Serve a send_action_goal op: a goal for one of the catalog's actions; its status
+        and result once it ends (feedback goes to ``on_feedback`` meanwhile)."""
+        await self._services_come(ACTION_TIMEOUT_S)
+        actions = self.catalog.actions
+        known = actions.types() if actions is not None else {}
+        if name not in known:
+            raise ClientError(f"no action {name}; actions: {', '.join(sorted(known)) or 'none'}")
+        action = known[name]
+        if not same_type(type_name, ros_type(action), "action"):
+            raise ClientError(f"{name} is {ros_type(action)}, not {type_name}")
+        goal = convert.from_json(action.Goal, args if args not in (None, []) else {},
+                                 f"{ros_type(action)} goal")
+        status, result = await asyncio.to_thread(actions.run_goal, name, goal, on_feedback,
+                                                 cancelled, ACTION_TIMEOUT_S)
+        return status, convert.to_json(result)
+
+    async def _services_come(self, timeout_s: float) -> None:
+        """A client that calls before the run's services are up (the nodes still start)
+        waits for them, up to ``timeout_s``."""
+        ready = self.catalog.services_ready
+        if ready is not None and not ready.is_set():
+            await asyncio.to_thread(ready.wait, timeout_s)
 
     def _rosapi(self, name: str, args: dict) -> dict:
         topics = self.catalog.topics
         services = self.catalog.services.types() if self.catalog.services else {}
         if name == "/rosapi/topics":
             ordered = sorted(topics)
-            return {"topics": ordered, "types": [ros_type_name(topics[t]) for t in ordered]}
+            return {"topics": ordered, "types": [ros_type(topics[t]) for t in ordered]}
         if name == "/rosapi/services":
             return {"services": sorted([*services, *ROSAPI])}
+        if name == "/rosapi/action_servers":
+            actions = self.catalog.actions.types() if self.catalog.actions else {}
+            return {"action_servers": sorted(actions)}
         if name == "/rosapi/topic_type":
             cls = topics.get(args.get("topic", ""))
-            return {"type": ros_type_name(cls) if cls else ""}
+            return {"type": ros_type(cls) if cls else ""}
         srv = services.get(args.get("service", ""))
-        return {"type": ros_type_name(srv) if srv else ""}
+        return {"type": ros_type(srv) if srv else ""}
 
 
 async def _close_client(websocket) -> None:

@@ -22,13 +22,6 @@ _lock = threading.Lock()
 _UNKNOWN = re.compile(r"Type '([^']+)' is unknown")
 
 
-def ros_type_name(cls: type) -> str:
-    """'sensor_msgs/msg/LaserScan' for an rclpy message class ('pkg/srv/Name' for services)."""
-    package = cls.__module__.split(".")[0]
-    kind = "srv" if hasattr(cls, "Request") and hasattr(cls, "Response") else "msg"
-    return f"{package}/{kind}/{cls.__name__}"
-
-
 def normalise_type(name: str) -> str:
     """'nav_msgs/Odometry' or 'nav_msgs/msg/Odometry' -> 'nav_msgs/msg/Odometry' (rosbridge
     clients write either); service types keep their 'srv'."""

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import logging
+import threading
 from typing import Any
 
 from plan.listen import ListenAddress
@@ -24,6 +25,8 @@ class LiveEndpoints:
                  control_later: bool = False):
         self.catalog = catalog
         self.control_later = control_later  # services come later (attach_services)
+        if control_later:  # a client's call made before then waits for them
+            catalog.services_ready = threading.Event()
         self.live_address = live
         self.rosbridge_address = rosbridge
         self.name = name
@@ -57,9 +60,13 @@ class LiveEndpoints:
             log.info("%s", line)
         return lines
 
-    def attach_services(self, services) -> None:
-        """The services clients may call, once they exist (the run's simulation control)."""
+    def attach_services(self, services, actions=None) -> None:
+        """The services (and actions) clients may call, once they exist (the run's
+        simulation control)."""
         self.catalog.services = services
+        self.catalog.actions = actions
+        if self.catalog.services_ready is not None:
+            self.catalog.services_ready.set()
         if self.foxglove is not None and services is not None:
             self.foxglove.attach_services()
 
@@ -71,6 +78,8 @@ class LiveEndpoints:
     def close(self) -> dict[str, Any]:
         """Stop both; what they did, for the manifest."""
         self._sinks = []
+        if self.catalog.services_ready is not None:
+            self.catalog.services_ready.set()  # calls still waiting for services: none come
         stats = {}
         for key, sink in (("foxglove", self.foxglove), ("rosbridge", self.rosbridge)):
             if sink is None:

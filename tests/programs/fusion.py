@@ -3,10 +3,14 @@ it keeps the latest Int64 of each input and publishes their combination on 'out'
 
 Parameters: inputs (2 or 3: 'a', 'b' and maybe 'c'), order ('abc' or 'cba': the order the
 subscriptions are created in), trigger ('b': publish in b's callback; 'timer': publish from
-a 10 Hz sim-time timer), executor ('single' or 'multi'), slow (the inputs whose callbacks
-work for work_ms milliseconds before they keep their sample; '' for none) and reentrant
-(true: the callbacks share a reentrant callback group, so a multi-threaded executor may run
-them at the same time; only the cosim gate keeps one tick's callbacks one after another).
+a 10 Hz sim-time timer), executor ('single' or 'multi'), copies (how many messages each
+publication is: value, value + 1, ...), when ('always', or 'even': only when the sum of
+the samples is even, a conditional publisher), qos ('default', or 'sensor': best-effort
+subscriptions, sensor-data QoS), wall_clock (true: the node sets use_sim_time to false),
+slow (the inputs whose callbacks work for work_ms milliseconds before they keep their
+sample; '' for none) and reentrant (true: the callbacks share a reentrant callback group,
+so a multi-threaded executor may run them at the same time; only the cosim gate keeps one
+tick's callbacks one after another).
 
 The value published is a function of the latest sample of every input:
 a * 10^6 + b * 10^3 + c, or -1 while an input has not arrived yet."""
@@ -17,6 +21,8 @@ import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Int64
 
 
@@ -25,18 +31,24 @@ class Fusion(Node):
 
     def __init__(self):
         super().__init__("fusion")
+        if self.declare_parameter("wall_clock", False).value:
+            self.set_parameters([Parameter("use_sim_time", value=False)])
         n = self.declare_parameter("inputs", 2).value
         order = self.declare_parameter("order", "abc").value
         trigger = self.declare_parameter("trigger", "b").value
+        self.copies = self.declare_parameter("copies", 1).value
+        self.when = self.declare_parameter("when", "always").value
+        sensor = self.declare_parameter("qos", "default").value == "sensor"
         self.slow = self.declare_parameter("slow", "").value
         self.work_s = self.declare_parameter("work_ms", 0).value / 1000
         group = ReentrantCallbackGroup() if self.declare_parameter(
             "reentrant", False).value else None
         self.latest = {name: None for name in "abc"[:n]}
         self.pub = self.create_publisher(Int64, "out", 10)
+        qos = qos_profile_sensor_data if sensor else 10
         for name in order:
             if name in self.latest:
-                self.create_subscription(Int64, name, lambda m, k=name: self.on_input(k, m), 10,
+                self.create_subscription(Int64, name, lambda m, k=name: self.on_input(k, m), qos,
                                          callback_group=group)
         self.trigger = trigger
         if trigger == "timer":
@@ -56,7 +68,10 @@ class Fusion(Node):
             value = -1
         else:
             value = sum(v * 1000 ** (2 - i) for i, v in enumerate(self.latest.values()))
-        self.pub.publish(Int64(data=value))
+        if self.when == "even" and (value < 0 or sum(self.latest.values()) % 2):
+            return
+        for i in range(self.copies):
+            self.pub.publish(Int64(data=value + i))
 
 
 def main() -> None:

@@ -12,14 +12,16 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from plan.ros_types import ros_type
 from runtime.live import convert
 from runtime.live.endpoints import ServiceUnavailable
-from runtime.live.schemas import normalise_type, ros_type_name, same_type
+from runtime.live.schemas import normalise_type, same_type
 
 log = logging.getLogger("cosim")
 
@@ -30,7 +32,16 @@ MAX_REPLIES = 1000
 COMPRESSIONS = ("none", "cbor", "cbor-raw")
 SERVICE_TIMEOUT_S = 10.0
 OPS = ("subscribe", "unsubscribe", "advertise", "unadvertise", "publish", "call_service",
-       "set_level")
+       "set_level", "send_action_goal", "cancel_action_goal")
+STATUS_UNKNOWN = 0  # action_msgs/GoalStatus: what rosbridge reports for a goal that failed
+NOT_SERVED = {  # rosbridge ops this server refuses, and why
+    **dict.fromkeys(("advertise_service", "unadvertise_service", "service_response",
+                     "advertise_action", "unadvertise_action", "action_feedback",
+                     "action_result"),
+                    "a simulation's endpoint serves the run's own services and actions; it "
+                    "hosts none of a client's (run a ROS 2 node for those)"),
+    "fragment": "fragmented messages are not taken (frames up to 8 MiB are)",
+}
 
 
 class ClientError(Exception):
@@ -80,6 +91,7 @@ class ClientSession:
         self.subs: dict[str, Subscription] = {}
         self.advertised: set[str] = set()
         self.replies: deque = deque()
+        self.goals: dict[Any, threading.Event] = {}  # op id -> its cancel request
         self.wake = asyncio.Event()
         self.closed = False
 
@@ -178,6 +190,8 @@ class ClientSession:
                 raise ClientError("a rosbridge message is a JSON object with an 'op' string")
             op_id = request.get("id")
             op = request["op"]
+            if op in NOT_SERVED:
+                raise ClientError(f"op {op!r} is not served: {NOT_SERVED[op]}")
             if op not in OPS:
                 raise ClientError(f"unknown op {op!r}; cosim's rosbridge serves "
                                   f"{', '.join(OPS)}")
@@ -202,8 +216,8 @@ class ClientSession:
                               f"{', '.join(sorted(catalog.topics))}")
         cls = catalog.topics[topic]
         given = request.get("type")
-        if given and not same_type(str(given), ros_type_name(cls)):
-            raise ClientError(f"subscribe: {topic} is {ros_type_name(cls)}, not {given}")
+        if given and not same_type(str(given), ros_type(cls)):
+            raise ClientError(f"subscribe: {topic} is {ros_type(cls)}, not {given}")
         throttle = _count(request, "throttle_rate")
         queue = _count(request, "queue_length")
         compression = request.get("compression") or "none"
@@ -251,8 +265,8 @@ class ClientSession:
         topic = self._topic(request)
         cls = self._inbox_type(topic, "advertise")
         given = request.get("type")
-        if not isinstance(given, str) or not same_type(given, ros_type_name(cls)):
-            raise ClientError(f"advertise: {topic} takes {ros_type_name(cls)}, not {given}")
+        if not isinstance(given, str) or not same_type(given, ros_type(cls)):
+            raise ClientError(f"advertise: {topic} takes {ros_type(cls)}, not {given}")
         self.advertised.add(topic)
         self.status("info", f"advertised {topic}", op_id)
 
@@ -307,6 +321,52 @@ class ClientSession:
         self.reply(answer)
 
 
+    def _op_send_action_goal(self, request: dict, op_id: Any) -> None:
+        name, action_type = request.get("action"), request.get("action_type")
+        if not isinstance(name, str) or not name:
+            raise ClientError("send_action_goal: 'action' must be an action name")
+        if not isinstance(action_type, str) or not action_type:
+            raise ClientError("send_action_goal: 'action_type' must be an action type, e.g. "
+                              "simulation_interfaces/SimulateSteps")
+        name = name if name.startswith("/") else "/" + name
+        cancel = self.goals[op_id] = threading.Event()
+        asyncio.get_running_loop().create_task(
+            self._goal(name, action_type, request.get("args"), bool(request.get("feedback")),
+                       op_id, cancel))
+
+    def _op_cancel_action_goal(self, request: dict, op_id: Any) -> None:
+        cancel = self.goals.get(op_id)
+        if cancel is None:
+            self.status("warning", f"cancel_action_goal: no goal {op_id!r} is running", op_id)
+            return
+        cancel.set()
+
+    async def _goal(self, name: str, action_type: str, args: Any, feedback: bool, op_id: Any,
+                    cancel: threading.Event) -> None:
+        loop = asyncio.get_running_loop()
+        tag = {"id": op_id} if op_id is not None else {}
+
+        def on_feedback(msg: Any) -> None:  # on the run's executor thread
+            if feedback:
+                payload = {"op": "action_feedback", **tag, "action": name,
+                           "values": convert.to_json(msg)}
+                loop.call_soon_threadsafe(self.reply, payload)
+
+        try:
+            status, values = await self.server.send_action_goal(
+                name, action_type, args, on_feedback, cancel.is_set)
+            answer = {"op": "action_result", **tag, "action": name, "values": values,
+                      "status": status, "result": True}
+        except Exception as exc:  # noqa: BLE001 - any failure is the goal's, told the client
+            self.status("error", f"send_action_goal {name}: {exc}", op_id)
+            answer = {"op": "action_result", **tag, "action": name, "values": str(exc),
+                      "status": STATUS_UNKNOWN, "result": False}
+        finally:
+            if self.goals.get(op_id) is cancel:
+                del self.goals[op_id]
+        self.reply(answer)
+
+
 def service_request(srv: type, args: Any) -> Any:
     """The request of ``srv`` from rosbridge ``args``: an object, a list of the fields in
     order, or nothing."""
@@ -319,7 +379,7 @@ def service_request(srv: type, args: Any) -> Any:
             raise convert.MessageError(f"{len(args)} args for {len(names)} fields "
                                        f"({', '.join(names)})")
         args = dict(zip(names, args, strict=False))
-    return convert.from_json(cls, args, f"{normalise_type(ros_type_name(srv))} request")
+    return convert.from_json(cls, args, f"{normalise_type(ros_type(srv))} request")
 
 
 def _count(request: dict, key: str) -> int:

@@ -115,7 +115,9 @@ def path_message(path: np.ndarray | None, frame: str, goal_yaw: float) -> Path:
     msg.header.frame_id = frame
     if path is None:
         return msg
-    yaws = np.arctan2(np.diff(path[:, 1]), np.diff(path[:, 0])).tolist() + [goal_yaw]
+    # math.atan2, not np.arctan2: numpy's AVX-512 arctan2 rounds differently from its
+    # baseline one, so the published path would depend on the CPU.
+    yaws = [math.atan2(dy, dx) for dx, dy in np.diff(path, axis=0).tolist()] + [goal_yaw]
     for (x, y), yaw in zip(path.tolist(), yaws, strict=True):
         ps = PoseStamped()
         ps.header.frame_id = frame

@@ -1,4 +1,4 @@
-"""The plan of a sweep: every combination of seeds and parameter values, each one run.
+"""The runs of a sweep: every combination of seeds and parameter values, each one run.
 
 ``--seeds 1-100`` (or ``1,5,9`` or ``1-3,10``) and ``--set KEY=V1,V2,...`` (the values a
 YAML flow sequence, so ``--set goal.x=1.0,2.5`` or ``--set nodes.a.params.list=[1,2],[3,4]``)

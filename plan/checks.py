@@ -1,0 +1,250 @@
+"""The checks of a scenario model beyond its schema: names, node classes and parameters,
+the world, the tick and duration, foreign output counts and algebraic loops."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from plan.errors import ScenarioError, ScenarioNotice
+from plan.kinds import catalogue
+from plan.model import NodeSpec, ScenarioModel
+from plan.scenario import NodePlan
+from plan.schedule import Edge, find_same_tick_cycle
+from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.validation import describe_validation_error
+
+
+class ScenarioChecks:
+    """The semantic checks of one scenario model that follow schema validation, each raising
+    a precise ScenarioError naming the file and key."""
+    def __init__(self, path: Path, model: ScenarioModel):
+        self.path = path
+        self.model = model
+
+    def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
+        """Build the error for this file."""
+        return ScenarioError(self.path, key, problem, accepted)
+
+    def node_key(self, i: int, sub: str = "") -> str:
+        """'nodes[1] (sensors).rate'-style key path."""
+        key = f"nodes[{i}] ({self.model.nodes[i].name})"
+        return f"{key}.{sub}" if sub else key
+
+    def check_finite(self, key: str, value: Any) -> None:
+        """No NaN or infinity anywhere in a (dumped) section: a position, a speed or a
+        tolerance that is not a number would fail only once the run is under way."""
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.fail(key, f"{value!r} is not a finite number.",
+                            "a finite number (no .nan, .inf or -.inf).")
+        if isinstance(value, dict):
+            for sub, item in value.items():
+                self.check_finite(f"{key}.{sub}" if key else str(sub), item)
+        elif isinstance(value, list | tuple):
+            for n, item in enumerate(value):
+                self.check_finite(f"{key}[{n}]", item)
+
+    def check_unique_names(self) -> None:
+        """Node names must be unique."""
+        seen: dict[str, int] = {}
+        for i, spec in enumerate(self.model.nodes):
+            if spec.name in seen:
+                raise self.fail(self.node_key(i, "name"), f"duplicate node name {spec.name!r} "
+                                f"(also nodes[{seen[spec.name]}]).",
+                                "a name used by one node only.")
+            seen[spec.name] = i
+
+    def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type]:
+        """The step class named by kind or module (or the stand-in of a foreign command)."""
+        kinds = catalogue()
+        given = [key for key in ("kind", "module", "command") if getattr(spec, key) is not None]
+        if len(given) != 1:
+            raise self.fail(self.node_key(i), "give exactly one of 'kind', 'module' or "
+                            f"'command' (found {', '.join(given) or 'none'}).",
+                            f"kind: one of {', '.join(sorted(kinds.kinds))}; "
+                            "or module: 'package.module:Class'; or command: [program, args...] "
+                            "for a foreign ROS 2 program.")
+        if spec.command is not None:
+            return kinds.foreign, kinds.load(kinds.foreign)
+        if spec.kind is not None:
+            if spec.kind not in kinds.kinds:
+                raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
+                                f"one of {', '.join(sorted(kinds.kinds))}.")
+            try:
+                return kinds.kinds[spec.kind], kinds.load(kinds.kinds[spec.kind])
+            except Exception as exc:  # noqa: BLE001 - report, don't crash: nothing has started
+                raise self.fail(self.node_key(i, "kind"), f"node kind {spec.kind!r} cannot be "
+                                f"loaded from {kinds.kinds[spec.kind]}: {exc}.",
+                                "a kind whose code is installed; check the installation."
+                                ) from None
+        try:
+            return spec.module, kinds.load(spec.module)
+        except Exception as exc:  # noqa: BLE001 - any import failure is the user's to fix
+            raise self.fail(self.node_key(i, "module"), f"cannot load {spec.module!r}: {exc}.",
+                            "'package.module:Class' importable here, a StepNode subclass."
+                            ) from None
+
+    def node_params(self, i: int, spec: NodeSpec, cls: type) -> BaseModel:
+        """The node's parameters checked against its class's Params model."""
+        try:
+            return cls.Params.model_validate(spec.params)
+        except ValidationError as exc:
+            key, problem, accepted = describe_validation_error(exc, spec.params, cls.Params)
+            raise self.fail(self.node_key(i, f"params.{key}" if key else "params"),
+                            problem, accepted) from None
+
+    def world_path(self, needed: bool) -> tuple[Path | None, object]:
+        """The world file, resolved relative to the scenario file, which must exist, and its
+        compiled model (None when no node needs one)."""
+        if self.model.world is None:
+            if needed:
+                raise self.fail("world", "a node of this scenario needs a world file, none given.",
+                                "world: path to an MJCF (.xml) or USD (.usda, .usdc, .usd) file, "
+                                "relative to this file.")
+            return None, None
+        world = (self.path.parent / self.model.world).resolve()
+        if world.is_dir():
+            raise self.fail("world", f"{self.model.world!r} is a directory ({world}), not a "
+                            "world file.", "the path of an MJCF (.xml) or USD (.usda, .usdc, "
+                            ".usd) file, relative to this file.")
+        if not world.is_file():
+            raise self.fail("world", f"world file {self.model.world!r} does not exist "
+                            f"(looked for {world}).", "a path relative to the scenario file.")
+        return world, (self.check_world(world) if needed else None)
+
+    def check_world_fit(self, classes: dict, params: dict, world_model) -> list[str]:
+        """Each node's own check of the world (its robot there, start and goal placeable):
+        problems raise; what only deserves a word (a goal its map cannot reach) is
+        returned as warnings."""
+        goal = self.model.goal.model_dump() if self.model.goal else None
+        for i, (_, cls) in classes.items():
+            if not cls.needs_world or not hasattr(cls, "world_problems"):
+                continue
+            problems = list(cls.world_problems(params[i], world_model, goal))
+            if hasattr(cls, "period_problems"):
+                problems += cls.period_problems(params[i], world_model,
+                                                self.model.nodes[i].period_ns)
+            for key, problem, accepted in problems:
+                where = key if key.startswith("goal") else self.node_key(i, key)
+                raise self.fail(where, f"{problem} (world {self.model.world})", accepted)
+        start = robot_start(params)
+        warnings = []
+        for i, (_, cls) in classes.items():
+            if not cls.needs_world or not hasattr(cls, "world_warnings"):
+                continue
+            for key, text in cls.world_warnings(params[i], world_model, goal, start):
+                where = key if key.startswith("goal") else self.node_key(i, key)
+                warnings.append(ScenarioNotice(
+                    self.path, where, f"{text} (world {self.model.world})",
+                    "a goal the robot can reach from its start: move the goal, the start or "
+                    "the obstacles named."))
+        return warnings
+
+    def check_world(self, world: Path):
+        """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
+        from plan.worldfile import WorldError, check_world
+
+        try:
+            return check_world(world)
+        except WorldError as exc:
+            raise self.fail("world", f"{exc}", "an MJCF (.xml) or USD (.usda, .usdc, .usd) "
+                            "world that MuJoCo loads; USD colliders must be Cube, Sphere, "
+                            "Cylinder, Capsule, Z-axis Plane or Mesh prims.") from None
+
+    def tick_ns(self) -> int:
+        """The tick: given, or the gcd of all node periods; every period a whole number of ticks."""
+        periods = [spec.period_ns for spec in self.model.nodes]
+        tick = self.model.tick or math.gcd(*periods)
+        for i, spec in enumerate(self.model.nodes):
+            if spec.period_ns % tick:
+                raise self.fail(self.node_key(i, "rate"),
+                                f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
+                                f"{format_ns(spec.period_ns)}, not a whole number of "
+                                f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick,
+                                                                 math.gcd(*periods)))
+        return tick
+
+    def last_tick(self, tick_ns: int) -> int:
+        """The index of the last tick; the duration must be a whole number of ticks."""
+        if self.model.duration % tick_ns:
+            raise self.fail("duration", f"{format_ns(self.model.duration)} is not a whole number "
+                            f"of {format_ns(tick_ns)} ticks.", "a multiple of the tick, e.g. "
+                            f"{format_ns((self.model.duration // tick_ns + 1) * tick_ns)}.")
+        return self.model.duration // tick_ns
+
+    def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
+        """An ungated foreign program (not Python: no gate acknowledges its ticks) is known
+        to have finished a tick only by counting its messages, and its consumers map its
+        n-th message to its n-th activation: an output others consume must then carry one
+        message per activation. A gated program may publish any number (its consumers see
+        the latest sample, see ``runtime.gated_output``)."""
+        consumed = {e.topic for e in edges}
+        for i, spec in enumerate(self.model.nodes):
+            plan = nodes[spec.name]
+            if not plan.foreign or plan.gated:
+                continue
+            for own, graph in plan.output_names.items():
+                if graph in consumed and plan.params.silent_at_start:
+                    raise self.fail(self.node_key(i, "params.silent_at_start"),
+                                    f"{graph} is consumed by other nodes, which need the "
+                                    "program's sample of tick 0, and this program (not "
+                                    "Python, so not gated) publishes nothing then.",
+                                    "false, or no node consuming its outputs.")
+                if graph in consumed and plan.params.count(own) != 1:
+                    raise self.fail(self.node_key(i, f"params.per_activation.{own}"),
+                                    f"{graph} is consumed by other nodes, which take one "
+                                    f"message per activation of this program (not Python, "
+                                    f"so not gated), not {plan.params.count(own)}.",
+                                    "1 for a consumed topic (or leave it out).")
+
+    def check_cycles(self, edges: list[Edge]) -> None:
+        """Refuse a cycle of same_tick edges, naming it."""
+        cycle = find_same_tick_cycle([n.name for n in self.model.nodes], edges)
+        if cycle:
+            raise self.fail("nodes", f"the same_tick inputs form an algebraic loop "
+                            f"{' -> '.join(cycle)} with no delay to break it.",
+                            "mark at least one input on that cycle mode: delayed.")
+
+
+def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:
+    """The robot's start pose: the ``start`` parameter (x, y, yaw) that a node of the
+    scenario sets (the physics node's), or None when none does."""
+    for i in sorted(params):
+        start = getattr(params[i], "start", None)
+        if start is not None and hasattr(start, "x") and hasattr(start, "y"):
+            return {"x": float(start.x), "y": float(start.y),
+                    "yaw": float(getattr(start, "yaw", 0.0))}
+    return None
+
+
+def _rates_that_fit(period_ns: int, tick_ns: int, gcd_ns: int) -> str:
+    """Rates near the given period whose period is a whole number of ticks, written exactly."""
+    fits = []
+    for m in range(1, 100_000):
+        rate = Fraction(NS_PER_S, m * tick_ns)
+        if _is_decimal(rate):
+            fits.append(m * tick_ns)
+        above_count = len([p for p in fits if p > period_ns])
+        if m * tick_ns > period_ns and (above_count >= 2 or m * tick_ns > 1000 * period_ns):
+            break
+    below = [p for p in fits if p < period_ns][-2:]
+    above = [p for p in fits if p > period_ns][:2]
+    if not below + above:
+        return (f"no rate in Hz has a period that is a whole number of {format_ns(tick_ns)} "
+                f"ticks; change the tick, e.g. leave tick out to use the gcd of the periods "
+                f"({format_ns(gcd_ns)}).")
+    shown = ", ".join(exact_rate_text(Fraction(NS_PER_S, p)) for p in sorted(below + above))
+    return f"rates whose period is a multiple of the {format_ns(tick_ns)} tick, e.g. {shown} Hz."
+
+
+def _is_decimal(value: Fraction) -> bool:
+    """Whether a fraction can be written exactly as a decimal (denominator 2**a * 5**b)."""
+    d = value.denominator
+    for f in (2, 5):
+        while d % f == 0:
+            d //= f
+    return d == 1

@@ -1,0 +1,58 @@
+"""Resolve a validated scenario model into a ``Scenario``: checks, classes, parameters,
+world, tick, topics and schedule, in the order their errors are reported."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from plan.checks import ScenarioChecks
+from plan.errors import ScenarioNotice
+from plan.external_node import complete_model
+from plan.model import ScenarioModel
+from plan.scenario import NodePlan, Scenario
+from plan.schedule import Edge, Schedule
+from plan.topics import node_inputs, node_outputs, producers
+
+
+def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
+    """The runnable scenario of a schema-valid model read from ``path``; ScenarioError on
+    the first thing wrong."""
+    model = complete_model(path, model)
+    where = ScenarioChecks(path, model)
+    classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
+    params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
+    for i in range(len(model.nodes)):
+        where.check_finite(where.node_key(i, "params"), params[i].model_dump())
+    world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    world_warnings = []
+    if world_model is not None:
+        world_warnings = where.check_world_fit(classes, params, world_model)
+    tick_ns = where.tick_ns()
+    last_tick = where.last_tick(tick_ns)
+    outputs = {i: node_outputs(where, i, spec, classes[i][1], params[i])
+               for i, spec in enumerate(model.nodes)}
+    publishers = producers(where, outputs, {i: cls for i, (_, cls) in classes.items()})
+    nodes: dict[str, NodePlan] = {}
+    edges: list[Edge] = []
+    for i, spec in enumerate(model.nodes):
+        inputs = node_inputs(where, i, spec, classes[i][1], params[i], publishers)
+        edges += [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode) for inp in inputs]
+        nodes[spec.name] = NodePlan(
+            name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
+            period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
+            output_names=outputs[i][1], inputs=inputs, latched=outputs[i][2])
+    where.check_cycles(edges)
+    schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
+    where.check_foreign_counts(nodes, edges)
+    warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
+    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
+
+
+def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
+    """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it)."""
+    consumed = {e.topic for e in edges}
+    return [ScenarioNotice(path, f"nodes ({plan.name}).remap.{own}", f"{graph} is published "
+                          "but no node of the scenario consumes it (only ROS tools will see "
+                          "it).", "a remap to a topic a node of the scenario consumes.")
+            for plan in nodes.values() for own, graph in plan.output_names.items()
+            if own != graph and graph not in consumed]

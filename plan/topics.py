@@ -1,0 +1,121 @@
+"""How a scenario's nodes connect: each node's outputs under their graph names, the one
+producer of every topic, and each input resolved to its producer with the types checked."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pydantic import BaseModel
+
+from plan.checks import ScenarioChecks
+from plan.interactive import params_topic
+from plan.model import NodeSpec
+from plan.ros_types import ros_type
+from plan.scenario import InputPlan
+
+
+@dataclass(frozen=True)
+
+
+class Producer:
+    """Who publishes a graph topic, as the loader resolves inputs against it."""
+
+    name: str
+    index: int  # in the scenario's nodes list
+    msg: type
+    latched: bool
+    type_key: str | None  # the producer's parameter that chooses the type, if any
+
+
+def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params: BaseModel
+                 ) -> tuple[dict[str, type], dict[str, str], frozenset[str]]:
+    """The node's outputs under graph names (after remap), own -> graph names, and the
+    own names of its latched outputs (published once, at the first activation)."""
+    own = cls.outputs(params)
+    latched = cls.latched_outputs(params)
+    if both := sorted(set(own) & set(latched)):
+        raise where.fail(where.node_key(i), f"the node declares {both[0]} both as an output "
+                         "of every activation and as a latched one.",
+                         "each topic in one of outputs() and latched_outputs().")
+    own = {**own, **latched}
+    accepted = cls.accepted_inputs(params)
+    known = set(own) | {inp.topic for inp in spec.inputs} | (accepted or set())
+    for source in spec.remap:
+        if source not in known:
+            raise where.fail(where.node_key(i, f"remap.{source}"),
+                             f"the node has no topic {source!r} to remap.",
+                             f"one of its topics: {', '.join(sorted(known)) or 'none'}.")
+    names = {t: spec.remap.get(t, t) for t in own}
+    graph_names: dict[str, str] = {}
+    for t, graph in names.items():
+        if graph in graph_names:
+            raise where.fail(where.node_key(i, "remap"), f"outputs {graph_names[graph]} and "
+                             f"{t} would both be published as {graph}.",
+                             "a distinct graph name for each output.")
+        graph_names[graph] = t
+    return {names[t]: msg for t, msg in own.items()}, names, frozenset(latched)
+
+
+def producers(where: ScenarioChecks, outputs: dict[int, tuple[dict[str, type], dict, frozenset]],
+              classes: dict[int, type]) -> dict[str, Producer]:
+    """graph topic -> its Producer; a topic has one publisher."""
+    found: dict[str, Producer] = {}
+    for i, (topics, names, latched) in outputs.items():
+        own_of = {graph: own for own, graph in names.items()}
+        for topic, msg in topics.items():
+            if topic in found:
+                raise where.fail(where.node_key(i), f"topic {topic} is also published by node "
+                                 f"{found[topic].name!r}.", "one publisher per topic; "
+                                 "rename one with remap.")
+            own = own_of[topic]
+            found[topic] = Producer(where.model.nodes[i].name, i, msg, own in latched,
+                                    classes[i].type_keys.get(own))
+    return found
+
+
+def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params: BaseModel,
+                publishers: dict[str, Producer]) -> list[InputPlan]:
+    """The node's inputs resolved to producers; every input needs a publisher."""
+    accepted = cls.accepted_inputs(params)
+    plans, seen = [], set()
+    for j, inp in enumerate(spec.inputs):
+        key = where.node_key(i, f"inputs[{j}].topic")
+        if inp.topic in seen:
+            raise where.fail(key, f"input {inp.topic} is listed twice.", "each topic once.")
+        seen.add(inp.topic)
+        takes_params = cls.runtime_params and inp.topic == params_topic(spec.name)
+        if accepted is not None and inp.topic not in accepted and not takes_params:
+            raise where.fail(key, f"this node does not take {inp.topic}.",
+                             f"one of {', '.join(sorted(accepted))}.")
+        graph = spec.remap.get(inp.topic, inp.topic)
+        if graph not in publishers:
+            raise where.fail(key, f"no node publishes {graph}.",
+                             f"a published topic: {', '.join(sorted(publishers))}.")
+        source = publishers[graph]
+        if source.latched:
+            raise where.fail(key, f"{graph} is published once, latched, by node "
+                             f"{source.name!r} at its first activation; no tick's sample "
+                             "of it can be scheduled.", "a topic published at every "
+                             "activation (ROS tools and foreign programs read a latched "
+                             "topic with transient-local durability).")
+        check_input_type(where, i, inp.topic, cls, params, graph, source)
+        plans.append(InputPlan(inp.topic, graph, source.name, inp.mode, source.msg))
+    return plans
+
+
+def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, params: BaseModel,
+                     graph: str, source: Producer) -> None:
+    """The producer publishes the message type this node takes on ``topic`` (when it
+    says which), or the error names the parameter that sets this node's type."""
+    wanted = cls.input_types(params).get(topic)
+    if wanted is None or source.msg is wanted:
+        return
+    own_key = cls.type_keys.get(topic)
+    key = where.node_key(i, own_key) if own_key else where.node_key(i, "inputs")
+    producer = where.node_key(source.index)
+    theirs = (f"{producer}.{source.type_key}" if source.type_key
+              else f"the type {producer} publishes it as")
+    ours = f"this node's {own_key}" if own_key else "this node's input"
+    raise where.fail(key, f"this node takes {topic} as {ros_type(wanted)}, but node "
+                     f"{source.name!r} publishes {graph} as {ros_type(source.msg)}.",
+                     f"the same message type at both ends: change {ours} or {theirs}.")
