@@ -17,6 +17,7 @@ from bench import (
     profile,
     sensors,
     sweep,
+    twin,
     zenoh_chain,
 )
 
@@ -39,6 +40,8 @@ SECTIONS = [
      lambda: foreign_nav.main(["--repeats", "3", "--timer"])),
     ("nav: with the Foxglove live view and one client over without",
      lambda: live.main(["--repeats", "3"])),
+    ("digital twin: mirror delay on loopback at 50 Hz and faster robots",
+     lambda: twin.main([])),
     ("nav: where each process spends its time (py-spy)", lambda: profile.main([])),
     ("message cost", messages.main),
     ("sensor cost", sensors.main),

@@ -34,8 +34,11 @@ class NodeConfig:
     period_ns: int
     world: Path | None = None
     goal: dict[str, float] | None = None
+    joint_goal: dict[str, Any] | None = None  # {positions: {joint: rad}, tolerance: rad}
     scenario_dir: Path = field(default_factory=Path.cwd)
     render_warm_up: bool = True  # a camera builds its GL renderer in a thread at set-up
+    robots: Any = None  # plan.robots.RobotsLayout of a swarm scenario: the world is built
+    # from ``world`` (the arena) and it; None: ``world`` is the whole world
 
 
 class NoParams(BaseModel):

@@ -17,6 +17,7 @@ KINDS: dict[str, str] = {
     "physics": "nodes.physics.node:PhysicsNode",
     "sensors": "nodes.sensors.node:SensorsNode",
     "control": "nodes.control.node:ControlNode",
+    "joint_targets": "nodes.arm.node:JointTargetsNode",
     "counter": "nodes.testing:CounterNode",
     "integrator": "nodes.testing:IntegratorNode",
     "wallclock": "nodes.testing:WallClockNode",

@@ -29,7 +29,7 @@ from plan.scenario import Scenario
 from runtime.arrivals import Arrivals, Replay
 
 __all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "RunOptions", "ScenarioError",
-           "ScenarioWarning", "SimulationError", "load", "overrides_for", "run"]
+           "ScenarioWarning", "SimulationError", "load", "overrides_for", "replay", "run"]
 
 EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
 """Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
@@ -100,6 +100,18 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     if check:
         result.raise_for_failure()
     return result
+
+
+def replay(run_dir: str | Path, *, in_process: bool = False, out: str | Path = "runs",
+           check: bool = True, options: RunOptions | None = None) -> FinishedRun:
+    """Run a recorded run again in lockstep from its run directory (``--replay``): its
+    scenario and overrides, each message that entered it from outside at the tick it
+    entered (orchestrator.replay). Compare ``.digest`` with the recorded manifest's."""
+    from orchestrator.replay import load_recorded
+
+    recorded = load_recorded(Path(run_dir))
+    return run(recorded.scenario, in_process=in_process, out=out, check=check,
+               options=options, external=recorded)
 
 
 @dataclass

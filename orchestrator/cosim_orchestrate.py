@@ -34,7 +34,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run a cosim scenario: start every node as its own process, advance them "
                     "in lockstep on /clock over ROS 2,\nand write a deterministic run digest. "
                     "The same scenario and seed give the same digest, bit for bit.")
-    p.add_argument("scenario", type=Path, help="scenario YAML file, e.g. scenarios/nav.yaml")
+    p.add_argument("scenario", type=Path, nargs="?",
+                   help="scenario YAML file, e.g. scenarios/nav.yaml (not with --replay)")
+    p.add_argument("--replay", type=Path, metavar="RUN_DIR",
+                   help="run a recorded run again in lockstep: its scenario, and every message\n"
+                        "that entered it from outside at the tick it entered; exit 4 when\n"
+                        "the digest differs from the record's")
     p.add_argument("--in-process", action="store_true",
                    help="run every node in this process with no transport (the reference)")
     p.add_argument("--out", type=Path, default=Path("runs"),
@@ -83,6 +88,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="a rosbridge v2 server for roslibpy/roslibjs: subscribe to topics,\n"
                            "publish the scenario's external: topics (entering at a tick,\n"
                            "recorded), call the run's services (default 127.0.0.1:9090)")
+    live.add_argument("--twin", metavar="ws://HOST:PORT",
+                      help="a digital twin of the real robot whose rosbridge server this is:\n"
+                           "the scenario's twin: topic map, paced on the wall clock (the\n"
+                           "scenario's twin.url if not given)")
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
@@ -112,7 +121,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
                       pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict,
-                      live=args.live, rosbridge=args.rosbridge)
+                      live=args.live, rosbridge=args.rosbridge, twin=args.twin)
 
 
 def overrides_from(args: argparse.Namespace) -> dict:
@@ -170,8 +179,19 @@ def main(argv: list[str] | None = None) -> int:
     from plan.errors import ScenarioError
     from plan.load import load_scenario
 
+    recorded = None
     try:
-        scenario = load_scenario(args.scenario, overrides_from(args))
+        if (args.scenario is None) == (args.replay is None):
+            raise ValueError("give a scenario file or --replay RUN_DIR (one of them)")
+        if args.replay is not None:
+            from orchestrator.replay import load_recorded
+
+            if args.twin:
+                raise ValueError("--replay feeds the recorded inputs; it takes no --twin")
+            recorded = load_recorded(args.replay, overrides_from(args))
+            scenario = recorded.scenario
+        else:
+            scenario = load_scenario(args.scenario, overrides_from(args))
         if args.rendered_psnr is not None:
             if args.against is None:
                 raise ValueError("--rendered-psnr needs --against DIR (a recorded run whose "
@@ -181,6 +201,8 @@ def main(argv: list[str] | None = None) -> int:
                                  "dB above 0, e.g. 40")
             args.ignore_rendered = True
         expected = expected_digest(args.expect_digest, args.against, args.ignore_rendered)
+        if recorded is not None and expected is None:
+            expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
@@ -188,6 +210,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
+    if recorded is not None:
+        print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
+              f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)
     from orchestrator.execute import execute
     from orchestrator.outputs.report import print_outcome
@@ -196,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(scenario.schedule.n_ticks, scenario.tick_ns,
                         enabled=not args.quiet and sys.stderr.isatty())
     try:
-        outcome = execute(scenario, options, on_tick=progress.update)
+        outcome = execute(scenario, options, on_tick=progress.update, external=recorded)
     except KeyboardInterrupt:
         print("cosim-orchestrate: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -210,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-orchestrate: digest {left_out_text(outcome.rendered_topics)}: {value}",
               file=sys.stderr)
     if expected and outcome.digest and code in (EXIT_SUCCESS, EXIT_GOAL_NOT_MET):
-        mismatch = digest_mismatch(expected, outcome.run_dir, args.against,
+        mismatch = digest_mismatch(expected, outcome.run_dir, args.against or args.replay,
                                    args.ignore_rendered)
         if mismatch:
             print(f"cosim-orchestrate: {mismatch}", file=sys.stderr)

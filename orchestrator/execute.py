@@ -23,6 +23,7 @@ from orchestrator.lockstep.starters import Site, join_all, start_all
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
 from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
+from orchestrator.proxies.twin import twin_address, twin_run
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -88,6 +89,8 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     rosbridge clients' messages are the run's arrivals.
     """
     warnings = check_run(scenario, options)
+    if twin_address(scenario, options, external) is not None:  # a live twin: paced, its link
+        external, options, on_tick = twin_run(scenario, options, on_tick, external)
     if external is None and options.rosbridge:
         external = _arrivals_for(scenario)
     paths = make_run_dir(options.out, scenario.name)
@@ -163,8 +166,10 @@ def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
     try:
         from orchestrator.outputs.picture import write_report_png
+        from orchestrator.outputs.swarm_picture import write_swarm_png
 
-        return write_report_png(scenario, outcome.run_dir, outcome.bag, outcome)
+        write = write_swarm_png if scenario.robots is not None else write_report_png
+        return write(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)
         return None
@@ -179,7 +184,8 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
     started = time.monotonic()
     try:
-        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd)
+        out = export_run_usd(scenario.world, outcome.bag, scenario.tick_ns, outcome.paths.usd,
+                             scenario.robots)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the stage is lost
         log.error("could not write %s: %s", outcome.paths.usd.name, exc)
         return None
@@ -193,16 +199,22 @@ def _arrivals_for(scenario: Scenario) -> Arrivals | None:
     return Arrivals(plan.outputs) if plan is not None else None
 
 
+def _external_name(scenario: Scenario) -> str | None:
+    return next((n for n, p in scenario.nodes.items() if p.in_orchestrator), None)
+
+
 def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.lockstep.inprocess import run_in_process
+    from orchestrator.proxies.arrivals_record import recording
 
     with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
         writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
         for writer in writers.values():
             run.callback(writer.close)
-        arrivals = external.take if isinstance(external, Arrivals) else external
+        arrivals = recording(external.take if isinstance(external, Arrivals) else external,
+                             writers.get(_external_name(scenario)))
 
         def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
             writers[name].write(k, items)
@@ -357,7 +369,7 @@ def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
     reached = goal_reached(metrics)
     spec = scenario.model.success
     ok = collisions <= spec.max_collisions
-    if spec.reach_goal and scenario.model.goal is not None:
+    if spec.reach_goal and scenario.model.has_goal:
         ok = ok and reached
     outcome.collisions, outcome.success = collisions, ok
     outcome.status = "success" if ok else "goal_not_met"

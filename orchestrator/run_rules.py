@@ -52,6 +52,10 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "cosim cannot gate its executor, and with several inputs its callbacks would "
                 "see samples of different ticks from run to run (not deterministic).",
                 "a Python (rclpy) program, which cosim gates, or a program with one input.")
+    if options.twin and scenario.model.twin is None:
+        raise ScenarioError(scenario.file, "twin", f"--twin {options.twin}: the scenario has no "
+                            "twin: section (the topic map)", "a twin: section, e.g. twin: "
+                            "{subscribe: {/odom: /real/odom}} (see scenarios/twin.yaml)")
     problems = address_problems(options.live_address, options.rosbridge_address)
     if problems:
         raise ValueError("; ".join(problems))

@@ -16,15 +16,17 @@ from plan.model import NodeSpec, ScenarioModel
 from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.twin import twin_problems
 from plan.validation import describe_validation_error
 
 
 class ScenarioChecks:
     """The semantic checks of one scenario model that follow schema validation, each raising
     a precise ScenarioError naming the file and key."""
-    def __init__(self, path: Path, model: ScenarioModel):
+    def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None):
         self.path = path
         self.model = model
+        self.origins = origins or {}  # node name -> its entry's index in the file (templates)
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""
@@ -32,7 +34,8 @@ class ScenarioChecks:
 
     def node_key(self, i: int, sub: str = "") -> str:
         """'nodes[1] (sensors).rate'-style key path."""
-        key = f"nodes[{i}] ({self.model.nodes[i].name})"
+        name = self.model.nodes[i].name
+        key = f"nodes[{self.origins.get(name, i)}] ({name})"
         return f"{key}.{sub}" if sub else key
 
     def check_finite(self, key: str, value: Any) -> None:
@@ -121,6 +124,7 @@ class ScenarioChecks:
         problems raise; what only deserves a word (a goal its map cannot reach) is
         returned as warnings."""
         goal = self.model.goal.model_dump() if self.model.goal else None
+        self.check_joint_goal(world_model)
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
@@ -143,6 +147,20 @@ class ScenarioChecks:
                     "a goal the robot can reach from its start: move the goal, the start or "
                     "the obstacles named."))
         return warnings
+
+    def check_joint_goal(self, world_model) -> None:
+        """Every joint of ``joint_goal`` is a hinge or slide joint of the world."""
+        goal = self.model.joint_goal
+        if goal is None:
+            return
+        joints = {world_model.joint(j).name: int(world_model.jnt_type[j])
+                  for j in range(world_model.njnt)}
+        for name in goal.positions:
+            if joints.get(name) not in (2, 3):  # mjJNT_SLIDE, mjJNT_HINGE: one position each
+                raise self.fail(f"joint_goal.positions.{name}", f"the world has no hinge or "
+                                f"slide joint {name!r} (world {self.model.world}); its joints: "
+                                f"{', '.join(n for n in joints if n) or 'none'}.",
+                                "names of the robot's hinge or slide joints.")
 
     def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
@@ -200,6 +218,16 @@ class ScenarioChecks:
                                     f"message per activation of this program (not Python, "
                                     f"so not gated), not {plan.params.count(own)}.",
                                     "1 for a consumed topic (or leave it out).")
+
+    def check_twin(self, nodes: dict[str, NodePlan]) -> None:
+        """A twin's topic map names only topics of the run (plan/twin.py)."""
+        if self.model.twin is None:
+            return
+        external = {t: c for p in nodes.values() if p.in_orchestrator
+                    for t, c in p.outputs.items()}
+        topics = {t: c for p in nodes.values() for t, c in p.outputs.items()}
+        for key, problem, accepted in twin_problems(self.model.twin, external, topics):
+            raise self.fail(key, problem, accepted)
 
     def check_cycles(self, edges: list[Edge]) -> None:
         """Refuse a cycle of same_tick edges, naming it."""

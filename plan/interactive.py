@@ -34,4 +34,4 @@ FED_INPUTS = {GOAL_TOPIC: GOAL_TYPE, SET_POSE_TOPIC: SET_POSE_TYPE}
 
 def params_topic(node: str) -> str:
     """The topic that carries parameter changes of ``node``: /cosim/params/<node>."""
-    return PARAMS_PREFIX + node
+    return PARAMS_PREFIX + node.replace("@", "_at_")  # plan.robots.topic_token

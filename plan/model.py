@@ -63,6 +63,11 @@ class NodeSpec(Strict):
     prefix: str | None = Field(None, description="a command that wraps the node's process, "
                                "like ros2 launch's prefix, e.g. 'gdb -ex run --args' or "
                                "'valgrind'; it must exec the node (keep its pid)")
+    for_each: Literal["robot"] | None = Field(None, description="robot: one instance of this "
+                                              "node per robot of the robots: section, named "
+                                              "NAME@ROBOT, its topics under /ROBOT/")
+    robots: list[Name] | None = Field(None, min_length=1, description="with for_each: only "
+                                      "these robots (default: every robot)")
 
 
 class GoalSpec(Strict):
@@ -73,6 +78,67 @@ class GoalSpec(Strict):
     yaw: float = 0.0
     position_tolerance: float = Field(0.25, gt=0)
     yaw_tolerance: float = Field(3.2, gt=0)
+
+
+class JointGoalSpec(Strict):
+    """Where a robot's joints must get to (an arm's last target), and how close counts."""
+
+    positions: dict[str, float] = Field(min_length=1, description="joint name -> position "
+                                        "(rad for a hinge), e.g. {elbow: 1.2}")
+    tolerance: float = Field(0.05, gt=0, description="largest error of any joint (rad)")
+    speed_tolerance: float = Field(0.1, gt=0, description="largest speed of any of these "
+                                   "joints (rad/s): reached means there and settling")
+
+
+class Region(Strict):
+    """An axis-aligned rectangle of the floor: x and y ranges in metres."""
+
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+
+class PlanarPose(Strict):
+    """A position in metres and a heading in radians."""
+
+    x: float
+    y: float
+    yaw: float = 0.0
+
+
+class NamedRobot(Strict):
+    """One robot of a robots: list: its name (its namespace), start pose and goal."""
+
+    name: Name = Field(description="letters, digits and _; the robot's namespace")
+    start: PlanarPose | None = Field(None, description="where it starts; in a USD stage "
+                                     "with robot prims, the prim named so places it instead")
+    goal: PlanarPose
+
+
+class RobotsSpec(Strict):
+    """Many robots from one description in one world (plan/robots.py): either ``count``
+    robots placed by the scenario seed in ``region`` (goals in ``goal_region``, or the
+    start mirrored through the region's centre), or ``named`` robots, each with its start
+    and goal."""
+
+    description: str | None = Field(None, description="the MJCF of one robot (like "
+                                    "worlds/robot.xml), relative to this file; its names get "
+                                    "the prefix ROBOT/; default: the one a USD stage's robot "
+                                    "prims name (cosim:robot:mjcf)")
+    base_body: str = Field("base_link", description="the robot's root body in the description")
+    count: int | None = Field(None, ge=1, le=1024)
+    name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")
+    region: Region | None = Field(None, description="count: where the robots start")
+    goal_region: Region | None = Field(None, description="count: where their goals are; "
+                                       "default: each start mirrored through region's centre")
+    clearance: float = Field(0.8, gt=0, description="count: least distance in metres between "
+                             "two robots' starts (and two goals)")
+    named: list[NamedRobot] | None = Field(None, min_length=1, description="robots by name, "
+                                           "each with its start and goal (instead of count)")
+    position_tolerance: float = Field(0.3, gt=0, description="m from its goal that counts "
+                                      "as reached")
+    yaw_tolerance: float = Field(3.2, gt=0)
+    success_fraction: float = Field(1.0, gt=0, le=1, description="the fraction of robots that "
+                                    "must reach their goals for the run to succeed")
 
 
 class SuccessSpec(Strict):
@@ -115,6 +181,25 @@ class ExternalSpec(Strict):
                                      "{/goal_pose: geometry_msgs/msg/PoseStamped}")
 
 
+class TwinSpec(Strict):
+    """A digital twin (plan/twin.py): the run connects to a real robot's rosbridge server,
+    is paced on the wall clock, takes the robot's topics in through the external node and
+    sends chosen run topics back."""
+
+    url: str | None = Field(None, description="ws://HOST:PORT of the robot's rosbridge server "
+                            "(--twin overrides it)")
+    subscribe: dict[Topic, Topic] = Field(min_length=1, description="robot topic -> the run's "
+                                          "external topic it enters as, e.g. "
+                                          "{/odom: /real/odom}")
+    publish: dict[Topic, Topic] = Field(default_factory=dict, description="run topic -> the "
+                                        "robot topic it is sent back as, e.g. "
+                                        "{/scan: /twin/scan}")
+    stale_after: DurationNs = Field(500_000_000, description="a robot topic with nothing new "
+                                    "for this long is stale, e.g. '500ms'")
+    reconnect_max: DurationNs = Field(5_000_000_000, description="the longest wait between "
+                                      "two tries to reach the robot (backoff), e.g. '5s'")
+
+
 class SimulationInterfacesSpec(Strict):
     """Where a run serves simulation_interfaces (ros2 runs, multi-process)."""
 
@@ -136,6 +221,8 @@ class ScenarioModel(Strict):
     zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     world: str | None = Field(None, description="path of the world file, relative to this file")
     goal: GoalSpec | None = None
+    joint_goal: JointGoalSpec | None = None
+    robots: RobotsSpec | None = Field(None, description="many robots (plan/robots.py)")
     success: SuccessSpec = Field(default_factory=SuccessSpec)
     deadlines: DeadlineSpec = Field(default_factory=DeadlineSpec)
     external: ExternalSpec | None = None
@@ -143,6 +230,13 @@ class ScenarioModel(Strict):
                               "(NavigateToPose goals, SetEntityState, parameter sets); each "
                               "change enters at a tick boundary through the external node "
                               "and is recorded (see plan/interactive.py)")
+    twin: TwinSpec | None = None
     simulation_interfaces: SimulationInterfacesSpec = Field(
         default_factory=SimulationInterfacesSpec)
     nodes: list[NodeSpec] = Field(min_length=1)
+
+    @property
+    def has_goal(self) -> bool:
+        """Whether the run has a goal to reach: a pose (``goal``) or joint positions."""
+        return (self.goal is not None or self.joint_goal is not None
+                or self.robots is not None)

@@ -43,6 +43,7 @@ class RunOptions:
     strict: bool = False  # refuse a scenario with warnings (ScenarioError: exit 2)
     live: str | None = None  # ADDR:PORT of a Foxglove WebSocket server watching the run
     rosbridge: str | None = None  # ADDR:PORT of a rosbridge v2 server (watch and drive)
+    twin: str | None = None  # ws://HOST:PORT of a real robot's rosbridge (a twin: scenario)
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:
@@ -61,6 +62,11 @@ class RunOptions:
                     object.__setattr__(self, name, str(parse_listen(str(text), default)))
                 except ValueError as exc:
                     raise ValueError(f"{name}: {exc}") from None
+
+        if self.twin is not None:
+            from plan.twin import parse_twin_url
+
+            object.__setattr__(self, "twin", parse_twin_url(self.twin).url)
 
     @property
     def live_address(self) -> ListenAddress | None:

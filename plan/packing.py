@@ -10,6 +10,7 @@ never packed by ``--pack``.
 
 from __future__ import annotations
 
+from plan.robots import robot_of
 from plan.scenario import NodePlan, Scenario
 
 
@@ -35,7 +36,8 @@ def _group_of(name: str, plan: NodePlan, pack: str | None) -> str:
         return f"node:{name}"
     if pack == "kind":
         return f"kind:{plan.spec.kind or plan.spec.module}"
-    return "robot"
+    robot = robot_of(name)  # a swarm: each robot's nodes together, the world's apart
+    return f"robot:{robot}" if robot else "robot"
 
 
 def process_of(scenario: Scenario, pack: str | None) -> dict[str, str]:

@@ -9,21 +9,31 @@ from plan.checks import ScenarioChecks
 from plan.errors import ScenarioNotice
 from plan.external_node import complete_model
 from plan.model import ScenarioModel
+from plan.robot_placement import robots_layout
+from plan.robots import namespaced, robot_of, swarm_model
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import Edge, Schedule
+from plan.templates import expand_nodes
 from plan.topics import node_inputs, node_outputs, producers
 
 
 def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
     """The runnable scenario of a schema-valid model read from ``path``; ScenarioError on
     the first thing wrong."""
+    ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
+                                                                  exclude={"nodes"}))
+    layout = robots_layout(path, model)  # many robots: placed, and templates expanded
+    model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
-    where = ScenarioChecks(path, model)
+    where = ScenarioChecks(path, model, origins)
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
     for i in range(len(model.nodes)):
         where.check_finite(where.node_key(i, "params"), params[i].model_dump())
-    world, world_model = where.world_path(any(cls.needs_world for _, cls in classes.values()))
+    needs_world = any(cls.needs_world for _, cls in classes.values())
+    world, world_model = where.world_path(needs_world and layout is None)
+    if needs_world and layout is not None:  # the arena was checked by robots_layout
+        world_model = swarm_model(world, layout)
     world_warnings = []
     if world_model is not None:
         world_warnings = where.check_world_fit(classes, params, world_model)
@@ -44,8 +54,10 @@ def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scen
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)
+    where.check_twin(nodes)
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
-    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings)
+    return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
+                    layout)
 
 
 def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
@@ -55,4 +67,5 @@ def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge])
                           "but no node of the scenario consumes it (only ROS tools will see "
                           "it).", "a remap to a topic a node of the scenario consumes.")
             for plan in nodes.values() for own, graph in plan.output_names.items()
-            if own != graph and graph not in consumed]
+            if own != graph and graph not in consumed
+            and graph != namespaced(robot_of(plan.name) or "", own)]  # a template's own

@@ -16,6 +16,7 @@ from pydantic import BaseModel
 
 from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
+from plan.robots import RobotsLayout
 from plan.schedule import Schedule
 
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
@@ -108,6 +109,7 @@ class Scenario:
     sha256: str
     overrides: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # ScenarioNotice texts
+    robots: RobotsLayout | None = None  # the robots: section laid out (plan/robots.py)
 
     @property
     def name(self) -> str:

@@ -75,10 +75,13 @@ def load_world_model(path: Path | str) -> mujoco.MjModel:
     return compile_world(load_world_spec(path), path)
 
 
-def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None) -> mujoco.MjSpec:
+def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None,
+                    stage_robots_too: bool = True) -> mujoco.MjSpec:
     """The world as an uncompiled MjSpec: USD import, MJCF robots attached, lights added.
 
-    ``robots`` adds mounts to those the stage names with ``cosim:robot:mjcf`` attributes.
+    ``robots`` adds mounts to those the stage names with ``cosim:robot:mjcf`` attributes;
+    ``stage_robots_too=False`` leaves the stage's out (a swarm attaches them itself,
+    prefixed: plan.robots).
     """
     path = Path(path).resolve()
     if not is_usd(path):
@@ -86,7 +89,8 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None) ->
     stage = open_stage(path)
     check_stage(stage, path)
     spec = _import(stage, path)
-    for mount in [*stage_robots(stage, path), *(robots or [])]:
+    named = stage_robots(stage, path) if stage_robots_too else []
+    for mount in [*named, *(robots or [])]:
         _attach_robot(spec, stage, mount, path)
     add_lights(spec, stage)
     spec.visual.quality.shadowsize = VISUAL["shadowsize"]

@@ -23,6 +23,7 @@ from collections import deque
 
 from std_msgs.msg import Int64MultiArray
 
+from plan.robots import topic_token
 from runtime.cdr.decode import decode
 from runtime.exchange import InputHistory
 from runtime.transport.base import Received
@@ -37,7 +38,7 @@ FOREIGN_OUTPUT_RULE = ("a gated foreign program may publish any number of messag
 
 def feed_prefix(name: str) -> str:
     """The private topic prefix of a foreign program's feed: '/cosim/feed/<node>/'."""
-    return f"/cosim/feed/{name}/"
+    return f"/cosim/feed/{topic_token(name)}/"
 
 
 def ack_topic(name: str) -> str:

@@ -10,6 +10,7 @@ import pytest
 import yaml
 from geometry_msgs.msg import PoseStamped
 
+from orchestrator import api
 from orchestrator.api import Arrivals, ScenarioError, load, run
 from tests.helpers import ROOT
 
@@ -110,6 +111,9 @@ def test_live_arrivals_mid_run_enter_at_that_tick_and_replay(tmp_path):
 
     replayed = run(scenario, in_process=True, out=tmp_path / "again", external=again)
     assert replayed.digest == live.digest
+    # and from the run directory alone: the arrivals it recorded, as they arrived
+    again_dir = api.replay(live.run_dir, in_process=True, out=tmp_path / "replay")
+    assert again_dir.digest == live.digest
     period = scenario.nodes["external"].period_ticks
     earlier = run(scenario, in_process=True, out=tmp_path / "earlier",
                   external=lambda tick: again(tick + period))  # one external tick early

@@ -80,10 +80,17 @@ def test_pan_tilt_follows_joint_commands(tmp_path):
     assert math.isclose(pos[2], 0.6, abs_tol=0.05) and math.isclose(pos[3], -0.3, abs_tol=0.05)
 
 
-def test_wrong_joint_command_length_is_a_clear_error(tmp_path):
+def test_wrong_joint_command_length_is_noted_once_and_ignored(tmp_path):
     node = make(write_world(tmp_path))
-    with pytest.raises(ValueError, match=r"must carry 2 positions .* got 3"):
-        node.step(Tick(0, 0), {"/joint_commands": Float64MultiArray(data=[0.1, 0.2, 0.3])})
+    good = Float64MultiArray(data=[0.6, -0.3])
+    bad = Float64MultiArray(data=[0.1, 0.2, 0.3])
+    run(node, range(50), {"/joint_commands": good})
+    run(node, range(50, 101), {"/joint_commands": bad})
+    notes = node.take_notes()
+    assert len(notes) == 1 and "carries 3 positions, this robot takes 2" in notes[0]
+    out = run(node, range(101, 102), {"/joint_commands": bad})
+    pos = list(out["/joint_states"].position)  # still at the last good command
+    assert math.isclose(pos[2], 0.6, abs_tol=0.05) and math.isclose(pos[3], -0.3, abs_tol=0.05)
 
 
 def test_period_not_a_multiple_of_the_timestep_is_refused(tmp_path):

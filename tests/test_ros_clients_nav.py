@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
 
 import pytest
 import yaml
@@ -23,7 +24,7 @@ from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
 from plan.load import load_scenario
 from plan.ros_types import message_class
-from tests.helpers import ROOT
+from tests.helpers import ORCHESTRATE, ROOT
 from tests.sim_client import OK, SimClient, orchestrate
 
 NAV = ROOT / "scenarios" / "nav.yaml"
@@ -184,6 +185,14 @@ def test_clients_drive_the_run_reproducibly(tmp_path, ros_node, scenario_file):
     assert set(inputs[10]) == {"/goal_pose", "/cosim/set_pose", "/cosim/params/control"}
     replayed = run_in_process(scenario, external=lambda k: inputs.get(k, {}))
     assert replayed.digest == digest
+    # --replay from the run directory alone (the scenario it names, the arrivals it recorded:
+    # goal, teleport, parameter set), in-process: the recorded digest, or exit 4
+    again = subprocess.run([*ORCHESTRATE, "--replay", str(run_dir), "--in-process", "--quiet",
+                            "--out", str(tmp_path / "replay")], capture_output=True, text=True,
+                           timeout=240, cwd=ROOT)
+    assert again.returncode == 1 and digest in again.stdout, again.stderr  # goal not met
+    (replay_dir,) = (tmp_path / "replay").iterdir()
+    assert json.loads((replay_dir / "manifest.json").read_text())["ticks"] == stopped_at
 
     with BagReader(run_dir / "bag") as bag:
         odom = {s // TICK_NS: m for s, m in bag.messages("/odom", message_class(

@@ -16,6 +16,7 @@ import pytest
 import roslibpy
 from websockets.sync.client import connect
 
+from orchestrator import api
 from orchestrator.api import load, run
 from orchestrator.outputs.bag import BagReader
 from tests.live_helpers import (
@@ -98,6 +99,9 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
                    external=replay_of(run_dir(tmp_path / "runs") / "bag", "/cmd_vel",
                                       loaded.tick_ns))
     assert replayed.digest == first["digest"]
+    # --replay from the run directory alone: the client publishes recorded as they arrived
+    again = api.replay(run_dir(tmp_path / "runs"), in_process=True, out=tmp_path / "again")
+    assert again.digest == first["digest"]
 
 
 @pytest.fixture

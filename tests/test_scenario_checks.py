@@ -125,11 +125,11 @@ def test_non_text_key_refused(tmp_path, key, as_type):
 
 @pytest.mark.parametrize(("text", "key", "accepted"), [
     (VALID + "colour: red\n", "colour",
-     "name, seed, duration, tick, transport, zenoh, world, goal, success, deadlines, "
-     "external, interactive, simulation_interfaces, nodes"),
+     "name, seed, duration, tick, transport, zenoh, world, goal, joint_goal, robots, "
+     "success, deadlines, external, interactive, twin, simulation_interfaces, nodes"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
      "name, kind, module, rate, params, inputs, remap, debug, command, external, process, "
-     "prefix"),
+     "prefix, for_each, robots"),
     (VALID.replace("mode: same_tick}", "mode: same_tick, qos: 3}"),
      "nodes[1] (b).inputs[0].qos", "topic, mode"),
     (VALID + "goal: {x: 1, y: 2, z: 3}\n", "goal.z",

@@ -47,6 +47,7 @@ from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.global_planner import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id
 from plan.poses import pose_of
+from plan.robots import prefixed
 from plan.rot3 import mat_t_mul, mat_t_vec
 from plan.timeutil import NS_PER_S
 
@@ -87,6 +88,8 @@ class ControlParams(BaseModel):
     progress_distance: float = Field(0.2, gt=0, description="m")
     backup_distance: float = Field(0.3, ge=0, description="m")
     backup_speed: float = Field(0.15, gt=0, description="m/s")
+    robot: str | None = Field(None, description="set by for_each: robot: the robot this node "
+                              "drives; its body, laser and frames are prefixed ROBOT/")
 
 
 class ControlNode(StepNode):
@@ -147,8 +150,12 @@ class ControlNode(StepNode):
 
     def setup(self) -> None:
         """Build the map, read the laser mount from the world and take the scenario goal."""
+        if self.params.robot is not None:
+            self.params = self.params.model_copy(update={
+                key: prefixed(self.params.robot, getattr(self.params, key))
+                for key in ("base_body", "laser_site", "frame_id", "base_frame")})
         p = self.params
-        model = load_model(self.config.world)
+        model = load_model(self.config.world, self.config.robots)
         self.laser = _laser_mount(model, p.base_body, p.laser_site)
         self.planner = Planner(model, p)
         g = self.config.goal
@@ -178,6 +185,14 @@ class ControlNode(StepNode):
         self.outside = False  # the goal came from /goal_pose
         self.pose: tuple[float, float, float] | None = None
         self.tail = np.zeros(0)  # path length from each plan point to its end
+
+    def set_params(self, params: ControlParams) -> None:
+        """Take changed parameters; a swarm robot's names stay prefixed."""
+        if params.robot is not None:
+            params = params.model_copy(update={key: getattr(self.params, key) for key in
+                                               ("base_body", "laser_site", "frame_id",
+                                                "base_frame")})
+        self.params = params
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One control cycle: read odom and scan, then decide the velocity command."""

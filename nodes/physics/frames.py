@@ -4,7 +4,8 @@
   every tick like the transform a localization node (AMCL, slam_toolbox) publishes, so that
   one can take over by setting ``tf.map_frame: null``.
 - ``odom -> base_link``: the robot's free joint, the very pose /odom carries.
-- Under ``base_link`` every body on the way to a sensor is a frame named after its body. A
+- Under ``base_link`` every body on the way to a sensor or to a position-servoed joint (the
+  pan-tilt head, an arm's links) is a frame named after its body. A
   body that moves on a joint (the pan-tilt head: ``pan_link``, ``tilt_link``) is sent on /tf
   at every tick, as robot_state_publisher would from /joint_states; a rigid one on /tf_static.
 - Each sensor frame hangs off its body, on /tf_static: a site (the lidar's ``laser``, the
@@ -32,6 +33,7 @@ from plan.rot3 import mat_mul, mat_t_mul, mat_t_vec
 BODY = mujoco.mjtObj.mjOBJ_BODY
 SITE = mujoco.mjtObj.mjOBJ_SITE
 CAMERA = mujoco.mjtObj.mjOBJ_CAMERA
+JOINT = mujoco.mjtObj.mjOBJ_JOINT
 
 # Axes of camera_link and of the optical frames in MuJoCo's camera frame (x right, y up,
 # looking along -z): the columns are each frame's x, y, z.
@@ -108,7 +110,7 @@ def frame_problems(model: mujoco.MjModel, params: TfParams, base_body: str,
             names = [model.site(i).name for i in range(model.nsite)]
             return [(key, f"the world has no site {site!r}; its sites: "
                      f"{', '.join(names) or 'none'}.", "sites of the robot in the world.")]
-        if not _on_robot(model, int(model.site_bodyid[sid]), base):
+        if not on_robot(model, int(model.site_bodyid[sid]), base):
             return [(key, f"site {site!r} is not on the robot's body tree.",
                      f"a site under body {base_body!r}.")]
     for n, cam in enumerate(params.cameras):
@@ -118,13 +120,14 @@ def frame_problems(model: mujoco.MjModel, params: TfParams, base_body: str,
             names = [model.camera(i).name for i in range(model.ncam)]
             return [(key, f"the world has no camera {cam.camera!r}; its cameras: "
                      f"{', '.join(names) or 'none'}.", "a camera of the robot in the world.")]
-        if not _on_robot(model, int(model.cam_bodyid[cid]), base):
+        if not on_robot(model, int(model.cam_bodyid[cid]), base):
             return [(key, f"camera {cam.camera!r} is not on the robot's body tree.",
                      f"a camera under body {base_body!r}.")]
     return []
 
 
-def _on_robot(model: mujoco.MjModel, body: int, base: int) -> bool:
+def on_robot(model: mujoco.MjModel, body: int, base: int) -> bool:
+    """Whether ``body`` is ``base`` or under it."""
     while body != base and body > 0:
         body = int(model.body_parentid[body])
     return body == base
@@ -134,7 +137,8 @@ class RobotFrames:
     """The static transforms of a robot, computed once, and its moving ones, per state."""
 
     def __init__(self, model: mujoco.MjModel, params: TfParams, base_body: str,
-                 base_frame: str, odom_frame: str, extra_sites: dict[str, str]):
+                 base_frame: str, odom_frame: str, extra_sites: dict[str, str],
+                 joints: list[str] | tuple[str, ...] = ()):
         self.model = model
         self.params = params
         self.odom_frame = odom_frame
@@ -151,6 +155,8 @@ class RobotFrames:
                                          model.site_quat[sid]))
         for cam in params.cameras:
             self._camera(cam)
+        for joint in joints:  # the links the robot's servos move (an arm's whole chain)
+            self._chain(int(model.jnt_bodyid[mujoco.mj_name2id(model, JOINT, joint)]))
         m = params.map_to_odom
         self.map_to_odom = (None if params.map_frame is None else
                             (params.map_frame, (m.x, m.y, 0.0),

@@ -7,12 +7,16 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from plan.robots import swarm_model
 from plan.timeutil import NS_PER_S
 from plan.worldfile import load_world_model
 
 
-def load_model(world: Path | str) -> mujoco.MjModel:
-    """Compile the world file, MJCF or USD, through the one shared loader (plan.worldfile)."""
+def load_model(world: Path | str, robots=None) -> mujoco.MjModel:
+    """Compile the world file, MJCF or USD, through the one shared loader (plan.worldfile);
+    with a swarm's ``robots`` (plan.robots.RobotsLayout), the arena with every robot."""
+    if robots is not None:
+        return swarm_model(Path(world), robots)
     return load_world_model(world)
 
 

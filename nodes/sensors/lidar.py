@@ -53,8 +53,10 @@ def scan_angles(beams: int, fov: float) -> tuple[float, float, np.ndarray]:
 class RayCaster:
     """Casts a fixed bundle of rays (in the site frame) from a site of the mirrored world."""
 
-    def __init__(self, mirror: WorldMirror, params: LidarParams, local_dirs: np.ndarray):
+    def __init__(self, mirror: WorldMirror, params: LidarParams, local_dirs: np.ndarray,
+                 others=None):
         self.mirror = mirror
+        self.others = others  # nodes.sensors.others.OtherRobots: robots seen as discs
         self.params = params
         self.site = named_id(mirror.model, mujoco.mjtObj.mjOBJ_SITE, params.site)
         self.local = np.ascontiguousarray(local_dirs, dtype=np.float64)
@@ -69,23 +71,28 @@ class RayCaster:
         d = self.mirror.data
         vec = rotate_rows(self.local, d.site_xmat[self.site]).ravel()
         p = self.params
-        mujoco.mj_multiRay(self.mirror.model, d, d.site_xpos[self.site].copy(), vec,
+        origin = d.site_xpos[self.site].copy()
+        mujoco.mj_multiRay(self.mirror.model, d, origin, vec,
                            self.groups, 1, -1, self.geomid, self.dist, self.normal, self.n,
                            p.range_max)
+        dist = self.dist
+        if self.others is not None:
+            dist = self.others.nearer(d, origin, vec.reshape(-1, 3), dist, p.range_max)
         noise = rng.normal(0.0, p.noise_stddev, self.n) if p.noise_stddev > 0 else 0.0
-        r = self.dist + noise
-        hit = (self.dist >= 0) & (r <= p.range_max)
+        r = dist + noise
+        hit = (dist >= 0) & (r <= p.range_max)
         return np.where(hit, np.where(r < p.range_min, -np.inf, r), np.inf)
 
 
 class Lidar2D:
     """The planar scanner publishing sensor_msgs/LaserScan."""
 
-    def __init__(self, mirror: WorldMirror, params: LidarParams, period_ns: int):
+    def __init__(self, mirror: WorldMirror, params: LidarParams, period_ns: int,
+                 others=None):
         self.params = params
         self.angle_min, self.inc, angles = scan_angles(params.beams, params.fov)
         dirs = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], axis=1)
-        self.caster = RayCaster(mirror, params, dirs)
+        self.caster = RayCaster(mirror, params, dirs, others)
         self.scan_time = period_ns / 1e9
 
     def measure(self, rng: np.random.Generator) -> LaserScan:
@@ -114,7 +121,7 @@ class Lidar3D:
     FIELDS = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
               for i, n in enumerate("x y z intensity".split())]
 
-    def __init__(self, mirror: WorldMirror, params: PointCloudParams):
+    def __init__(self, mirror: WorldMirror, params: PointCloudParams, others=None):
         self.params = params
         _, _, az = scan_angles(params.beams, params.fov)
         el = (np.linspace(-params.vertical_fov / 2, params.vertical_fov / 2, params.channels)
@@ -122,7 +129,7 @@ class Lidar3D:
         e, a = np.meshgrid(el, az, indexing="ij")
         self.dirs = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)],
                              axis=-1).reshape(-1, 3)
-        self.caster = RayCaster(mirror, params, self.dirs)
+        self.caster = RayCaster(mirror, params, self.dirs, others)
 
     def measure(self, rng: np.random.Generator) -> PointCloud2:
         """One sweep of the mirrored world as an unorganised cloud."""

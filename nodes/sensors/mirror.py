@@ -14,9 +14,9 @@ from nodes.physics.world import load_model
 class WorldMirror:
     """Loads the world and poses it from the physics node's qpos (no dynamics run here)."""
 
-    def __init__(self, world: Path | str):
+    def __init__(self, world: Path | str, robots=None):
         self.world = world
-        self.model = load_model(world)
+        self.model = load_model(world, robots)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
 

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sensor_msgs.msg import CameraInfo, Image, LaserScan, PointCloud2
 
 from nodes.contract import StepNode, Tick
 from nodes.sensors.camera import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, CameraParams, RgbdCamera
 from nodes.sensors.lidar import Lidar2D, Lidar3D, LidarParams, PointCloudParams
 from nodes.sensors.mirror import WorldMirror
+from nodes.sensors.others import OtherRobots, robot_sensors
 
 WORLD_STATE = "/cosim/world_state"
 
@@ -27,6 +28,9 @@ class SensorsParams(BaseModel):
     lidar: LidarParams | None = None
     point_cloud: PointCloudParams | None = None
     camera: CameraParams | None = None
+    robot: str | None = Field(None, description="set by for_each: robot: the robot whose "
+                              "sensors these are (names prefixed ROBOT/); the lidar sees "
+                              "the other robots")
 
     @model_validator(mode="after")
     def _one_sensor(self) -> SensorsParams:
@@ -71,9 +75,14 @@ class SensorsNode(StepNode):
     def setup(self) -> None:
         """Load the mirror and build the configured sensors."""
         p = self.params
-        self.mirror = WorldMirror(self.config.world)
-        self.lidar = Lidar2D(self.mirror, p.lidar, self.config.period_ns) if p.lidar else None
-        self.cloud = Lidar3D(self.mirror, p.point_cloud) if p.point_cloud else None
+        self.mirror = WorldMirror(self.config.world, self.config.robots)
+        others = None
+        if p.robot is not None:
+            p = robot_sensors(p, p.robot)
+            others = OtherRobots(self.mirror.model, self.config.robots, p.robot)
+        self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others)
+                      if p.lidar else None)
+        self.cloud = Lidar3D(self.mirror, p.point_cloud, others) if p.point_cloud else None
         self.camera = (RgbdCamera(self.mirror, p.camera, self.config.render_warm_up)
                        if p.camera else None)
         self.count = 0

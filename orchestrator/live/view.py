@@ -111,12 +111,13 @@ def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
     """Start what the options ask for (None when neither); LiveError when one cannot listen.
     ``control_later``: the run's simulation services come once the nodes are ready
     (``attach_control``); clients may connect before."""
-    if not (options.live or options.rosbridge):
+    twin = getattr(arrivals, "link", None)  # a digital twin's link to the robot
+    if not (options.live or options.rosbridge or twin):
         return None
     end_ns = scenario.schedule.time_ns(max(scenario.schedule.n_ticks - 1, 0))
     endpoints = LiveEndpoints(catalog_for(scenario, arrivals), options.live_address,
                               options.rosbridge_address, f"cosim {scenario.name}", end_ns,
-                              control_later)
+                              control_later, extra={"twin": twin} if twin else None)
     for line in endpoints.start():
         print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
     return endpoints

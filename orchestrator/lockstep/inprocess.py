@@ -39,7 +39,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             consumers.setdefault(inp.graph_topic, []).append(histories[(plan.name, inp.topic)])
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
-    stop = scenario.model.success.stop_on_goal and scenario.model.goal is not None
+    stop = scenario.model.success.stop_on_goal and scenario.model.has_goal
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
         for name in sched.due(k):

@@ -24,6 +24,9 @@ def goal_reached(metrics: dict[str, dict[str, float]],
     node reports that, as physics sees it in ground truth ('arrived'). ``trailing`` nodes
     (whose reports may trail the others) are not consulted."""
     metrics = {n: m for n, m in metrics.items() if n not in trailing}
+    swarm = [m["swarm_goal"] for m in metrics.values() if "swarm_goal" in m]
+    if swarm:  # many robots: the world node knows whether enough reached theirs
+        return any(v >= 1 for v in swarm)
     claimed = [m["goal_reached"] for m in metrics.values() if "goal_reached" in m]
     if claimed:
         return any(v >= 1 for v in claimed)

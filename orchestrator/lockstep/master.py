@@ -111,7 +111,7 @@ class LockstepMaster:
         self.may_trail = frozenset() if strict else self.trailing
         follows = any(p.follows_clock for p in participants.values())
         self.window = 1 if strict or follows else PIPELINE_WINDOW
-        self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.goal)
+        self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.has_goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
         self.control = None  # the run's RunControl, while ``run`` goes

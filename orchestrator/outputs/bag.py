@@ -25,6 +25,7 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from orchestrator.proxies.arrivals_record import arrival_topics
 from plan.ros_types import message_class, ros_type
 from plan.run_paths import RunPaths
 from runtime.protocol import CLOCK_TOPIC, encode_clock
@@ -53,7 +54,7 @@ def write_bag(scenario: Scenario, run_dir: Path, ticks_run: int, finished: bool 
     if not parts and ticks_run == 0:
         return None
     typestore = get_typestore(Stores.ROS2_JAZZY)
-    register_installed(typestore, scenario.topics.values())
+    register_installed(typestore, scenario.topics.values())  # arrivals: external topics' types
     bag = paths.bag
     rank = {name: i for i, name in enumerate(scenario.schedule.order)}
     streams = [((tick, rank[name], topic, data) for tick, topic, data in read_part(path))
@@ -65,7 +66,7 @@ def write_bag(scenario: Scenario, run_dir: Path, ticks_run: int, finished: bool 
         connections = {CLOCK_TOPIC: writer.add_connection(CLOCK_TOPIC, "rosgraph_msgs/msg/Clock",
                                                           typestore=typestore)}
         latched = scenario.latched_topics
-        for topic, msg_class in sorted(scenario.topics.items()):
+        for topic, msg_class in sorted({**scenario.topics, **arrival_topics(scenario)}.items()):
             qos = [LATCHED_QOS] if topic in latched else []
             connections[topic] = writer.add_connection(topic, ros_type(msg_class),
                                                        typestore=typestore,

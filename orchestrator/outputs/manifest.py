@@ -11,6 +11,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from orchestrator.outputs.swarm import swarm_entry
 from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.run_paths import RunPaths
 from runtime.gated_output import FOREIGN_OUTPUT_RULE
@@ -195,6 +196,7 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
         "warnings": list(getattr(outcome, "warnings", [])),
         "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
         "live": getattr(outcome, "live", None) or None,
+        "swarm": swarm_entry(scenario, result.metrics if result else {}),
     }
 
 

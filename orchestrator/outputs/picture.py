@@ -28,6 +28,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
+from orchestrator.outputs.arm_picture import JOINT_STATES, joint_figure, joint_goal_of
 from plan.poses import yaw_of
 from plan.run_paths import RunPaths
 
@@ -79,10 +80,13 @@ def write_report_png(scenario: Scenario, run_dir: Path, bag: Path | None, outcom
     """
     if bag is None or not Path(bag).exists():
         return None
-    data = read_bag(Path(bag), NAV_TOPICS)
+    arm = joint_goal_of(scenario) is not None
+    data = read_bag(Path(bag), NAV_TOPICS + ((JOINT_STATES,) if arm else ()))
     if not any(data.counts.values()):
         return None
-    if data.messages.get("/odom"):
+    if arm and data.messages.get(JOINT_STATES):
+        fig = joint_figure(scenario, data, outcome, title(scenario, outcome))
+    elif data.messages.get("/odom"):
         fig = nav_figure(scenario, data, outcome)
     else:
         fig = counts_figure(scenario, data, outcome)
@@ -222,6 +226,12 @@ def nav_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     notes = notes_text(outcome)
     if notes:
         fig.text(0.01, 0.005, notes, ha="left", va="bottom", fontsize=8, color="#8b0000")
+    twin = (getattr(outcome, "live", None) or {}).get("twin")
+    if twin:
+        from orchestrator.outputs.twin_rows import twin_line
+
+        fig.text(0.01, 0.06 if notes else 0.005, twin_line(twin), ha="left", va="bottom",
+                 fontsize=8, color="#00008b")
     return fig
 
 
@@ -421,7 +431,8 @@ def draw_distances(ax, scenario: Scenario, track: Track, scans) -> None:
     ax.set_ylabel("distance [m]")
     ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.25)
-    ax.legend(loc="best", fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # nothing drawn without a goal or a lidar (an arm)
+        ax.legend(loc="best", fontsize=8)
 
 
 def nearest_return(scan) -> float:

@@ -52,6 +52,11 @@ def print_summary(outcome) -> None:
     manifest = read_manifest(outcome)
     sections = [("Outcome", outcome_rows(outcome, manifest)),
                 ("Outputs", output_rows(outcome))]
+    twin = (manifest.get("live") or {}).get("twin")
+    if twin:
+        from orchestrator.outputs.twin_rows import twin_rows
+
+        sections.insert(1, ("Twin", twin_rows(twin)))
     nodes = node_table(manifest)
     if sys.stdout.isatty():
         print_rich(outcome, sections, nodes)
@@ -73,6 +78,11 @@ def outcome_rows(outcome, manifest: dict[str, Any]) -> list[tuple[str, str]]:
     rows = [("status", outcome.status), ("success", "yes" if outcome.success else "no"),
             ("collisions", str(outcome.collisions))]
     metrics = manifest.get("outcome", {}).get("metrics") or flat_metrics(outcome)
+    if manifest.get("swarm"):  # many robots: per-robot lines instead of one robot's
+        from orchestrator.outputs.swarm import swarm_rows
+
+        rows += swarm_rows(manifest["swarm"])
+        metrics = {}
     if "goal_reached" in metrics:
         rows.append(("goal reached", "yes" if metrics["goal_reached"] >= 1 else "no"))
     rows += [(label, metric_text(key, metrics[key], fmt))

@@ -20,17 +20,19 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from plan.robots import swarm_spec
 from plan.timeutil import NS_PER_S
 from plan.worldfile import compile_world, is_usd, load_world_spec, open_stage
 
 WORLD_STATE = "/cosim/world_state"
 
 
-def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path) -> Path:
-    """Write ``out`` (a .usda/.usdc) from the bag's world states; returns the path."""
+def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path, robots=None) -> Path:
+    """Write ``out`` (a .usda/.usdc) from the bag's world states; returns the path. A
+    swarm's ``robots`` (plan.robots.RobotsLayout) puts every robot in, as the run had it."""
     from mujoco.usd import layer_sink, writer
 
-    spec = load_world_spec(world)
+    spec = swarm_spec(world, robots) if robots is not None else load_world_spec(world)
     for light in [li for li in spec.lights if li.name.startswith("/")]:
         spec.delete(light)  # added from UsdLux prims the stage already has
     stage, samples = _stage_for(world, spec)

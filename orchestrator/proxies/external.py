@@ -5,13 +5,15 @@ twin's connection) as they come. ``ExternalSource`` is the master's participant 
 ``external`` node: when /clock reaches one of its ticks, nothing of that tick has started
 anywhere, so it hands the messages that arrived since its last activation to the node's
 step as that tick's inputs, publishes the outputs, records them and reports the
-activation done, like a node process would. A replay feeds recorded arrivals instead.
+activation done, like a node process would. What it takes is recorded as it arrived
+(``arrivals_record``); a replay feeds recorded arrivals instead.
 """
 
 from __future__ import annotations
 
 from nodes.contract import Tick
 from orchestrator.lockstep.participants import Participant
+from orchestrator.proxies.arrivals_record import arrival_items
 from plan.packing import subscribers
 from plan.scenario import NodePlan, Scenario
 from runtime.activation import Activation
@@ -66,6 +68,8 @@ class ExternalSource(Participant):
             return
         inputs = (self.arrivals(tick) if callable(self.arrivals)
                   else self.arrivals.take(tick))
+        if self.recorder and inputs:
+            self.recorder.write(tick, arrival_items(inputs))
         when = Tick(tick, self.schedule.time_ns(tick))
         items = self.activation(when, inputs)
         for topic, data in items:

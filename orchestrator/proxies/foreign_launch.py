@@ -19,6 +19,7 @@ import shutil
 import sys
 from pathlib import Path
 
+from plan.robots import robot_of
 from plan.scenario import NodePlan
 from plan.schedule import DELAYED, Schedule
 from runtime.gated_output import ack_topic, feed_prefix
@@ -93,11 +94,14 @@ def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
         argv[0] = sys.executable
     argv += ["--ros-args", "-p", "use_sim_time:=true"]
     fed = {inp.topic for inp in plan.inputs} if is_python(plan) else set()
+    # a robot's copy runs in the robot's namespace (__ns:=/ROBOT): its own topics are
+    # matched as the relative names they are there ('in' is /robot_3/in)
+    rule = (lambda own: own.lstrip("/")) if robot_of(plan.name) else (lambda own: own)
     for own, graph in plan.spec.remap.items():
         if own not in fed:
-            argv += ["-r", f"{own}:={graph}"]
+            argv += ["-r", f"{rule(own)}:={graph}"]
     for own in sorted(fed):
-        argv += ["-r", f"{own}:={feed_topic(plan.name, own)}"]
+        argv += ["-r", f"{rule(own)}:={feed_topic(plan.name, own)}"]
     if fed or is_python(plan):
         argv += ["-r", f"/clock:={clock_topic(plan.name)}"]
     return argv

@@ -1,5 +1,6 @@
 """Both live endpoints of one process, started and stopped together: the Foxglove live view
-(``--live``) and the rosbridge server (``--rosbridge``)."""
+(``--live``) and the rosbridge server (``--rosbridge``), and any other sink of the run's
+messages (a digital twin's link to its robot)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ class LiveEndpoints:
 
     def __init__(self, catalog: Catalog, live: ListenAddress | None,
                  rosbridge: ListenAddress | None, name: str, end_ns: int | None = None,
-                 control_later: bool = False):
+                 control_later: bool = False, extra: dict[str, Any] | None = None):
         self.catalog = catalog
         self.control_later = control_later  # services come later (attach_services)
         if control_later:  # a client's call made before then waits for them
@@ -34,6 +35,8 @@ class LiveEndpoints:
         self.foxglove = None
         self.rosbridge = None
         self._sinks: list[Any] = []
+        # other sinks (a twin's link): start() -> lines, offer(topic, data), close(), stats()
+        self.extra = dict(extra or {})
 
     def start(self) -> list[str]:
         """Start the endpoints; the lines that say where they listen (and warnings)."""
@@ -52,10 +55,13 @@ class LiveEndpoints:
                 self.rosbridge = RosbridgeServer(self.rosbridge_address, self.catalog)
                 port = _listen(self.rosbridge, "rosbridge (--rosbridge)", self.rosbridge_address)
                 lines.append(f"rosbridge: ws://{_host(self.rosbridge_address)}:{port}")
+            for sink in self.extra.values():
+                lines += sink.start()
         except BaseException:
             self.close()
             raise
         self._sinks = [s for s in (self.foxglove, self.rosbridge) if s is not None]
+        self._sinks += list(self.extra.values())
         for line in lines:
             log.info("%s", line)
         return lines
@@ -81,7 +87,8 @@ class LiveEndpoints:
         if self.catalog.services_ready is not None:
             self.catalog.services_ready.set()  # calls still waiting for services: none come
         stats = {}
-        for key, sink in (("foxglove", self.foxglove), ("rosbridge", self.rosbridge)):
+        for key, sink in (("foxglove", self.foxglove), ("rosbridge", self.rosbridge),
+                          *self.extra.items()):
             if sink is None:
                 continue
             try:

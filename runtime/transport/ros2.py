@@ -8,7 +8,9 @@ bytes straight from the subscription handles (measured: about 8x faster than
 
 from __future__ import annotations
 
+import hashlib
 import os
+import re
 from pathlib import Path
 
 import rclpy
@@ -70,6 +72,15 @@ class Ros2Subscription(Subscription):
         return self._sub.get_publisher_count()
 
 
+def ros_node_name(participant: str) -> str:
+    """A valid ROS 2 node name for a participant: 'control@robot_3' -> 'control_robot_3';
+    a long one (a packed process of many nodes) keeps its start and a hash of the whole."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", participant)
+    if len(name) > 120:
+        name = f"{name[:100]}_{hashlib.sha256(participant.encode()).hexdigest()[:12]}"
+    return name
+
+
 class Ros2Transport(Transport):
     """One rclpy context and node per participant; the domain comes from ROS_DOMAIN_ID."""
 
@@ -77,7 +88,7 @@ class Ros2Transport(Transport):
         use_cosim_dds_profile()
         self._context = rclpy.Context()
         rclpy.init(context=self._context, signal_handler_options=no_signal_handlers())
-        self.node = rclpy.create_node(participant, context=self._context,
+        self.node = rclpy.create_node(ros_node_name(participant), context=self._context,
                                       start_parameter_services=False, enable_rosout=False)
         self._subs: list[Ros2Subscription] = []
         self._by_pointer: dict[int, Ros2Subscription] = {}

@@ -1,0 +1,117 @@
+"""Many robots in one world: the scenario's ``robots:`` section, checked and laid out.
+
+A swarm scenario names one robot description (an MJCF like ``worlds/robot.xml``) and either
+a ``count`` of robots placed from the scenario seed inside a ``region`` (at least
+``clearance`` apart, clear of every obstacle, each with a goal in ``goal_region`` or its
+start mirrored through the region's centre), or ``named`` robots with their starts and goals.
+The world file is the arena only; every process builds the same world from it: the arena
+with one copy of the description per robot attached at its start, every name (bodies,
+joints, sites, actuators, sensors) prefixed ``ROBOT/`` (``robot_3/base_link``), so the TF
+frames read from the bodies carry the REP-105 multi-robot prefix as they are.
+
+Checking and placing: plan/robot_placement.py; node templates: plan/templates.py.
+
+Conventions (the README's "Many robots"): each robot's topics live under its namespace
+(``/robot_3/odom``, ``/robot_3/scan``, ``/robot_3/cmd_vel``); ``/tf``, ``/tf_static``,
+``/clock`` and cosim's own ``/cosim/...`` topics are shared. A node with ``for_each: robot``
+becomes one node per robot named ``NAME@ROBOT`` (its own seed stream, as every node's seed
+comes from its name) with every topic namespaced; the world node (physics, one MuJoCo
+world) takes a ``robots`` parameter with every robot's name and one input per robot.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+SHARED_TOPICS = ("/tf", "/tf_static", "/clock")
+
+
+@dataclass(frozen=True)
+class RobotPlacement:
+    """One robot: its name (namespace and name prefix), start and goal as (x, y, yaw)."""
+
+    name: str
+    start: tuple[float, float, float]
+    goal: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class RobotsLayout:
+    """Every robot of the scenario, where it starts and where it goes, and the description."""
+
+    description: Path
+    base_body: str
+    robots: tuple[RobotPlacement, ...]
+    position_tolerance: float
+    yaw_tolerance: float
+    success_fraction: float
+
+    @property
+    def names(self) -> list[str]:
+        """The robots' names in order."""
+        return [r.name for r in self.robots]
+
+    def goal_of(self, name: str) -> dict[str, float]:
+        """The goal of robot ``name`` as the scenario's ``goal:`` would give it."""
+        robot = next(r for r in self.robots if r.name == name)
+        x, y, yaw = robot.goal
+        return {"x": x, "y": y, "yaw": yaw, "position_tolerance": self.position_tolerance,
+                "yaw_tolerance": self.yaw_tolerance}
+
+    @property
+    def needed(self) -> int:
+        """How many robots must reach their goals for the run to succeed."""
+        return max(1, math.ceil(self.success_fraction * len(self.robots) - 1e-9))
+
+
+def namespaced(robot: str, topic: str) -> str:
+    """``topic`` under robot's namespace: '/robot_3/scan'; shared topics stay as they are."""
+    if topic in SHARED_TOPICS or topic.startswith("/cosim/"):
+        return topic
+    return f"/{robot}{topic}"
+
+
+def robot_of(node_name: str) -> str | None:
+    """The robot of a node instance ('control@robot_3' -> 'robot_3'), None for others."""
+    return node_name.partition("@")[2] or None
+
+
+def topic_token(node_name: str) -> str:
+    """A node name as a part of a topic name (a topic may not hold '@'):
+    'control@robot_3' -> 'control_at_robot_3'."""
+    return node_name.replace("@", "_at_")
+
+
+def prefixed(robot: str, name: str) -> str:
+    """A name of the description as it is in the swarm world: 'robot_3/base_link'."""
+    return f"{robot}/{name}"
+
+
+# -- the world ------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=4)
+def swarm_model(world: Path, layout: RobotsLayout):
+    """The compiled swarm world (cached per process: nodes only read the model)."""
+    from plan.worldfile import compile_world
+
+    return compile_world(swarm_spec(world, layout), world)
+
+
+def swarm_spec(world: Path, layout: RobotsLayout):
+    """The arena with one prefixed copy of the description per robot, at its start."""
+    import mujoco
+
+    from plan.worldfile import load_world_spec
+
+    spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
+    robot = mujoco.MjSpec.from_file(str(layout.description))
+    spec.copy_during_attach = True
+    for r in layout.robots:
+        x, y, yaw = r.start
+        frame = spec.worldbody.add_frame(pos=[x, y, 0.0],
+                                         quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+        spec.attach(robot, frame=frame, prefix=f"{r.name}/")
+    return spec

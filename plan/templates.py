@@ -1,0 +1,91 @@
+"""Node templates: a node with ``for_each: robot`` becomes one node per robot, and the world
+node (physics) gets every robot's name and one input per robot (plan/robots.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from plan.errors import ScenarioError
+from plan.model import InputSpec, NodeSpec, ScenarioModel
+from plan.robots import RobotsLayout, namespaced
+
+
+def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
+                 ) -> tuple[ScenarioModel, dict[str, int]]:
+    """The model with every ``for_each: robot`` node replaced by one instance per robot
+    (``NAME@ROBOT``, parameter ``robot`` set where its class takes one, every topic under
+    the robot's namespace) and every other node whose class takes a ``robots`` parameter
+    (the world node) given every robot's name and one input per robot. Also returns each
+    node's index in the file, by name (an instance's is its template's)."""
+    nodes: list[NodeSpec] = []
+    origins: dict[str, int] = {}
+    for i, spec in enumerate(model.nodes):
+        key = f"nodes[{i}] ({spec.name})"
+        if spec.for_each is None:
+            if spec.robots is not None:
+                raise ScenarioError(path, f"{key}.robots", "robots: chooses the robots of a "
+                                    "template.", "for_each: robot with it, or leave robots out.")
+            nodes.append(_world_node(spec, layout) if layout else spec)
+            origins[spec.name] = i
+            continue
+        if layout is None:
+            raise ScenarioError(path, f"{key}.for_each", "the scenario has no robots: section.",
+                                "a robots: section, or leave for_each out.")
+        chosen = spec.robots or layout.names
+        for j, robot in enumerate(chosen):
+            if robot not in layout.names:
+                raise ScenarioError(path, f"{key}.robots[{j}]", f"there is no robot {robot!r}.",
+                                    f"one of {', '.join(layout.names[:8])}"
+                                    f"{', ...' if len(layout.names) > 8 else ''}.")
+        nodes += [_instance(spec, robot) for robot in chosen]
+        origins.update({f"{spec.name}@{robot}": i for robot in chosen})
+    return model.model_copy(update={"nodes": nodes}), origins
+
+
+def _class_of(spec: NodeSpec) -> type | None:
+    from plan.kinds import catalogue
+
+    kinds = catalogue()
+    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
+    try:
+        return kinds.load(ref) if ref else None
+    except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
+        return None
+
+
+def _instance(spec: NodeSpec, robot: str) -> NodeSpec:
+    cls = _class_of(spec)
+    params = dict(spec.params)
+    if cls is not None and "robot" in getattr(cls.Params, "model_fields", {}):
+        params["robot"] = robot
+    own = {inp.topic for inp in spec.inputs}
+    if cls is not None:
+        try:
+            checked = cls.Params.model_validate(params)
+            own |= set(cls.outputs(checked)) | set(cls.latched_outputs(checked))
+        except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
+            pass
+    remap = {topic: namespaced(robot, spec.remap.get(topic, topic)) for topic in own}
+    remap.update({topic: namespaced(robot, graph) for topic, graph in spec.remap.items()})
+    remap = {topic: graph for topic, graph in remap.items() if graph != topic}
+    command = spec.command
+    if command is not None:
+        command = [*command, "--ros-args", "-r", f"__ns:=/{robot}"]
+    return spec.model_copy(update={"name": f"{spec.name}@{robot}", "params": params,
+                                   "remap": remap, "command": command, "for_each": None,
+                                   "robots": None})
+
+
+def _world_node(spec: NodeSpec, layout: RobotsLayout) -> NodeSpec:
+    cls = _class_of(spec)
+    if cls is None or "robots" not in getattr(cls.Params, "model_fields", {}):
+        return spec
+    inputs: list[InputSpec] = []
+    for inp in spec.inputs:
+        graph = spec.remap.get(inp.topic, inp.topic)
+        if namespaced("r", graph) == graph:
+            inputs.append(inp)
+        else:
+            inputs += [InputSpec(topic=namespaced(r, graph), mode=inp.mode) for r in layout.names]
+    return spec.model_copy(update={"params": {**spec.params, "robots": layout.names},
+                                   "inputs": inputs, "remap": {}})
