@@ -23,6 +23,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
+import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from nodes.contract import Tick
 from plan.load import load_scenario
 from runtime.build import make_node

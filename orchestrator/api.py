@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from orchestrator.execute import RunOutcome, execute
 from plan.errors import ScenarioError, ScenarioWarning, SimulationError
 from plan.load import load_scenario

@@ -168,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
 
         ensure_own_libraries()
     args = build_parser().parse_args(argv)
+    import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from orchestrator.outputs.diff import (
         digest_mismatch,
         expected_digest,

@@ -4,7 +4,10 @@ is enough.
 - ``cosim`` fixture: ``cosim.run(scenario, in_process=..., **overrides)`` runs a scenario in a
   ROS domain of the test's own (ROS_DOMAIN_ID, reserved so that no other test or session on
   this machine uses it at the same time) and returns an ``orchestrator.api.FinishedRun``. When the
-  test ends, pass or fail, every process the test started is stopped.
+  test ends, pass or fail, every process the test started is stopped: those that carry its
+  token (programs started after it was set) and its new descendants, orphans included (a
+  forked process shows no token, and while the test runs its process adopts the orphans
+  among its descendants, on Linux).
 - ``@pytest.mark.cosim_seeds(1, 2, 3)``: the test runs once per seed; ``cosim.run`` uses it.
 - Golden digests: ``pytest --cosim-update-golden`` records every run's digest (and a compact
   per-topic, per-tick hash list, the rendered topics, the digest without them, and the
@@ -88,6 +91,7 @@ def cosim(request: pytest.FixtureRequest, cosim_seed: int | None,
     out = Path(out) if out else tmp_path_factory.mktemp("cosim", numbered=True)
     session = Cosim(request, cosim_seed, out)
     request.node.stash[RUNS_KEY] = session.runs
+    adopting = set_subreaper(True)
     with DomainLease() as domain, _environment({"ROS_DOMAIN_ID": str(domain),
                                                 TOKEN_ENV: session.token}):
         session.domain_id = domain
@@ -95,6 +99,8 @@ def cosim(request: pytest.FixtureRequest, cosim_seed: int | None,
             yield session
         finally:
             stop_processes(session.token, session.children_before)
+            if adopting is False:
+                set_subreaper(False)
 
 
 class Cosim:
@@ -311,6 +317,27 @@ class _environment:
                 os.environ[key] = value
 
 
+PR_SET_CHILD_SUBREAPER = 36
+PR_GET_CHILD_SUBREAPER = 37
+
+
+def set_subreaper(on: bool) -> bool | None:
+    """Make this process adopt (``on``) or stop adopting the orphans among its descendants,
+    so that a forked process whose parent died is still found as a descendant. Returns the
+    previous setting; None where the system has no such thing (not Linux)."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        flag = ctypes.c_int(0)
+        if libc.prctl(PR_GET_CHILD_SUBREAPER, ctypes.byref(flag), 0, 0, 0) != 0:
+            return None
+        libc.prctl(PR_SET_CHILD_SUBREAPER, int(on), 0, 0, 0)
+        return bool(flag.value)
+    except (OSError, AttributeError):
+        return None
+
+
 def _child_pids() -> set[int]:
     """The pids of this process's descendants now."""
     import psutil
@@ -319,8 +346,9 @@ def _child_pids() -> set[int]:
 
 
 def stop_processes(token: str, before: set[int]) -> list[int]:
-    """Stop every process a test started: new descendants and any process carrying its token
-    (SIGINT, then SIGTERM, then SIGKILL). Returns the pids that had to be stopped."""
+    """Stop every process a test started: new descendants (adopted orphans included) and any
+    process carrying its token (SIGINT, then SIGTERM, then SIGKILL). Returns the pids that
+    had to be stopped."""
     import psutil
 
     from orchestrator.lockstep.supervisor import escalate

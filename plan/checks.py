@@ -11,9 +11,9 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from plan.errors import ScenarioError, ScenarioNotice
+from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
-from plan.registry import KINDS, kind_class, load_class
-from plan.scenario import FOREIGN, NodePlan
+from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.twin import twin_problems
@@ -63,28 +63,29 @@ class ScenarioChecks:
 
     def node_class(self, i: int, spec: NodeSpec) -> tuple[str, type]:
         """The step class named by kind or module (or the stand-in of a foreign command)."""
+        kinds = catalogue()
         given = [key for key in ("kind", "module", "command") if getattr(spec, key) is not None]
         if len(given) != 1:
             raise self.fail(self.node_key(i), "give exactly one of 'kind', 'module' or "
                             f"'command' (found {', '.join(given) or 'none'}).",
-                            f"kind: one of {', '.join(sorted(KINDS))}; "
+                            f"kind: one of {', '.join(sorted(kinds.kinds))}; "
                             "or module: 'package.module:Class'; or command: [program, args...] "
                             "for a foreign ROS 2 program.")
         if spec.command is not None:
-            return FOREIGN, load_class(FOREIGN)
+            return kinds.foreign, kinds.load(kinds.foreign)
         if spec.kind is not None:
-            if spec.kind not in KINDS:
+            if spec.kind not in kinds.kinds:
                 raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
-                                f"one of {', '.join(sorted(KINDS))}.")
+                                f"one of {', '.join(sorted(kinds.kinds))}.")
             try:
-                return KINDS[spec.kind], kind_class(spec.kind)
+                return kinds.kinds[spec.kind], kinds.load(kinds.kinds[spec.kind])
             except Exception as exc:  # noqa: BLE001 - report, don't crash: nothing has started
                 raise self.fail(self.node_key(i, "kind"), f"node kind {spec.kind!r} cannot be "
-                                f"loaded from {KINDS[spec.kind]}: {exc}.",
+                                f"loaded from {kinds.kinds[spec.kind]}: {exc}.",
                                 "a kind whose code is installed; check the installation."
                                 ) from None
         try:
-            return spec.module, load_class(spec.module)
+            return spec.module, kinds.load(spec.module)
         except Exception as exc:  # noqa: BLE001 - any import failure is the user's to fix
             raise self.fail(self.node_key(i, "module"), f"cannot load {spec.module!r}: {exc}.",
                             "'package.module:Class' importable here, a StepNode subclass."

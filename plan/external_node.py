@@ -8,8 +8,9 @@ from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
+from plan.kinds import catalogue
 from plan.model import InputSpec, NodeSpec, ScenarioModel
-from plan.scenario import EXTERNAL, EXTERNAL_NAME
+from plan.scenario import EXTERNAL_NAME
 
 
 def complete_model(path: Path, model: ScenarioModel) -> ScenarioModel:
@@ -39,7 +40,7 @@ def with_external_node(where: ScenarioChecks) -> ScenarioModel:
                              "another name.")
     period = spec.period_ns if spec else min(node.period_ns for node in nodes)
     node = NodeSpec.model_construct(
-        name=EXTERNAL_NAME, kind=None, module=EXTERNAL, period_ns=period,
+        name=EXTERNAL_NAME, kind=None, module=catalogue().external, period_ns=period,
         params={"topics": topics}, inputs=[], remap={},
         debug=NodeSpec.model_fields["debug"].default_factory(), command=None,
         external=False, prefix=None)

@@ -14,12 +14,11 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout
 from plan.schedule import Schedule
 
-FOREIGN = "nodes.foreign_program:ForeignNode"
-EXTERNAL = "nodes.external_inputs:ExternalInputs"
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
 
 
@@ -70,7 +69,7 @@ class NodePlan:
     @property
     def in_orchestrator(self) -> bool:
         """Whether the orchestrator steps this node itself (the external node): no process."""
-        return self.class_ref == EXTERNAL
+        return self.class_ref == catalogue().external
 
     @property
     def foreign(self) -> bool:

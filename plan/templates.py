@@ -43,11 +43,12 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
 
 
 def _class_of(spec: NodeSpec) -> type | None:
-    from plan.registry import KINDS, load_class
+    from plan.kinds import catalogue
 
-    ref = KINDS.get(spec.kind) if spec.kind else spec.module
+    kinds = catalogue()
+    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
     try:
-        return load_class(ref) if ref else None
+        return kinds.load(ref) if ref else None
     except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
         return None
 

@@ -4,8 +4,8 @@ process, realtime node, in-process reference, benchmarks) makes and resets a nod
 from __future__ import annotations
 
 from nodes.contract import NodeConfig, StepNode
+from nodes.registry import load_class
 from plan.options import RunOptions
-from plan.registry import load_class
 from plan.robots import robot_of
 from plan.scenario import Scenario
 

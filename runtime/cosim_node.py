@@ -72,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
 
     die_with_parent()
     args = parse_args(argv)
+    import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from plan.errors import ScenarioError
     from plan.load import load_scenario
     from plan.options import RunOptions

@@ -1,4 +1,5 @@
-"""Test-suite isolation: a ROS domain of its own per test run, and no process left behind."""
+"""Test-suite isolation: a ROS domain of its own per test run, and no process left behind
+(found by ancestry and by the session's mark: tests/leftovers.py)."""
 
 from __future__ import annotations
 
@@ -8,44 +9,29 @@ import random
 import psutil
 import pytest
 
+import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+from tests.leftovers import alive, become_subreaper, mark_this_session, session_processes
+
 # One domain per test run, chosen before anything imports rclpy; children inherit it.
 DOMAIN = os.environ.get("COSIM_TEST_DOMAIN") or str(random.SystemRandom().randint(1, 100))
 os.environ["ROS_DOMAIN_ID"] = DOMAIN
 os.environ.setdefault("MUJOCO_GL", "egl")
-
-
-def run_processes() -> list[psutil.Process]:
-    """Processes of this test run: descendants of pytest, and node processes in our domain."""
-    me = psutil.Process()
-    found = {p.pid: p for p in me.children(recursive=True)}
-    for proc in psutil.process_iter(["cmdline"]):
-        cmdline = " ".join(proc.info["cmdline"] or [])
-        if any(mark in cmdline for mark in ("runtime.cosim_node", "cosim-node",
-                                            "orchestrator.cosim_orchestrate")):
-            try:
-                if proc.environ().get("ROS_DOMAIN_ID") == DOMAIN and proc.pid != me.pid:
-                    found[proc.pid] = proc
-            except psutil.Error:
-                continue
-    return [p for p in found.values() if _alive(p)]
-
-
-def _alive(proc: psutil.Process) -> bool:
-    try:
-        return proc.is_running() and proc.status() != psutil.STATUS_ZOMBIE
-    except psutil.Error:
-        return False
+mark_this_session()
+become_subreaper()
 
 
 @pytest.fixture(autouse=True)
 def no_process_left_behind(request):
-    """Fail the test that leaves any process of the run alive (and kill what it left)."""
+    """Fail the test that leaves any process of the run alive (and kill what it left).
+    What runs when it starts belongs to a fixture of a wider scope (a module's Ray cluster),
+    which stops it itself."""
+    before = {_identity(p) for p in session_processes()}
     yield
-    left = run_processes()
+    left = [p for p in session_processes() if _identity(p) not in before]
     if left:
         _, left = psutil.wait_procs(left, timeout=5)
     if left:
-        names = [f"{p.pid} {' '.join(p.cmdline()[:6])}" for p in left if _alive(p)]
+        names = [_describe(p) for p in left if alive(p)]
         for proc in left:
             try:
                 proc.kill()
@@ -53,6 +39,38 @@ def no_process_left_behind(request):
                 pass
         if names:
             pytest.fail(f"{request.node.nodeid} left processes behind: {names}")
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the session if anything outlived it (a wider fixture's processes included)."""
+    left = session_processes()
+    if left:
+        _, left = psutil.wait_procs(left, timeout=5)
+    names = [_describe(p) for p in left if alive(p)]
+    for proc in left:
+        try:
+            proc.kill()
+        except psutil.Error:
+            pass
+    if names:
+        print(f"\nthe test session left processes behind: {names}")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def _identity(proc: psutil.Process) -> tuple[int, float]:
+    """A process's pid and start time (a pid alone may be reused)."""
+    try:
+        return proc.pid, proc.create_time()
+    except psutil.Error:
+        return proc.pid, 0.0
+
+
+def _describe(proc: psutil.Process) -> str:
+    """'PID name command line' of a left-over process (what is still readable)."""
+    try:
+        return f"{proc.pid} {proc.name()} {' '.join(proc.cmdline()[:6])}"
+    except psutil.Error:
+        return str(proc.pid)
 
 
 @pytest.fixture

@@ -27,7 +27,7 @@ def module_name(path: Path) -> str:
 
 def import_graph() -> dict[str, set[str]]:
     """module -> the project modules it imports (anywhere in its code)."""
-    files = {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+    files = project_files()
     graph: dict[str, set[str]] = {}
     for name, path in files.items():
         targets: set[str] = set()
@@ -48,6 +48,45 @@ def test_nothing_imports_a_package_above_it():
                    for target in targets
                    if target.split(".")[0] not in MAY_IMPORT[module.split(".")[0]])
     assert not wrong, "\n".join(wrong)
+
+
+def string_references(files: dict[str, Path]) -> dict[str, set[str]]:
+    """module -> the project modules its string constants name ('pkg.mod' or 'pkg.mod:Class'),
+    the way importlib and class references load code by name."""
+    found: dict[str, set[str]] = {}
+    for name, path in files.items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str):
+                match = MODULE_REF.fullmatch(node.value.strip())
+                if match and match.group(1) in files:
+                    found.setdefault(name, set()).add(match.group(1))
+    return found
+
+
+MODULE_REF = re.compile(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?::[A-Za-z_]\w*)?")
+
+
+def project_files() -> dict[str, Path]:
+    """module name -> file, for every module of the four packages."""
+    return {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+
+
+def test_nothing_names_a_module_above_it_in_a_string():
+    # a class loaded by name ('nodes.x:Class') is a dependency as much as an import is
+    wrong = sorted(f"{module} names {target!r}"
+                   for module, targets in string_references(project_files()).items()
+                   for target in targets
+                   if target.split(".")[0] not in MAY_IMPORT[module.split(".")[0]])
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_string_reference_check_sees_class_references(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text('KIND = "nodes.testing:CounterNode"\nTEXT = "nodes.a.rate=20"\n'
+                     'MODULE = "orchestrator.api"\n')
+    found = string_references({"plan.probe": probe, "nodes.testing": probe,
+                               "orchestrator.api": probe})
+    assert found["plan.probe"] == {"nodes.testing", "orchestrator.api"}
 
 
 def test_the_import_graph_has_no_cycle():

@@ -60,26 +60,64 @@ def test_the_same_arrivals_give_one_digest_multi_and_in_process(tmp_path):
     assert last_plan.poses[-1].pose.position.x == pytest.approx(-3.0)
 
 
-def test_live_arrivals_enter_at_a_tick_and_are_recorded(tmp_path):
+class SentMidRun(Arrivals):
+    """Arrivals into which a client thread puts a goal while the run is at tick ``at`` (or
+    the first external tick after it): the external node's take there waits for the client,
+    as a run paused by a client waits for its step, so ticks 0 .. at-1 have run when the goal
+    comes and it enters at that tick however loaded the machine is."""
+
+    def __init__(self, topics: dict, at: int):
+        super().__init__(topics)
+        self.at = at
+        self.reached = threading.Event()  # the run is at tick ``at``: the client may send
+        self.sent = threading.Event()
+        self.reached_tick: int | None = None
+
+    def take(self, tick: int | None = None) -> dict:
+        """What arrived since the last take; at the chosen tick, after the client sent."""
+        if tick is not None and tick >= self.at and not self.reached.is_set():
+            self.reached_tick = tick
+            self.reached.set()
+            assert self.sent.wait(timeout=120), "the client never sent"  # a hang guard
+        return super().take(tick)
+
+
+def client(arrivals: SentMidRun) -> None:
+    """A client in its own thread: waits until the run is mid-way, then sends one goal."""
+    if arrivals.reached.wait(timeout=120):
+        arrivals.put("/goal_pose", goal(-3.0, 0.5))
+        arrivals.sent.set()
+
+
+def test_live_arrivals_mid_run_enter_at_that_tick_and_replay(tmp_path):
     path = nav_with_goal_input(tmp_path, duration="2s")
     scenario = load(path)
-    arrivals = Arrivals(scenario.nodes["external"].outputs)
-    timer = threading.Timer(0.5, arrivals.put, ("/goal_pose", goal(-3.0, 0.5)))
-    timer.start()
+    arrivals = SentMidRun(scenario.nodes["external"].outputs, at=scenario.schedule.last_tick // 2)
+    sender = threading.Thread(target=client, args=(arrivals,), daemon=True)
+    sender.start()
     live = run(scenario, out=tmp_path / "live", external=arrivals)
-    timer.join()
-    ticks = [stamp for stamp, msg in live.messages("/goal_pose") if msg.header.frame_id]
-    assert ticks, "the goal never entered the run"
-    first = min(ticks) // scenario.tick_ns
+    sender.join(timeout=120)
+    assert arrivals.reached_tick is not None and arrivals.reached_tick > 0
+    published = [(stamp // scenario.tick_ns, msg.header.frame_id)
+                 for stamp, msg in live.messages("/goal_pose")]
+    entered = [tick for tick, frame in published if frame]
+    assert entered, "the goal never entered the run"
+    assert entered[0] == arrivals.reached_tick  # the tick at which it came, not tick 0
+    # nothing before it, and the external node held it from then on
+    assert all(bool(frame) == (tick >= entered[0]) for tick, frame in published)
 
     def again(tick: int) -> dict:
-        return {"/goal_pose": goal(-3.0, 0.5)} if tick == first else {}
+        return {"/goal_pose": goal(-3.0, 0.5)} if tick == entered[0] else {}
 
     replayed = run(scenario, in_process=True, out=tmp_path / "again", external=again)
     assert replayed.digest == live.digest
     # and from the run directory alone: the arrivals it recorded, as they arrived
     again_dir = api.replay(live.run_dir, in_process=True, out=tmp_path / "replay")
     assert again_dir.digest == live.digest
+    period = scenario.nodes["external"].period_ticks
+    earlier = run(scenario, in_process=True, out=tmp_path / "earlier",
+                  external=lambda tick: again(tick + period))  # one external tick early
+    assert earlier.digest != live.digest  # the tick it entered at is part of the run
 
 
 def test_the_external_name_is_reserved(tmp_path):

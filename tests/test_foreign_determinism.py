@@ -2,14 +2,16 @@
 contract in the README): plain rclpy programs of the tests' own, whatever the order they
 create their subscriptions in, their executor, a sim-time timer, best-effort subscriptions,
 or how many messages they publish per tick (none on some, two on others), get every tick's
-inputs as one whole. Runs, one with both cores busy, give one digest; every output is the
-function of the very samples the schedule names; and the sink consuming the program's
-output sees, at each tick, the latest message published before it (none before the first)."""
+inputs as one whole. Runs (all but the first with the processes started in a shuffled
+order), one with every core busy, give one digest; every output is the function of the very
+samples the schedule names; and the sink consuming the program's output sees, at each tick,
+the latest message published before it (none before the first)."""
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import time
 
 import pytest
@@ -46,9 +48,10 @@ def _spin(seconds: float) -> None:
 
 
 @contextlib.contextmanager
-def both_cores_busy(seconds: float = 60):
+def every_core_busy(seconds: float = 120):
+    """One busy spinner per core this process may run on, for the block (then killed)."""
     procs = [multiprocessing.Process(target=_spin, args=(seconds,), daemon=True)
-             for _ in range(2)]
+             for _ in range(len(os.sched_getaffinity(0)))]
     for p in procs:
         p.start()
     try:
@@ -75,7 +78,10 @@ def by_tick(run_dir, tick_ns: int) -> dict[str, dict[int, list[int]]]:
 CASES = {
     "subscriptions a then b": (["inputs:=2", "order:=abc"], None, 20, 3),
     "subscriptions b then a": (["inputs:=2", "order:=cba"], None, 20, 3),
-    "multi-threaded executor": (["inputs:=2", "executor:=multi"], None, 20, 3),
+    # a's callback takes 30 ms and may overlap b's (a reentrant group, four threads): only
+    # the gate, waiting for a's to finish, makes b's output see a's sample of the same tick
+    "multi-threaded executor": (["inputs:=2", "executor:=multi", "reentrant:=true",
+                                 "slow:=a", "work_ms:=30"], None, 20, 3),
     "10 Hz sim-time timer": (["inputs:=2", "trigger:=timer"], None, 10, 3),
     "three inputs": (["inputs:=3", "order:=cba"], THREE, 20, 3),
     "publishes on some ticks only": (["inputs:=2", "when:=even"], None, 20, 1),
@@ -108,9 +114,11 @@ def expected_sink(tick: int, out: dict[int, list[int]]) -> int:
 def test_several_inputs_give_one_digest_every_run(tmp_path, case):
     args, inputs, rate, repeats = CASES[case]
     path = variant(tmp_path, args, inputs=inputs, rate=rate)
-    runs = [orchestrate(path, tmp_path / f"run{n}") for n in range(repeats)]
-    with both_cores_busy():
-        runs.append(orchestrate(path, tmp_path / "loaded"))
+    runs = [orchestrate(path, tmp_path / "run0"),
+            *(orchestrate(path, tmp_path / f"run{n}", "--shuffle-start", str(n))
+              for n in range(1, repeats))]
+    with every_core_busy():
+        runs.append(orchestrate(path, tmp_path / "loaded", "--shuffle-start", str(repeats)))
     for run in runs:
         assert run.code == 0, run.stderr
     digests = {run.manifest["digest"] for run in runs}

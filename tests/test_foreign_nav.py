@@ -4,8 +4,6 @@ start-up errors of foreign programs name the program."""
 
 from __future__ import annotations
 
-import time
-
 import yaml
 
 from tests.helpers import ROOT, SCENARIOS, orchestrate
@@ -79,13 +77,12 @@ def test_a_program_that_never_subscribes_a_declared_input_is_named(tmp_path):
     assert "never subscribed to its declared input /c" in done.stderr
 
 
-def test_a_program_that_dies_before_it_is_ready_ends_the_run_quickly(tmp_path):
-    started = time.monotonic()
+def test_a_program_that_dies_before_it_is_ready_ends_the_run_without_its_deadline(tmp_path):
+    # the start deadline is far beyond the hang guard: only noticing the death ends it in time
     done = orchestrate(scenario_with(tmp_path, ["python", "-c", "import sys; sys.exit(5)"],
-                                     start="60s"), tmp_path / "r")
+                                     start="3600s"), tmp_path / "r", timeout=240)
     assert done.code == 3, done.stderr
     assert "node fusion died" in done.stderr and "exit code 5" in done.stderr
-    assert time.monotonic() - started < 15  # start-up included; never the 60 s deadline
 
 
 NAV_FOREIGN = ROOT / "scenarios" / "nav_foreign.yaml"
@@ -116,11 +113,11 @@ def test_a_timer_driven_controller_drives_nav_to_its_goal(tmp_path):
     and the robot stands still; then it holds each command for 5 ticks, reaches the goal,
     and a run with both cores busy gives the same digest."""
     from orchestrator.outputs.bag import BagReader
-    from tests.test_foreign_determinism import both_cores_busy
+    from tests.test_foreign_determinism import every_core_busy
 
     path = timer_driven_nav(tmp_path)
     runs = [orchestrate(path, tmp_path / "idle")]
-    with both_cores_busy():
+    with every_core_busy():
         runs.append(orchestrate(path, tmp_path / "loaded"))
     for run in runs:
         assert run.code == 0, run.stderr  # 0: the goal was reached

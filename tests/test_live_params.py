@@ -78,8 +78,8 @@ def test_changes_are_checked_cumulative_and_applied_once():
 def parameters(ros_node):
     """The control node's parameters of an interactive nav run, served on the test's
     context, with the arrivals they put changes into."""
+    from nodes.registry import load_class
     from orchestrator.ros_surface.param_server import NodeParameters
-    from plan.registry import load_class
 
     node, executor = ros_node
     scenario = load_scenario(NAV, {"interactive": True})
@@ -132,8 +132,8 @@ def test_node_parameters_over_the_standard_services(parameters, ros_node):
 
 
 def test_parameters_are_fixed_when_the_scenario_is_not_interactive(ros_node):
+    from nodes.registry import load_class
     from orchestrator.ros_surface.param_server import NodeParameters
-    from plan.registry import load_class
 
     node, _ = ros_node
     scenario = load_scenario(NAV)

@@ -125,6 +125,42 @@ def test_no_process_left_after_a_failing_test(pytester, tmp_path):
     assert not [p for p in psutil.process_iter() if _alive(p.pid) and _token(p) == token]
 
 
+def test_no_forked_orphan_left_after_a_test(pytester, tmp_path):
+    """A process forked (no exec, so without the test's token in its environment) whose parent
+    ended is still stopped when the test ends."""
+    pid_file = tmp_path / "pid"
+    pytester.makepyfile(f"""
+        import os
+        import time
+
+        def test_forks(cosim):
+            r, w = os.pipe()
+            child = os.fork()
+            if child == 0:
+                try:
+                    grandchild = os.fork()
+                    if grandchild == 0:
+                        os.close(w)
+                        time.sleep(120)
+                    else:
+                        os.write(w, str(grandchild).encode())
+                finally:
+                    os._exit(0)
+            os.close(w)
+            os.waitpid(child, 0)
+            open({str(pid_file)!r}, "w").write(os.fdopen(r).read())
+    """)
+    result = pytester.runpytest_subprocess()
+    result.assert_outcomes(passed=1)
+    pids = [int(pid_file.read_text())]
+    try:
+        assert not [pid for pid in pids if _alive(pid)]
+    finally:
+        for pid in pids:
+            if _alive(pid):
+                psutil.Process(pid).kill()
+
+
 def _alive(pid: int) -> bool:
     try:
         return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE

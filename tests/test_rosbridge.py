@@ -6,6 +6,7 @@ digest; bad frames get an error status and the connection stays open."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import socket
 import time
@@ -32,6 +33,8 @@ from tests.live_helpers import (
     wait_listening,
 )
 
+HANG_S = 60  # generous: only a hang runs into it, however loaded the machine
+
 
 def roslibpy_client(port: int) -> roslibpy.Ros:
     ros = roslibpy.Ros(host="127.0.0.1", port=port)
@@ -56,12 +59,17 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     throttled = []
     roslibpy.Topic(ros, "/scan", "sensor_msgs/LaserScan", throttle_rate=500,
                    queue_length=1).subscribe(lambda _msg: throttled.append(time.monotonic()))
-    time.sleep(0.3)
+    # a round trip on the same connection: the subscription is in place before the run goes on
+    paused = roslibpy.Service(ros, "/cosim/pause", "std_srvs/SetBool").call(
+        roslibpy.ServiceRequest({"data": True}), timeout=60)
+    assert paused["success"] and paused["message"].startswith("paused at tick 0"), paused
+    started = time.monotonic()
     js = node_client("rosbridge_client.mjs", f"ws://127.0.0.1:{port}", "--topics",
                      "/odom,/scan", "--cbor", "/scan", "--cmd-vel", "0.5")
     got = summary(js)
     code, _, err = finish(orch)
     ros.close()
+    took = time.monotonic() - started
     assert code == 0, err
     assert got["errors"] == []
     assert got["step"] == {"success": True,
@@ -74,8 +82,10 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     assert odom["last"]["x"] > -3.0 + 0.5  # it drove: /cmd_vel entered the run
     assert scan["count"] > 20 and scan["last"]["ranges"] == 360  # these came as CBOR
     # at most one scan per 500 ms of wall time (a fast run may give only one)
+    # at most one scan per 500 ms of the time the run took, however long that was (a ratio:
+    # the times the client saw them at bunch up when it is slow to read)
     assert 1 <= len(throttled) < scan["count"]
-    assert all(b - a > 0.4 for a, b in zip(throttled, throttled[1:], strict=False))
+    assert len(throttled) <= took / 0.5 + 2
     live = manifest(tmp_path / "runs")["live"]["rosbridge"]
     assert live["clients"] == 2 and live["clients_at_once"] == 2
     assert live["published_by_clients"] >= 1 and live["errors"] == 0
@@ -110,6 +120,27 @@ def realtime_physics():
         assert code == 0, err
 
 
+def stamp_ns(msg: dict) -> int:
+    """A rosbridge message's header stamp in nanoseconds."""
+    stamp = msg["header"]["stamp"]
+    return stamp["sec"] * 10**9 + stamp["nanosec"]
+
+
+def until(condition, what: str, timeout: float = HANG_S) -> None:
+    """Wait for ``condition()``; fail naming ``what`` after ``timeout`` (a hang guard)."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.02)
+
+
+def paused_at_ns(message: str) -> int:
+    """The sim time of 'paused at tick 12 (sim time 0.240000000 s)', in nanoseconds."""
+    found = re.search(r"paused at tick \d+ \(sim time (\d+)\.(\d{9}) s\)", message)
+    assert found, message
+    return int(found.group(1)) * 10**9 + int(found.group(2))
+
+
 def test_roslibpy_drives_pauses_and_steps_a_realtime_physics_node(realtime_physics):
     ros = roslibpy_client(realtime_physics.rosbridge)
     try:
@@ -117,36 +148,39 @@ def test_roslibpy_drives_pauses_and_steps_a_realtime_physics_node(realtime_physi
         roslibpy.Topic(ros, "/odom", "nav_msgs/Odometry").subscribe(odoms.append)
         cmd = roslibpy.Topic(ros, "/cmd_vel", "geometry_msgs/Twist")
         cmd.advertise()
-        for _ in range(15):
+
+        def x() -> list[float]:
+            return [m["pose"]["pose"]["position"]["x"] for m in list(odoms)]
+
+        deadline = time.monotonic() + HANG_S
+        while not (len(odoms) > 30 and x()[-1] > x()[0] + 0.1):
+            assert time.monotonic() < deadline, "the robot did not move"
             cmd.publish(roslibpy.Message({"linear": {"x": 0.5}}))
             time.sleep(0.1)
-        x = [m["pose"]["pose"]["position"]["x"] for m in odoms]
-        assert len(x) > 30 and x[-1] > x[0] + 0.1, "the robot did not move"
         pause = roslibpy.Service(ros, "/cosim/pause", "std_srvs/SetBool")
         step = roslibpy.Service(ros, "/cosim/step", "std_srvs/srv/Trigger")
         answer = pause.call(roslibpy.ServiceRequest({"data": True}), timeout=10)
         assert answer["success"] and answer["message"].startswith("paused at tick")
-        time.sleep(0.3)
-        held = len(odoms)
-        time.sleep(0.4)
+        # the last tick that ran is the one the answer names: wait for its /odom to arrive
+        last = paused_at_ns(answer["message"])
+        until(lambda: any(stamp_ns(m) == last for m in list(odoms)), "the last tick's /odom")
+        held = next(i for i, m in enumerate(odoms) if stamp_ns(m) == last) + 1
+        time.sleep(0.3)  # a window in which a node that went on would publish ~15 more
         assert len(odoms) == held, "a paused node went on"
-        stamp = odoms[-1]["header"]["stamp"]
         answer = step.call(roslibpy.ServiceRequest(), timeout=10)
         assert answer["success"] and answer["message"].startswith("stepping one tick")
-        time.sleep(0.4)
+        until(lambda: len(odoms) > held, "the stepped tick's /odom")
+        assert stamp_ns(odoms[held]) - last == 20_000_000  # exactly the next tick
+        time.sleep(0.3)  # again: one step is one tick
         assert len(odoms) == held + 1
-        after = odoms[-1]["header"]["stamp"]
-        assert (after["sec"] * 10**9 + after["nanosec"]) - (stamp["sec"] * 10**9
-                                                             + stamp["nanosec"]) == 20_000_000
         assert pause.call(roslibpy.ServiceRequest({"data": False}), timeout=10)["success"]
-        time.sleep(0.3)
-        assert len(odoms) > held + 5
+        until(lambda: len(odoms) > held + 5, "/odom after resuming")
         topics = ros.get_topics()
         assert {"/odom", "/cmd_vel", "/clock", "/tf_static"} <= set(topics)
         # /tf_static went out once, seconds ago: a late subscriber still gets it (latched)
         static = []
         roslibpy.Topic(ros, "/tf_static", "tf2_msgs/msg/TFMessage").subscribe(static.append)
-        time.sleep(0.5)
+        until(lambda: static, "the latched /tf_static")
         assert len(static) == 1 and static[0]["transforms"]
     finally:
         ros.close()
@@ -155,7 +189,13 @@ def test_roslibpy_drives_pauses_and_steps_a_realtime_physics_node(realtime_physi
 def test_a_late_foxglove_client_of_a_realtime_node_gets_tf_static(realtime_physics):
     """/tf_static went out at the node's first step; Foxglove's client, subscribing a second
     later, still gets it (and /odom as it comes)."""
-    time.sleep(1.0)
+    ros = roslibpy_client(realtime_physics.rosbridge)
+    try:  # wait until the node has stepped (so /tf_static has gone out) and then some
+        odoms = []
+        roslibpy.Topic(ros, "/odom", "nav_msgs/Odometry").subscribe(odoms.append)
+        until(lambda: odoms and stamp_ns(odoms[-1]) >= 500_000_000, "the node to run 0.5 s")
+    finally:
+        ros.close()
     got = summary(node_client("foxglove_client.mjs", f"ws://127.0.0.1:{realtime_physics.live}",
                               "--topics",
                               "/tf_static,/odom", "--drive", "no", "--seconds", "2"))

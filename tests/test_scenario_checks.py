@@ -458,7 +458,7 @@ def test_override_on_the_nodes_list_itself(tmp_path):
 
 
 def test_kind_whose_code_cannot_load_is_an_error_not_a_traceback(tmp_path, monkeypatch):
-    from plan import registry
+    from nodes import registry
     monkeypatch.setitem(registry.KINDS, "broken", "nodes.not_installed:Thing")
     err = refused(tmp_path, VALID.replace("kind: integrator", "kind: broken"))
     check(err, "nodes[1] (b).kind", "'broken' cannot be loaded", "nodes.not_installed",

@@ -49,10 +49,10 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
 
         # StepSimulation: exactly 10 ticks, answered once they are done
         assert sim.step(10).result == OK
-        sim.spin(0.5)
+        sim.spin_until(lambda: len(sim.clocks) >= 10)  # /clock may trail the answer
         assert sim.clocks == [k * TICK_NS for k in range(10)]
-        assert sim.step(10).result == OK
-        sim.spin(0.5)
+        assert sim.step(10).result == OK  # (and any 11th /clock would show up below)
+        sim.spin_until(lambda: len(sim.clocks) >= 20)
         assert sim.clocks == [k * TICK_NS for k in range(20)]
         assert sim.state() == PAUSED
 
@@ -65,7 +65,7 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
         goal = sim.send_goal(SimulateSteps, "/simulate_steps", SimulateSteps.Goal(steps=5))
         status, result = _status_result(sim.result(goal))
-        sim.spin_until(lambda: len(feedback) == 5, timeout=5)
+        sim.spin_until(lambda: len(feedback) >= 5 and len(sim.clocks) >= 25)
         assert result.result.result == OK, result.result.error_message
         assert feedback == [(1, 4), (2, 3), (3, 2), (4, 1), (5, 0)]
         assert sim.clocks[-1] == 24 * TICK_NS
@@ -78,7 +78,7 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
         status, result = _status_result(sim.result(goal))
         assert status == 5, result  # GoalStatus.STATUS_CANCELED
         ran = int(result.result.error_message.split("after ")[1].split(" of")[0])
-        sim.spin(0.5)
+        sim.spin_until(lambda: len(sim.clocks) >= 25 + ran)
         assert 3 <= ran < 1000 and len(sim.clocks) == 25 + ran
         assert sim.clocks == [k * TICK_NS for k in range(25 + ran)]
 
@@ -117,7 +117,8 @@ def test_stepping_needs_a_pause_and_stopping_ends_the_run(tmp_path, ros_node):
         stopped_at = int(reply.error_message.split("before tick ")[1].split()[0])
         out, err = run.communicate(timeout=60)
     assert run.returncode == 0, err
-    sim.spin(0.5)  # the /clock messages still queued here
+    # the /clock messages still queued here
+    sim.spin_until(lambda: sim.clocks[-1] >= (stopped_at - 1) * TICK_NS)
     manifest = json.loads(next(tmp_path.glob("*/manifest.json")).read_text())
     assert manifest["ticks"] == stopped_at and sim.clocks[-1] == (stopped_at - 1) * TICK_NS
     # every tick before the stop finished and was recorded: the run equals a shorter one

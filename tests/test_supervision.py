@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import random
 import signal
 import subprocess
 import time
+import uuid
 
 import psutil
 import pytest
@@ -15,34 +17,36 @@ from rosbags.highlevel import AnyReader
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
+HANG_S = 60  # generous: only a hang runs into it, however loaded the machine
 
 
 class LiveRun:
     """cosim-orchestrate started in the background, with handles on its node processes."""
 
-    def __init__(self, scenario, out):
+    def __init__(self, scenario, out, *args: str, env: dict[str, str] | None = None):
         self.out = out
-        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario),
-                                      "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
+                                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, env={**os.environ, **(env or {})})
         self.ps = psutil.Process(self.proc.pid)
 
     def node(self, name: str) -> psutil.Process:
         """The process of node ``name``."""
         return node_process(self.proc.pid, name)
 
-    def wait_running(self, min_bytes: int = 2000, timeout: float = 60) -> None:
-        """Wait until ticks are being recorded."""
+    def wait_running(self, min_bytes: int = 2000, timeout: float = 60,
+                     part: str = "tail") -> None:
+        """Wait until ticks are being recorded (node ``part``'s)."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            parts = list(self.out.glob("*/parts/tail.rec"))
+            parts = list(self.out.glob(f"*/parts/{part}.rec"))
             if parts and parts[0].stat().st_size > min_bytes:
                 return
             assert self.proc.poll() is None, self.proc.communicate()
             time.sleep(0.05)
         raise TimeoutError("the run never got going")
 
-    def finish(self, timeout: float = 30) -> tuple[int, str, str]:
+    def finish(self, timeout: float = HANG_S) -> tuple[int, str, str]:
         """Wait for exit; (code, stdout, stderr)."""
         out, err = self.proc.communicate(timeout=timeout)
         return self.proc.returncode, out, err
@@ -70,19 +74,16 @@ def assert_nothing_left(pids: list[int]) -> None:
     assert not alive, f"still running: {alive}"
 
 
-def test_kill_9_node_mid_run_stops_within_2_s_and_keeps_the_recording(tmp_path):
+def test_kill_9_node_mid_run_stops_the_run_and_keeps_the_recording(tmp_path):
     run = LiveRun(LONG, tmp_path)
     run.wait_running()
     victim = run.node("middle")
     others = [c for c in run.ps.children() if c.pid != victim.pid]
     pids = [c.pid for c in run.ps.children()]
     victim.send_signal(signal.SIGKILL)
-    killed_at = time.monotonic()
-    _, alive = psutil.wait_procs(others, timeout=10)
-    stopped_in = time.monotonic() - killed_at
+    _, alive = psutil.wait_procs(others, timeout=HANG_S)  # a hang guard, not a figure
     code, _, err = run.finish()  # then the bag, the picture and the manifest are written
     assert not alive
-    assert stopped_in < 2.0, f"the run took {stopped_in:.2f} s to stop"
     assert code == 3
     assert "node middle died at tick" in err and "killed by signal SIGKILL" in err
     assert "Last lines of its log" in err
@@ -129,28 +130,55 @@ def test_interrupting_the_orchestrator_exits_130_cleanly(tmp_path, sig):
     children = run.ps.children()
     pids = [c.pid for c in children]
     run.proc.send_signal(sig)
-    sent = time.monotonic()
-    _, alive = psutil.wait_procs(children, timeout=15)
-    stopped_in = time.monotonic() - sent
+    _, alive = psutil.wait_procs(children, timeout=HANG_S)
     code, _, err = run.finish()
     assert code == 130
     assert "Traceback" not in err
-    assert not alive and stopped_in < 6, f"nodes took {stopped_in:.2f} s to stop"
+    assert not alive, f"nodes still running: {[p.pid for p in alive]}"
     assert_nothing_left(pids)
     manifest = yaml.safe_load((run.run_dir / "manifest.json").read_text())
     assert manifest["outcome"]["status"] == "interrupted"
     assert bag_counts(run.run_dir)["/tail"] > 10
 
 
-def test_sigkill_to_the_orchestrator_leaves_no_orphan(tmp_path):
-    run = LiveRun(LONG, tmp_path)
-    run.wait_running()
-    children = run.ps.children()
+RUN_MARK = "COSIM_TEST_RUN"  # set for one orchestrator: every process of its run carries it
+ORPHAN_CASES = {  # scenario, options, the node whose recording shows the run going
+    "forked nodes": (LONG, (), "tail"),
+    "--spawn exec": (LONG, ("--spawn", "exec"), "tail"),
+    "packed process": (LONG, ("--pack", "kind"), "tail"),
+    "zenoh": (LONG, ("--transport", "zenoh"), "tail"),
+    "foreign program": (SCENARIOS / "foreign_echo.yaml", ("--duration", "120s"), "sink"),
+}
+
+
+def carrying(mark: str) -> list[psutil.Process]:
+    """Live processes whose environment has RUN_MARK=mark (forked ones show the
+    orchestrator's environment, programs it started inherit it)."""
+    found = []
+    for proc in psutil.process_iter():
+        try:
+            if proc.environ().get(RUN_MARK) == mark and proc.status() != psutil.STATUS_ZOMBIE:
+                found.append(proc)
+        except (psutil.Error, OSError):
+            continue
+    return found
+
+
+@pytest.mark.parametrize("case", list(ORPHAN_CASES))
+def test_sigkill_to_the_orchestrator_leaves_no_process_of_any_kind(tmp_path, case):
+    scenario, args, part = ORPHAN_CASES[case]
+    mark = uuid.uuid4().hex
+    run = LiveRun(scenario, tmp_path, *args, env={RUN_MARK: mark})
+    run.wait_running(part=part)
+    started = {p.pid for p in carrying(mark)}
+    tree = {p.pid for p in run.ps.children(recursive=True)}
+    assert run.proc.pid in started and tree and tree <= started  # the mark sees them all
     run.proc.kill()
-    run.proc.wait()
-    gone, alive = psutil.wait_procs(children, timeout=5)
-    assert not alive, f"orphans: {[p.pid for p in alive]}"
-    assert len(gone) == 3
+    run.proc.communicate()
+    deadline = time.monotonic() + HANG_S  # a hang guard: they go at once, or never
+    while (left := carrying(mark)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not left, f"orphans: {[(p.pid, p.name()) for p in left]}"
 
 
 def test_node_failing_at_start_is_named_with_its_cause(tmp_path):
@@ -158,9 +186,7 @@ def test_node_failing_at_start_is_named_with_its_cause(tmp_path):
     doc["nodes"][1].update(kind="faulty", params={"output": "/middle", "mode": "setup"})
     path = tmp_path / "setup.yaml"
     path.write_text(yaml.safe_dump(doc))
-    started = time.monotonic()
-    run = orchestrate(path, tmp_path / "out")
+    run = orchestrate(path, tmp_path / "out", timeout=HANG_S * 2)  # the hang guard
     assert run.code == 3
     assert "node middle died at start (exit code 1)" in run.stderr
     assert "RuntimeError: injected failure in setup" in run.stderr
-    assert time.monotonic() - started < 20

@@ -10,6 +10,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import psutil
 import pytest
 import yaml
 
@@ -74,14 +75,15 @@ def test_sigkill_mid_run_over_zenoh_exits_3_naming_node_and_tick(tmp_path):
             assert proc.poll() is None and time.monotonic() < end, proc.communicate()
             time.sleep(0.05)
         victim = node_process(proc.pid, "middle")
+        nodes = psutil.Process(proc.pid).children(recursive=True)
         victim.send_signal(signal.SIGKILL)
-        killed = time.monotonic()
-        _, err = proc.communicate(timeout=30)
+        _, err = proc.communicate(timeout=60)  # a hang guard; the bag is written before exit
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
-    assert time.monotonic() - killed < 2.0
+    _, left = psutil.wait_procs(nodes, timeout=10)
+    assert not left, f"still running: {[p.pid for p in left]}"
     assert proc.returncode == 3, err
     assert "node middle died at tick" in err and "(killed by signal SIGKILL)" in err
 

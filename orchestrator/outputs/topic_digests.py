@@ -63,7 +63,7 @@ def digest_of_topics(digests: dict[str, str], leave_out: set[str] | frozenset[st
 def rendered_topics(scenario) -> list[str]:
     """The graph topics a node of the scenario renders with GL (its class's
     ``rendered_outputs``), sorted."""
-    from plan.registry import load_class
+    from nodes.registry import load_class
 
     out: set[str] = set()
     for plan in scenario.nodes.values():

@@ -114,7 +114,7 @@ def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, cont
                     ) -> list[NodeParameters]:
     """A NodeParameters for every cosim node of the run (not foreign programs, not the
     external node)."""
-    from plan.registry import load_class
+    from nodes.registry import load_class
 
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
     return [NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control, period)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from orchestrator.run_rules import check_run
 from orchestrator.sweep.combinations import RunSpec, parse_seeds, parse_sweep_sets, plan_runs
 from plan.errors import ScenarioError

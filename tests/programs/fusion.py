@@ -6,12 +6,19 @@ subscriptions are created in), trigger ('b': publish in b's callback; 'timer': p
 a 10 Hz sim-time timer), executor ('single' or 'multi'), copies (how many messages each
 publication is: value, value + 1, ...), when ('always', or 'even': only when the sum of
 the samples is even, a conditional publisher), qos ('default', or 'sensor': best-effort
-subscriptions, sensor-data QoS), wall_clock (true: the node sets use_sim_time to false).
+subscriptions, sensor-data QoS), wall_clock (true: the node sets use_sim_time to false),
+slow (the inputs whose callbacks work for work_ms milliseconds before they keep their
+sample; '' for none) and reentrant (true: the callbacks share a reentrant callback group,
+so a multi-threaded executor may run them at the same time; only the cosim gate keeps one
+tick's callbacks one after another).
 
 The value published is a function of the latest sample of every input:
 a * 10^6 + b * 10^3 + c, or -1 while an input has not arrived yet."""
 
+import time
+
 import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -32,18 +39,25 @@ class Fusion(Node):
         self.copies = self.declare_parameter("copies", 1).value
         self.when = self.declare_parameter("when", "always").value
         sensor = self.declare_parameter("qos", "default").value == "sensor"
+        self.slow = self.declare_parameter("slow", "").value
+        self.work_s = self.declare_parameter("work_ms", 0).value / 1000
+        group = ReentrantCallbackGroup() if self.declare_parameter(
+            "reentrant", False).value else None
         self.latest = {name: None for name in "abc"[:n]}
         self.pub = self.create_publisher(Int64, "out", 10)
         qos = qos_profile_sensor_data if sensor else 10
         for name in order:
             if name in self.latest:
-                self.create_subscription(Int64, name, lambda m, k=name: self.on_input(k, m), qos)
+                self.create_subscription(Int64, name, lambda m, k=name: self.on_input(k, m), qos,
+                                         callback_group=group)
         self.trigger = trigger
         if trigger == "timer":
             self.create_timer(0.1, self.publish)
 
     def on_input(self, name: str, msg: Int64) -> None:
-        """Keep the latest sample; 'b' may trigger the output."""
+        """Keep the latest sample (after some work, if slow); 'b' may trigger the output."""
+        if name in self.slow:
+            time.sleep(self.work_s)  # what a callback that computes something takes
         self.latest[name] = msg.data
         if self.trigger == name:
             self.publish()

@@ -1,14 +1,17 @@
-"""Node kinds by name, and loading of user classes given as 'package.module:Class'.
+"""The built-in node kinds by name, and loading of node classes given as 'package.module:Class'.
 
-Classes are named by text and imported on demand, so the plan never imports the nodes
-package (it sits below it); a loaded class must derive from ``nodes.contract.StepNode``.
+The kinds live here, beside their code. The plan, which sits below this package, sees them
+only through the catalogue that importing this package provides to it (``plan.kinds``), so
+the dependency runs one way: nodes -> plan.
 """
 
 from __future__ import annotations
 
 import importlib
+from dataclasses import dataclass, field
 
-STEP_NODE = ("nodes.contract", "StepNode")
+from nodes.contract import StepNode
+from plan.kinds import provide
 
 KINDS: dict[str, str] = {
     "physics": "nodes.physics.node:PhysicsNode",
@@ -20,12 +23,13 @@ KINDS: dict[str, str] = {
     "wallclock": "nodes.testing:WallClockNode",
     "faulty": "nodes.testing:FaultyNode",
 }
+FOREIGN = "nodes.foreign_program:ForeignNode"
+EXTERNAL = "nodes.external_inputs:ExternalInputs"
 
 
 def is_step_node(cls: object) -> bool:
     """Whether ``cls`` is a class deriving from nodes.contract.StepNode."""
-    return isinstance(cls, type) and any((base.__module__, base.__name__) == STEP_NODE
-                                         for base in cls.__mro__)
+    return isinstance(cls, type) and issubclass(cls, StepNode)
 
 
 def load_class(ref: str) -> type:
@@ -45,3 +49,19 @@ def load_class(ref: str) -> type:
 def kind_class(kind: str) -> type:
     """The step class of a built-in node kind."""
     return load_class(KINDS[kind])
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """What the plan needs of the node kinds (``plan.kinds.Catalogue``)."""
+
+    kinds: dict[str, str] = field(default_factory=lambda: KINDS)
+    foreign: str = FOREIGN
+    external: str = EXTERNAL
+
+    def load(self, ref: str) -> type:
+        """The StepNode class named by 'package.module:Class'."""
+        return load_class(ref)
+
+
+provide(Catalogue())
