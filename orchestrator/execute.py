@@ -287,6 +287,9 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                                 control_later=settings.kind == "ros2")
         if endpoints is not None:
             run.callback(_close_endpoints, outcome, endpoints)
+            from orchestrator.live.view import prepare_control
+
+            prepare_control(endpoints, services)
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()

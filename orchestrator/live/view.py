@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any
 
@@ -120,6 +121,28 @@ def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
     for line in endpoints.start():
         print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
     return endpoints
+
+
+def prepare_control(endpoints: LiveEndpoints, services) -> None:
+    """Build the ``ros2msg`` schemas of the run's simulation services in a thread while the
+    nodes start, so that ``attach_control`` (between the nodes' readiness and the first
+    tick, on the run's critical path) finds them made. Best effort: ``attach_control``
+    builds whatever this did not."""
+    if endpoints.foxglove is None or services is None:
+        return
+
+    def warm() -> None:
+        from plan.ros_types import ros_type
+        from runtime.live.schemas import service_schemas
+
+        try:
+            if services.wait_built():
+                for srv in SimControlServices(services).types().values():
+                    service_schemas(ros_type(srv))
+        except Exception:  # noqa: BLE001 - only a head start: attach_control does it too
+            pass
+
+    threading.Thread(target=warm, name="cosim-live-schemas", daemon=True).start()
 
 
 def attach_control(endpoints: LiveEndpoints, services) -> None:
