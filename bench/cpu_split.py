@@ -31,6 +31,8 @@ def show(label: str, a: dict, b: dict) -> None:
           f"{b['digest'][:12]}")
     for name in sorted(set(ca) | set(cb)):
         print(f"  {name:14s} {ca.get(name, 0.0):7.2f} -> {cb.get(name, 0.0):7.2f} s CPU")
+    print("  wall (meaningful on an idle machine only): " + ", ".join(
+        f"{key} {a[key]:.2f} -> {b[key]:.2f} s" for key in ("start_s", "loop_s", "wall_time_s")))
     ta, tb = sum(ca.values()), sum(cb.values())
     print(f"  {'total':14s} {ta:7.2f} -> {tb:7.2f} s CPU ({tb / ta:.2f}x)")
 

@@ -260,6 +260,10 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                                            scenario.latched_topics).close)
         run.callback(supervisor.shutdown)
         starting = start_all(site)
+        if options.live:
+            from orchestrator.live.view import prepare_schemas
+
+            prepare_schemas(scenario, options)
         if not any(p.started == "fork" for p in supervisor.processes()):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.

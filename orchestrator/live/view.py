@@ -123,6 +123,29 @@ def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
     return endpoints
 
 
+def prepare_schemas(scenario: Scenario, options: RunOptions) -> None:
+    """With ``--live``: build the ``ros2msg`` schemas of the run's topics (and load the
+    type store they come from) in a thread while the nodes start, so that starting the
+    endpoints, on the orchestrator's way to the first tick, finds them made. Start it only
+    once the nodes are started (a thread would keep them from being forked)."""
+    if not options.live:
+        return
+    # imported here, not in the thread: the main thread imports them too meanwhile
+    from plan.ros_types import ros_type
+    from runtime.live.schemas import message_schema
+
+    types = [Clock, *scenario.topics.values()]
+
+    def warm() -> None:
+        try:
+            for cls in types:
+                message_schema(ros_type(cls))
+        except Exception:  # noqa: BLE001 - only a head start: the endpoints do it too
+            pass
+
+    threading.Thread(target=warm, name="cosim-live-schemas", daemon=True).start()
+
+
 def prepare_control(endpoints: LiveEndpoints, services) -> None:
     """Build the ``ros2msg`` schemas of the run's simulation services in a thread while the
     nodes start, so that ``attach_control`` (between the nodes' readiness and the first
@@ -131,10 +154,10 @@ def prepare_control(endpoints: LiveEndpoints, services) -> None:
     if endpoints.foxglove is None or services is None:
         return
 
-    def warm() -> None:
-        from plan.ros_types import ros_type
-        from runtime.live.schemas import service_schemas
+    from plan.ros_types import ros_type
+    from runtime.live.schemas import service_schemas
 
+    def warm() -> None:
         try:
             if services.wait_built():
                 for srv in SimControlServices(services).types().values():
