@@ -272,6 +272,10 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                                            scenario.latched_topics).close)
         run.callback(supervisor.shutdown)
         starting = start_all(site)
+        if options.live:
+            from orchestrator.live.view import prepare_schemas
+
+            prepare_schemas(scenario, options)
         if not any(p.started == "fork" for p in supervisor.processes()):
             # Fresh interpreters take seconds to start: load what the end of the run needs
             # meanwhile, so that a failed run exits promptly.
@@ -299,6 +303,9 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                                 control_later=settings.kind == "ros2")
         if endpoints is not None:
             run.callback(_close_endpoints, outcome, endpoints)
+            from orchestrator.live.view import prepare_control
+
+            prepare_control(endpoints, services)
         master.wait_ready(started)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()

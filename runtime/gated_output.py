@@ -5,7 +5,9 @@ several messages per tick on each output: it publishes from callbacks and from t
 something changed or not at all. Its gate acknowledges every tick it was fed on
 ``/cosim/feed/<node>/taken`` (``std_msgs/Int64MultiArray``) as ``[tick, n_1, ..., n_m]``:
 the tick, then how many messages the tick published on each output (``NodePlan.
-gated_outputs`` order); before the first tick it sends ``[-1]`` ("ready").
+gated_outputs`` order); before the first tick it sends ``[-1]`` ("ready"), and ``[-1, 1]``
+once every output's publisher matches all its readers (the orchestrator then waits no
+settle time). Consumers ignore both.
 
 The rule (recorded in the manifest as ``FOREIGN_OUTPUT_RULE``): the sample of a gated
 program's output at its tick ``r`` is the latest message it published at or before ``r``

@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any
 
@@ -121,6 +122,51 @@ def start_endpoints(scenario: Scenario, options: RunOptions, arrivals,
     for line in endpoints.start():
         print(f"cosim-orchestrate: {line}", file=sys.stderr, flush=True)
     return endpoints
+
+
+def prepare_schemas(scenario: Scenario, options: RunOptions) -> None:
+    """With ``--live``: build the ``ros2msg`` schemas of the run's topics (and load the
+    type store they come from) in a thread while the nodes start, so that starting the
+    endpoints, on the orchestrator's way to the first tick, finds them made. Start it only
+    once the nodes are started (a thread would keep them from being forked)."""
+    if not options.live:
+        return
+    # imported here, not in the thread: the main thread imports them too meanwhile
+    from plan.ros_types import ros_type
+    from runtime.live.schemas import message_schema
+
+    types = [Clock, *scenario.topics.values()]
+
+    def warm() -> None:
+        try:
+            for cls in types:
+                message_schema(ros_type(cls))
+        except Exception:  # noqa: BLE001 - only a head start: the endpoints do it too
+            pass
+
+    threading.Thread(target=warm, name="cosim-live-schemas", daemon=True).start()
+
+
+def prepare_control(endpoints: LiveEndpoints, services) -> None:
+    """Build the ``ros2msg`` schemas of the run's simulation services in a thread while the
+    nodes start, so that ``attach_control`` (between the nodes' readiness and the first
+    tick, on the run's critical path) finds them made. Best effort: ``attach_control``
+    builds whatever this did not."""
+    if endpoints.foxglove is None or services is None:
+        return
+
+    from plan.ros_types import ros_type
+    from runtime.live.schemas import service_schemas
+
+    def warm() -> None:
+        try:
+            if services.wait_built():
+                for srv in SimControlServices(services).types().values():
+                    service_schemas(ros_type(srv))
+        except Exception:  # noqa: BLE001 - only a head start: attach_control does it too
+            pass
+
+    threading.Thread(target=warm, name="cosim-live-schemas", daemon=True).start()
 
 
 def attach_control(endpoints: LiveEndpoints, services) -> None:

@@ -79,12 +79,13 @@ def start_cosim(site: Site, names: list[str]) -> Started:
 def start_foreign(site: Site, plan: NodePlan) -> Started:
     """A foreign ROS 2 program, started by its command in the scenario's folder; the
     orchestrator counts its outputs (``ForeignProxy``)."""
-    from orchestrator.proxies.foreign_launch import foreign_argv, foreign_env
+    from orchestrator.proxies.foreign_launch import foreign_argv, foreign_env, output_readers
 
     scenario = site.scenario
+    readers = output_readers(scenario, site.options.pack, plan)
     proc = site.supervisor.spawn(plan.name, foreign_argv(plan, scenario.file.parent),
                                  prefix=plan.launch_prefix,
-                                 env=foreign_env(plan, scenario.schedule),
+                                 env=foreign_env(plan, scenario.schedule, readers),
                                  cwd=scenario.file.parent.resolve())
 
     def join(transport: Transport) -> dict[str, Participant]:

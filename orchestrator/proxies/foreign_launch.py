@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from plan.robots import robot_of
-from plan.scenario import NodePlan
+from plan.scenario import NodePlan, Scenario
 from plan.schedule import DELAYED, Schedule
 from runtime.gated_output import ack_topic, feed_prefix
 
@@ -69,10 +69,11 @@ def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
     return None
 
 
-def gate_config(plan: NodePlan, schedule: Schedule) -> dict:
+def gate_config(plan: NodePlan, schedule: Schedule, readers: list[int] | None = None) -> dict:
     """The gate's configuration: the feed prefix, the program's period, per input the ticks
-    its sample comes with (a delayed input has none at tick 0), and the outputs it counts
-    in each acknowledgement."""
+    its sample comes with (a delayed input has none at tick 0), the outputs it counts in
+    each acknowledgement, and (``readers``, see ``output_readers``) how many subscriptions
+    each output's publisher must match before the gate tells the orchestrator so."""
     period = plan.period_ticks
     inputs = []
     for inp, edge in zip(plan.inputs, schedule.inputs_of[plan.name], strict=True):
@@ -82,7 +83,22 @@ def gate_config(plan: NodePlan, schedule: Schedule) -> dict:
         inputs.append(entry)
     return {"prefix": feed_prefix(plan.name), "node": plan.name, "tick_ns": schedule.tick_ns,
             "period": period, "start": 0, "inputs": inputs, "reliable_clock": True,
-            "callback_order": "inputs", "outputs": plan.gated_outputs}
+            "callback_order": "inputs", "outputs": plan.gated_outputs,
+            **({"readers": readers} if readers else {})}
+
+
+def output_readers(scenario: Scenario, pack: str | None, plan: NodePlan) -> list[int] | None:
+    """Per gated output of a foreign program, the subscriptions it will match: one per
+    process with a consumer of it (``plan.packing.subscribers``) and the orchestrator's
+    own. None where a consumer runs in the orchestrator (its readers are not told apart
+    there): the orchestrator then waits a settle time instead."""
+    from plan.packing import subscribers
+
+    consumers = {e.consumer for e in scenario.schedule.edges if e.producer == plan.name}
+    if any(scenario.nodes[c].in_orchestrator or scenario.nodes[c].foreign for c in consumers):
+        return None
+    counts = subscribers(scenario, pack, plan.name)
+    return [counts.get(topic, 0) + 1 for topic in plan.gated_outputs]
 
 
 def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
@@ -107,13 +123,14 @@ def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
     return argv
 
 
-def foreign_env(plan: NodePlan, schedule: Schedule) -> dict[str, str] | None:
-    """The environment of a gated program (the gate on PYTHONPATH, its configuration), or
-    None for an ungated one (it inherits the orchestrator's)."""
+def foreign_env(plan: NodePlan, schedule: Schedule,
+                readers: list[int] | None = None) -> dict[str, str] | None:
+    """The environment of a gated program (the gate on PYTHONPATH, its configuration with
+    ``readers``), or None for an ungated one (it inherits the orchestrator's)."""
     if not is_python(plan):
         return None
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
         [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
-    env[GATE_ENV] = json.dumps(gate_config(plan, schedule))
+    env[GATE_ENV] = json.dumps(gate_config(plan, schedule, readers))
     return env

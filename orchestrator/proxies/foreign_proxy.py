@@ -87,6 +87,8 @@ class ForeignProxy(Participant):
         self.ack = ack_topic(self.name)
         self.ack_sub = transport.subscription(self.ack, ACK_TYPE, 1000, latched=True)
         self.gate_ready = False
+        # the gate saw every output's publisher match all its readers ([-1, 1]): no settle
+        self.outputs_matched = False
         self.next_feed = 0  # the next due tick to feed
         self.awaiting: int | None = None  # a fed tick the gate has not acknowledged yet
 
@@ -102,12 +104,15 @@ class ForeignProxy(Participant):
         a gated program every feed subscribed and the gate reported ready. Our readers
         seeing its writers does not prove its writers see our readers yet, and a volatile
         writer drops what it publishes before that: the settle time covers the other half
-        of discovery, which cosim cannot observe in a program it does not run."""
+        of discovery, which cosim cannot observe in a program it does not run, unless the
+        program's gate saw it (``[-1, 1]``: every output's publisher matched its readers)."""
         if self.gated and not (self.gate_ready and not self._unsubscribed()):
             return False
         if not all(sub.matched() >= 1 for sub in self.subs.values()):
             self._matched_since = None
             return False
+        if self.gated and self.outputs_matched:  # the gate saw the other half
+            return True
         now = time.monotonic()
         if self._matched_since is None:
             self._matched_since = now
@@ -164,6 +169,7 @@ class ForeignProxy(Participant):
     def _acknowledged(self, tick: int, counts: list[int], current_tick: int) -> None:
         if tick == READY_TICK:
             self.gate_ready = True
+            self.outputs_matched = self.outputs_matched or counts == [1]
             return
         if tick != self.awaiting:
             raise SimulationError(f"foreign node {self.name}: its gate acknowledged tick "

@@ -51,7 +51,11 @@ Per executor wait the gate (all in the executor's own thread, no extra thread):
 
 Before the first tick the gate publishes ``[-1]`` on the ack topic once each of
 its gated subscriptions has matched a publisher ("ready"), so the feeder knows
-that nothing it publishes can be lost to discovery.
+that nothing it publishes can be lost to discovery.  With ``readers`` configured
+it also says, as ``[-1, 1]`` (instead of ``[-1]``, or after it, before the first
+tick's ack), that every output has a publisher matching at least that many
+subscriptions, so the feeder knows that nothing the program publishes can be lost
+to discovery either, and need not wait a settle time for it.
 
 Configuration comes from the ``COSIM_GATE`` environment variable (JSON)::
 
@@ -65,6 +69,7 @@ Configuration comes from the ``COSIM_GATE`` environment variable (JSON)::
         {"topic": "scan", "period": 5, "phase": 0}  # due at j % 5 == 0
      ],
      "outputs": ["/cmd_vel"],        # output topics (resolved names) counted per tick
+     "readers": [2],                 # optional: subscriptions each output will have
      "callback_order": "subscription",  # or "inputs" (see below)
      "reliable_clock": true}         # make rclpy's /clock subscription reliable
 
@@ -128,6 +133,8 @@ class GateConfig:
     reliable_clock: bool = True
     callback_order: str = 'subscription'
     outputs: tuple[str, ...] = ()
+    # per output, the subscriptions its publisher must match before the gate says so
+    readers: tuple[int, ...] = ()
 
     @property
     def clock_topic(self) -> str:
@@ -163,6 +170,8 @@ class GateConfig:
         order = raw.get('callback_order', 'subscription')
         if order not in ('subscription', 'inputs'):
             raise ValueError('callback_order must be "subscription" or "inputs"')
+        if raw.get('readers') and len(raw['readers']) != len(raw.get('outputs', ())):
+            raise ValueError('readers must name one count per output')
         inputs = []
         for item in raw.get('inputs', []):
             if isinstance(item, str):
@@ -182,7 +191,8 @@ class GateConfig:
                    inputs=tuple(inputs),
                    reliable_clock=bool(raw.get('reliable_clock', True)),
                    callback_order=order,
-                   outputs=tuple(str(t) for t in raw.get('outputs', ())))
+                   outputs=tuple(str(t) for t in raw.get('outputs', ())),
+                   readers=tuple(int(n) for n in raw.get('readers', ())))
 
 
 class _Plan:
@@ -207,6 +217,9 @@ class Gate:
         self._tick = config.start
         self._released = False
         self._ready_sent = False
+        # whether the program's output publishers are known to match their readers
+        # (``readers``): told once, as ``[-1, 1]``, before the first tick's ack
+        self._outputs_told = not config.readers
         self._poll_ns = _POLL_MIN_NS
         self._topic_cache: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         self._ack_node = None
@@ -319,14 +332,41 @@ class Gate:
         self._ack_pub = self._ack_node.create_publisher(Int64MultiArray,
                                                         self.config.ack_topic, qos)
 
-    def _ack(self, tick: int) -> None:
+    def _ack(self, tick: int, outputs_matched: bool = False) -> None:
         msg = self._ack_msg_type()
         if tick == READY_TICK:
-            msg.data = [READY_TICK]
+            msg.data = [READY_TICK, 1] if outputs_matched else [READY_TICK]
         else:
             msg.data = [tick, *self._counts]
             self._counts = [0] * len(self._counts)
         self._ack_pub.publish(msg)
+
+    def _outputs_matched(self, view: _ExecutorView) -> bool:
+        """Whether every declared output has a publisher, and each publisher of one matches
+        at least the readers the configuration names (its consumers and the orchestrator):
+        what it publishes from now on reaches them all."""
+        want = dict(zip(self.config.outputs, self.config.readers, strict=True))
+        seen = set()
+        for node in view.executor.get_nodes():
+            for pub in node.publishers:
+                try:
+                    topic = pub.topic_name
+                    if topic in want and pub.get_subscription_count() < want[topic]:
+                        return False
+                except Exception:  # being destroyed: not one to wait for
+                    continue
+                seen.add(topic)
+        return seen >= set(want)
+
+    def _tell_outputs(self, view: _ExecutorView, plan: _Plan) -> None:
+        """Before the first tick's ack: say once that the outputs match their readers, so
+        the orchestrator need not wait out a settle time for them; until then, look again
+        at least every discovery poll."""
+        if self._outputs_matched(view):
+            self._outputs_told = True
+            self._ack(READY_TICK, outputs_matched=True)
+        else:
+            plan.cap_ns = _DISCOVERY_POLL_NS
 
     # ----------------------------------------------------------------- probe
     def _probe(self, view: _ExecutorView) -> frozenset[int]:
@@ -389,10 +429,19 @@ class Gate:
             # publisher before the feeder may send tick `start`.
             if all(sub.get_publisher_count() > 0 for sub, _ in view.gated):
                 self._ready_sent = True
-                self._ack(READY_TICK)
+                if not self._outputs_told and self._outputs_matched(view):
+                    self._outputs_told = True
+                    self._ack(READY_TICK, outputs_matched=True)
+                else:
+                    self._ack(READY_TICK)
             else:
                 plan.cap_ns = _DISCOVERY_POLL_NS
                 return plan
+        if not self._outputs_told:
+            if self._tick != cfg.start or self._released:
+                self._outputs_told = True  # fed already: the orchestrator did not need it
+            else:
+                self._tell_outputs(view, plan)
 
         present = self._probe(view)
         # Events (QoS event handlers) of a gated subscription share the DDS

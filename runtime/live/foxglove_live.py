@@ -149,8 +149,9 @@ class FoxgloveLive:
                 if i % YIELD_EVERY == YIELD_EVERY - 1:
                     time.sleep(0)
                 if topic == CLOCK_TOPIC:
-                    self._clock_ns = decode_clock(data)
-                stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
+                    stamp = self._clock_ns = decode_clock(data)
+                else:
+                    stamp = self.catalog.stamp_of(topic, data, self._clock_ns)
                 if topic in self.catalog.latched:
                     self._latched[topic] = (data, stamp)
                 if topic in self._wanted:
