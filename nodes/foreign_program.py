@@ -9,7 +9,7 @@ deterministic as long as the program is a deterministic function of its inputs.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -35,6 +35,11 @@ class ForeignParams(BaseModel):
     silent_at_start: bool = Field(False, description="true: the program publishes nothing "
                                   "at tick 0 (a sim-time timer first fires one period in); "
                                   "then no node may consume its outputs")
+
+    gate: Literal["auto", "python", "rmw"] = Field(
+        "auto", description="what makes its executor take each tick whole: 'python' (cosim's "
+        "rclpy gate), 'rmw' (cosim's RMW implementation, any language on rcl), or 'auto': "
+        "python for a Python program, rmw for any other")
 
     _types_exist = field_validator("outputs")(lambda cls, value: installed_types(value))
 

@@ -1,13 +1,21 @@
 """How a foreign program is started (kept apart from ``orchestrator.proxies.foreign_proxy``, which
 loads rclpy: the orchestrator builds the command before it forks its own node processes).
 
-A Python program (its command runs ``python``/``python3`` or a ``.py`` file) is *gated*: its
-inputs and its ``/clock`` are remapped onto private feed topics that the orchestrator alone
-publishes, one tick's bundle at a time, and cosim's gate (``runtime/foreign_gate``,
-injected through ``sitecustomize`` on its ``PYTHONPATH``) holds the program's executor until
-a whole bundle is in its readers (see the README's delivery contract). Any other program
-reads the run's topics directly: deterministic only with a single input, so the run rules
-refuse it with more.
+Every program is *gated*: its inputs and its ``/clock`` are remapped onto private feed topics
+that the orchestrator alone publishes, one tick's bundle at a time, and a gate holds the
+program's executor until a whole bundle is in its readers (see the README's delivery
+contract). Two gates keep that contract:
+
+- ``python``: for a Python program (its command runs ``python``/``python3`` or a ``.py``
+  file), ``runtime/foreign_gate`` injected through ``sitecustomize`` on its ``PYTHONPATH``;
+- ``rmw``: for any program on rcl (C, C++, Python), ``librmw_cosim_gate.so``
+  (``runtime/rmw_gate``, built by ``make install``), preloaded with
+  ``RMW_IMPLEMENTATION=rmw_cosim_gate`` and configured by ``COSIM_RMW_GATE``.
+
+``params.gate`` picks one (``auto``: python for a Python program, rmw for any other). Without
+the RMW library (not built: not x86-64) a program that is not Python is ungated and reads
+the run's topics directly: deterministic only with a single input, so the run rules refuse
+it with more.
 """
 
 from __future__ import annotations
@@ -23,6 +31,9 @@ from plan.schedule import DELAYED, Schedule
 
 GATE_DIR = Path(__file__).resolve().parents[2] / "runtime" / "foreign_gate"
 GATE_ENV = "COSIM_GATE"
+RMW_GATE_ENV = "COSIM_RMW_GATE"
+RMW_GATE_NAME = "rmw_cosim_gate"
+PYTHON_GATE, RMW_GATE = "python", "rmw"
 PYTHONS = ("python", "python3")
 
 
@@ -51,6 +62,22 @@ def is_python(plan: NodePlan) -> bool:
     first = plan.spec.command[0]
     return (first in PYTHONS or Path(first).name.startswith("python")
             or first.endswith(".py") or first == sys.executable)
+
+
+def rmw_gate_library() -> Path:
+    """Where ``make install`` puts the RMW gate (tools/build_native.py)."""
+    return Path(sys.prefix) / "lib" / f"lib{RMW_GATE_NAME}.so"
+
+
+def gate_of(plan: NodePlan) -> str | None:
+    """Which gate serves the program: 'python', 'rmw', or None (ungated: the RMW gate is
+    not built)."""
+    wanted = plan.params.gate
+    if wanted == "auto":
+        wanted = PYTHON_GATE if is_python(plan) else RMW_GATE
+    if wanted == RMW_GATE and not rmw_gate_library().is_file():
+        return None
+    return wanted
 
 
 def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
@@ -98,24 +125,48 @@ def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
     if argv[0] in PYTHONS:
         argv[0] = sys.executable
     argv += ["--ros-args", "-p", "use_sim_time:=true"]
-    fed = {inp.topic for inp in plan.inputs} if is_python(plan) else set()
+    gated = gate_of(plan) is not None
+    fed = {inp.topic for inp in plan.inputs} if gated else set()
     for own, graph in plan.spec.remap.items():
         if own not in fed:
             argv += ["-r", f"{own}:={graph}"]
     for own in sorted(fed):
         argv += ["-r", f"{own}:={feed_topic(plan.name, own)}"]
-    if fed or is_python(plan):
+    if gated:
         argv += ["-r", f"/clock:={clock_topic(plan.name)}"]
     return argv
 
 
+def rmw_gate_text(config: dict) -> str:
+    """The RMW gate's configuration (``COSIM_RMW_GATE``, one item a line) from the gate
+    configuration both gates share."""
+    lines = [f"prefix {config['prefix']}", f"node {config['node']}",
+             f"period {config['period']}", f"start {config['start']}"]
+    for entry in config["inputs"]:
+        lines.append(f"input {entry['topic']} {entry.get('period', config['period'])} "
+                     f"{entry.get('phase', config['start'])} {entry.get('first', 0)}")
+    return "\n".join(lines) + "\n"
+
+
 def foreign_env(plan: NodePlan, schedule: Schedule) -> dict[str, str] | None:
-    """The environment of a gated program (the gate on PYTHONPATH, its configuration), or
-    None for an ungated one (it inherits the orchestrator's)."""
-    if not is_python(plan):
+    """The environment of a gated program (its gate and the gate's configuration), or None
+    for an ungated one (it inherits the orchestrator's)."""
+    gate = gate_of(plan)
+    if gate is None:
         return None
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
-    env[GATE_ENV] = json.dumps(gate_config(plan, schedule))
+    config = gate_config(plan, schedule)
+    if gate == PYTHON_GATE:
+        env["PYTHONPATH"] = os.pathsep.join(
+            [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
+        env[GATE_ENV] = json.dumps(config)
+        return env
+    # The wheels' librcl links librmw_fastrtps_cpp itself (no rmw_implementation loader):
+    # preloading the gate puts its rmw_* definitions first; RMW_IMPLEMENTATION makes rcl
+    # refuse to start if the preload did not take.
+    env["LD_PRELOAD"] = " ".join([str(rmw_gate_library()),
+                                  *filter(None, [env.get("LD_PRELOAD")])])
+    env["RMW_IMPLEMENTATION"] = RMW_GATE_NAME
+    env[RMW_GATE_ENV] = rmw_gate_text(config)
+    env.pop(GATE_ENV, None)
     return env

@@ -23,7 +23,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int64
 
 from orchestrator.lockstep.participants import Participant
-from orchestrator.proxies.foreign_launch import ack_topic, clock_topic, feed_topic, is_python
+from orchestrator.proxies.foreign_launch import ack_topic, clock_topic, feed_topic, gate_of
 from plan.errors import SimulationError
 from plan.scenario import NodePlan
 from plan.schedule import Schedule
@@ -62,7 +62,7 @@ class ForeignProxy(Participant):
         self.clock_tick = -1  # the latest tick the master published /clock for
         self.pending: list[Status] = []  # activations done without a message (silent)
         self._matched_since: float | None = None
-        self.gated = is_python(plan)
+        self.gated = gate_of(plan) is not None
         self.follows_clock = not self.gated  # a gated program sees only its fed clock
         self.channels: dict[str, InputChannel] = {}
         self.feeds = {}
@@ -120,7 +120,8 @@ class ForeignProxy(Participant):
                       f"{feed_topic(self.name, own)})" for own in self._unsubscribed()]
             if not parts and not self.gate_ready:
                 parts.append(f"its cosim gate never reported ready on {self.ack} (is it an "
-                             "rclpy program run by this interpreter?)")
+                             "rclpy program run by this interpreter, or, with the RMW gate, "
+                             "a program on rcl that reads LD_PRELOAD?)")
         missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
         if missing:
             parts.append("its outputs are not advertised yet: "

@@ -1,0 +1,75 @@
+"""Programs that are not Python get the same delivery contract through the RMW gate
+(librmw_cosim_gate.so, built by `make install`): a plain C program on rcl with two inputs
+(tests/programs/fusion_c.c) gives one digest over three runs and one with both cores busy,
+and every output is the function of the very samples the schedule names, from a sim-time
+timer or from an input callback, whatever order its wait set lists its inputs in. An rclpy
+program run through the RMW gate instead of the Python gate gives the Python gate's digest."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.helpers import SCENARIOS, orchestrate
+from tests.test_foreign_determinism import both_cores_busy, by_tick, variant
+
+FUSION_C = Path(sys.prefix) / "cosim_native" / "bin" / "fusion_c"
+
+
+def c_variant(tmp_path, order: str, trigger: str):
+    """The fusion scenario with the C program: two inputs, at 10 Hz on its timer (silent at
+    tick 0, so nothing consumes its output) or at 20 Hz from b's callback."""
+    doc = yaml.safe_load((SCENARIOS / "foreign_fusion.yaml").read_text())
+    program = doc["nodes"][3]
+    program["command"] = [str(FUSION_C), order, trigger]
+    if trigger == "timer":
+        program["rate"] = 10
+        program["params"]["silent_at_start"] = True
+        doc["nodes"].pop(4)
+    path = tmp_path / f"fusion_c_{order}_{trigger}.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def assert_outputs_follow_the_schedule(run, rate: int, timer: bool) -> None:
+    values = by_tick(run.run_dir, run.manifest["tick_ns"])
+    period = 100 // rate
+    fed = [t for t in sorted(values["/a"]) if t % period == 0]
+    assert len(fed) > 5
+    for tick in fed[1 if timer else 0:]:
+        samples = [values[n][max(t for t in values[n] if t <= tick)] for n in ("/a", "/b")]
+        assert values["/out"][tick] == samples[0] * 1000 + samples[1], (tick, samples)
+
+
+@pytest.mark.parametrize(("order", "trigger"), [("ab", "timer"), ("ba", "b")])
+def test_a_c_program_with_two_inputs_gives_one_digest_every_run(tmp_path, order, trigger):
+    assert FUSION_C.is_file(), "make install builds tests/programs/fusion_c.c"
+    path = c_variant(tmp_path, order, trigger)
+    runs = [orchestrate(path, tmp_path / f"run{n}") for n in range(3)]
+    with both_cores_busy():
+        runs.append(orchestrate(path, tmp_path / "loaded"))
+    for run in runs:
+        assert run.code == 0, run.stderr
+    assert len({run.manifest["digest"] for run in runs}) == 1
+    timer = trigger == "timer"
+    assert_outputs_follow_the_schedule(runs[0], 10 if timer else 20, timer)
+
+
+@pytest.mark.parametrize("case", [(["inputs:=2", "order:=cba"], 20, False),
+                                  (["inputs:=2", "trigger:=timer"], 10, True)],
+                         ids=["subscriptions b then a", "10 Hz sim-time timer"])
+def test_an_rclpy_program_through_the_rmw_gate_gives_the_python_gates_digest(tmp_path, case):
+    args, rate, timer = case
+    python = variant(tmp_path, args, rate=rate, timer=timer)
+    doc = yaml.safe_load(python.read_text())
+    doc["nodes"][3]["params"]["gate"] = "rmw"
+    rmw = tmp_path / "fusion_rmw.yaml"
+    rmw.write_text(yaml.safe_dump(doc))
+    ours = orchestrate(python, tmp_path / "python")
+    theirs = orchestrate(rmw, tmp_path / "rmw")
+    assert ours.code == 0, ours.stderr
+    assert theirs.code == 0, theirs.stderr
+    assert theirs.manifest["digest"] == ours.manifest["digest"]
