@@ -74,11 +74,12 @@ def test_the_python_gate_for_a_program_that_is_not_python_is_refused(tmp_path):
 
 
 def test_a_program_that_is_not_python_gets_the_rmw_gate(tmp_path):
-    # cat never subscribes: what was refused for a non-Python program with several inputs
-    # now starts behind the RMW gate, and is named at the start deadline like any program
-    done = orchestrate(scenario_with(tmp_path, ["cat"], start="2s"), tmp_path / "r")
+    # a shell never subscribes: what was refused for a non-Python program with several
+    # inputs now starts behind the RMW gate, and is named at the start deadline
+    done = orchestrate(scenario_with(tmp_path, ["sh", "-c", "exec sleep 30", "sh"], start="2s"),
+                       tmp_path / "r")
     assert done.code == 3, done.stderr
-    assert "never subscribed to its declared input /a" in done.stderr
+    assert "never subscribed to its declared input /a" in done.stderr, done.stderr
 
 
 def test_a_program_that_never_subscribes_a_declared_input_is_named(tmp_path):
