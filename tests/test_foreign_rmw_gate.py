@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from tests.helpers import SCENARIOS, orchestrate
+from tests.test_foreign_nav import nav_with_foreign_control
 from tests.test_foreign_determinism import both_cores_busy, by_tick, variant
 
 FUSION_C = Path(sys.prefix) / "cosim_native" / "bin" / "fusion_c"
@@ -72,4 +73,15 @@ def test_an_rclpy_program_through_the_rmw_gate_gives_the_python_gates_digest(tmp
     theirs = orchestrate(rmw, tmp_path / "rmw")
     assert ours.code == 0, ours.stderr
     assert theirs.code == 0, theirs.stderr
+    assert theirs.manifest["digest"] == ours.manifest["digest"]
+
+
+def test_the_nav_controller_through_the_rmw_gate_gives_the_builtin_digest(tmp_path):
+    builtin, foreign = nav_with_foreign_control(tmp_path)
+    doc = yaml.safe_load(foreign.read_text())
+    next(n for n in doc["nodes"] if n["name"] == "control")["params"]["gate"] = "rmw"
+    foreign.write_text(yaml.safe_dump(doc))
+    ours = orchestrate(builtin, tmp_path / "a", "--in-process")
+    theirs = orchestrate(foreign, tmp_path / "b")
+    assert ours.code == theirs.code == 1, theirs.stderr  # 3 s: the goal is not reached yet
     assert theirs.manifest["digest"] == ours.manifest["digest"]
