@@ -87,6 +87,7 @@ typedef rmw_subscription_t * (*create_sub_fn)(const rmw_node_t *,
 typedef rmw_ret_t (*destroy_sub_fn)(rmw_node_t *, rmw_subscription_t *);
 typedef rmw_ret_t (*destroy_node_fn)(rmw_node_t *);
 typedef rmw_ret_t (*event_init_fn)(rmw_event_t *, const rmw_subscription_t *, rmw_event_type_t);
+typedef rmw_ret_t (*on_message_fn)(rmw_subscription_t *, rmw_event_callback_t, const void *);
 typedef rmw_ret_t (*count_fn)(const rmw_subscription_t *, size_t *);
 typedef rmw_publisher_t * (*create_pub_fn)(const rmw_node_t *,
                                            const rosidl_message_type_support_t *, const char *,
@@ -126,6 +127,7 @@ static struct {
   destroy_node_fn destroy_node;
   event_init_fn event_init;
   count_fn matched;
+  on_message_fn on_message;
   create_pub_fn create_pub;
   destroy_pub_fn destroy_pub;
   publish_fn publish;
@@ -181,6 +183,7 @@ static void resolve_now(void)
   real.destroy_node = (destroy_node_fn)need("rmw_destroy_node");
   real.event_init = (event_init_fn)need("rmw_subscription_event_init");
   real.matched = (count_fn)need("rmw_subscription_count_matched_publishers");
+  real.on_message = (on_message_fn)need("rmw_subscription_set_on_new_message_callback");
   real.create_pub = (create_pub_fn)need("rmw_create_publisher");
   real.destroy_pub = (destroy_pub_fn)need("rmw_destroy_publisher");
   real.publish = (publish_fn)need("rmw_publish");
@@ -269,6 +272,8 @@ typedef struct {
   int rank;          /* 0: clock, 1..n: the configured input, -1: not fed */
   long created;
   int taken;         /* taken in the current bundle */
+  int handed;        /* handed out in a round of the current bundle ... */
+  pthread_t handed_to;  /* ... to this thread's wait */
   int alive;
 } gsub_t;
 
@@ -284,7 +289,10 @@ static int released;
 static int ready_sent;
 static rmw_publisher_t * ack_pub;
 static const rmw_node_t * ack_node;
-static struct { pthread_t thread; int idle; } involved[MAX_THREADS];
+/* The threads a round of the current bundle went to: 'returned' once the thread waits again
+ * (an executor that waits in the thread that runs what the wait found has then run the
+ * round's callbacks), 'idle' once such a wait found nothing else to run. */
+static struct { pthread_t thread; int returned, idle; } involved[MAX_THREADS];
 static int n_involved;
 
 static gsub_t * find_sub(const void * data)
@@ -520,8 +528,35 @@ static void taken_now(gsub_t * s, int taken)
   if (s && taken) {
     pthread_mutex_lock(&mu);
     s->taken = 1;
+    int elsewhere = s->handed && !pthread_equal(s->handed_to, pthread_self());
     pthread_mutex_unlock(&mu);
+    if (elsewhere) {
+      /* rclpy's MultiThreadedExecutor: its worker threads take and run callbacks while the
+       * waiting thread goes on; nothing at the RMW layer says when such a callback ends */
+      die("a fed message was taken in another thread than the one whose wait handed it out "
+          "(an executor that runs callbacks in worker threads, like rclpy's "
+          "MultiThreadedExecutor): the RMW gate cannot tell when its callbacks end. Use a "
+          "single-threaded executor, rclcpp's MultiThreadedExecutor, or for rclpy the Python "
+          "gate (params.gate: python)");
+    }
   }
+}
+
+rmw_ret_t rmw_subscription_set_on_new_message_callback(
+  rmw_subscription_t * subscription, rmw_event_callback_t callback, const void * user_data)
+{
+  cosim_gate_resolve();
+  if (callback && subscription && cfg.enabled) {
+    pthread_mutex_lock(&mu);
+    gsub_t * s = find_sub(subscription->data);
+    pthread_mutex_unlock(&mu);
+    if (s) {
+      die("a fed subscription asked for new-message callbacks (an events executor, like "
+          "rclcpp's EventsExecutor, which never waits): the RMW gate serves executors that "
+          "wait (rmw_wait); use a single- or multi-threaded executor");
+    }
+  }
+  return real.on_message(subscription, callback, user_data);
 }
 
 #define GATED_TAKE(fn, call) \
@@ -805,6 +840,10 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
     tick_set = 1;
   }
   ensure_ack_pub();
+  int me = involved_index(self);
+  if (me >= 0) {
+    involved[me].returned = 1;
+  }
 
   /* every gated entry (and its events) out unless the plan puts it in */
   for (size_t i = 0; i < ns; ++i) {
@@ -846,6 +885,7 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
         n_involved = 0;
         for (int i = 0; i < n_subs; ++i) {
           subs[i].taken = !(subs[i].alive && is_due(&subs[i], tick));
+          subs[i].handed = 0;
         }
       } else {
         /* incomplete: gated subscriptions without data may wake us, none is handed out */
@@ -868,11 +908,19 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
         remaining[nr++] = &subs[i];
       }
     }
+    /* one thread at a time: a round goes out once every other thread that had one has
+     * come back to wait, so a round's callbacks never overlap another's */
+    int others_back = 1;
+    for (int i = 0; i < n_involved; ++i) {
+      if (!pthread_equal(involved[i].thread, self)) {
+        others_back &= involved[i].returned;
+      }
+    }
     if (nr) {
       qsort(remaining, nr, sizeof remaining[0], by_rank);
       long last = -1;
       int handed = 0;
-      for (int r = 0; r < nr; ++r) {
+      for (int r = 0; r < nr && others_back; ++r) {
         long pos = -1;
         for (size_t i = 0; i < ns; ++i) {
           if (at[i] == remaining[r]) {
@@ -884,6 +932,8 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
           break;
         }
         p.s.include[pos] = p.s.visible[pos] = 1;
+        remaining[r]->handed = 1;
+        remaining[r]->handed_to = self;
         last = pos;
         ++handed;
       }
@@ -894,6 +944,7 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
           involved[k].thread = self;
         }
         if (k >= 0) {
+          involved[k].returned = 0;
           involved[k].idle = 0;
         }
       } else {
