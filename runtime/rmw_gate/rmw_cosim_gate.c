@@ -1,7 +1,7 @@
 /* rmw_cosim_gate: cosim's lockstep gate at the ROS 2 middleware (RMW) layer.
  *
  * An RMW implementation that forwards every rmw_* function to a real one (librmw_fastrtps_cpp,
- * or COSIM_RMW_GATE_REAL=<name> for librmw_<name>.so, opened with dlopen at the first call) and
+ * what the pip wheels ship, opened with dlopen at the first call) and
  * gates the subscriptions cosim feeds, so that any program on rcl (C, rclcpp, rclpy) takes each
  * tick's inputs as one whole. The forwarding of the functions this file does not define is
  * generated at build time (tools/build_native.py: one jump per function the real library
@@ -164,9 +164,7 @@ static void load_config(void);
 
 static void resolve_now(void)
 {
-  const char * name = getenv("COSIM_RMW_GATE_REAL");
-  char file[256];
-  snprintf(file, sizeof file, "librmw_%s.so", name && *name ? name : "fastrtps_cpp");
+  const char * file = "librmw_fastrtps_cpp.so";
   real_lib = dlopen(file, RTLD_NOW | RTLD_LOCAL);
   if (!real_lib) {
     char text[1024];
