@@ -99,3 +99,13 @@ def test_an_executor_the_rmw_gate_cannot_serve_is_named(tmp_path):
     assert done.code == 3, done.stderr
     assert "node fusion died" in done.stderr, done.stderr
     assert "MultiThreadedExecutor" in done.stderr and "params.gate: python" in done.stderr
+
+
+def test_the_rmw_gate_defines_every_function_of_the_middleware_it_wraps():
+    # what rcl (or a ROS install's rmw_implementation loader) may call must all be there:
+    # the gated ones, and a forwarding stub for every other
+    from tools.build_native import REAL_LIBRARY, defined_rmw_functions, gate_library
+
+    real = defined_rmw_functions(Path(sys.prefix) / "lib" / REAL_LIBRARY)
+    assert len(real) > 50
+    assert set(defined_rmw_functions(gate_library().resolve())) == set(real)

@@ -225,6 +225,8 @@ static void load_config(void)
   if (!text || !*text) {
     return;
   }
+  text = strdup(text);
+  unsetenv("COSIM_RMW_GATE");  /* the program's own children are not fed */
   cfg.period = 1;
   char * copy = strdup(text);
   char * save = NULL;
