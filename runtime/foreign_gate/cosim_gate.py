@@ -8,7 +8,9 @@ publishes tick ``j + period`` once the program acknowledged, on
 ``<prefix>taken`` (``std_msgs/Int64``, reliable, transient-local, depth 1),
 that it has taken and processed tick ``j``.
 
-This module makes an unmodified rclpy program honour that protocol.  It is
+This module makes an unmodified rclpy program honour that protocol; the RMW gate
+(``runtime/rmw_gate/rmw_cosim_gate.c``) honours the same one for any program on rcl, at
+the middleware layer.  It is
 injected through ``sitecustomize`` (see ``sitecustomize.py`` next to it) and
 changes nothing in the program's code.  It works at the level of the wait set
 that :meth:`rclpy.executors.Executor._wait_for_ready_callbacks` builds on every
