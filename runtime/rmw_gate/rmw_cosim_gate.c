@@ -990,7 +990,10 @@ rmw_ret_t rmw_wait(rmw_subscriptions_t * subscriptions, rmw_guard_conditions_t *
   if (idle_probe) {
     rmw_time_t zero = {0, 0};
     ret = planned_wait(&p, wait_set, &zero, &ready, 0);
-    if ((ret == RMW_RET_OK || ret == RMW_RET_TIMEOUT) && ready) {
+    if (ret != RMW_RET_OK && ret != RMW_RET_TIMEOUT) {
+      goto done;  /* the middleware's error, as it is */
+    }
+    if (ready) {
       lane_unpack(&p.s, 1);
       lane_unpack(&p.g, 1);
       lane_unpack(&p.sv, 1);
