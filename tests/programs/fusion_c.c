@@ -41,6 +41,13 @@ static int check(rcl_ret_t ret, const char * what)
   return 0;
 }
 
+/* Publish a * 1000 + b, or -1 while an input has not arrived; 1 on failure. */
+static int publish(const rcl_publisher_t * pub, int have_both, int64_t a, int64_t b)
+{
+  std_msgs__msg__Int64 out = {have_both ? a * 1000 + b : -1};
+  return check(rcl_publish(pub, &out, NULL), "rcl_publish");
+}
+
 int main(int argc, char ** argv)
 {
   const char * order = argc > 1 && strcmp(argv[1], "--ros-args") ? argv[1] : "ab";
@@ -104,7 +111,7 @@ int main(int argc, char ** argv)
   int have_a = 0, have_b = 0;
   int64_t a = 0, b = 0;
   int code = 0;
-  while (!stop && rcl_context_is_valid(&context)) {
+  while (!stop && !code && rcl_context_is_valid(&context)) {
     if (check(rcl_wait_set_clear(&wait_set), "rcl_wait_set_clear") ||
       check(rcl_wait_set_add_subscription(&wait_set, &clock_sub, NULL), "add /clock") ||
       check(rcl_wait_set_add_subscription(&wait_set, inputs[0], NULL), "add input") ||
@@ -122,8 +129,7 @@ int main(int argc, char ** argv)
       code = 1;
       break;
     }
-    int publish = 0;
-    for (size_t i = 0; i < wait_set.size_of_subscriptions; ++i) {
+    for (size_t i = 0; i < wait_set.size_of_subscriptions && !code; ++i) {
       const rcl_subscription_t * sub = wait_set.subscriptions[i];
       if (!sub) {
         continue;
@@ -149,18 +155,15 @@ int main(int argc, char ** argv)
       } else {
         b = msg.data;
         have_b = 1;
-        publish |= !timer_mode;
+        if (!timer_mode) {
+          code = publish(&pub, have_a && have_b, a, b);  /* b's callback publishes */
+        }
       }
     }
-    if (timer_mode && wait_set.size_of_timers && wait_set.timers[0]) {
-      publish |= rcl_timer_call(&timer) == RCL_RET_OK;
-    }
-    if (publish) {
-      std_msgs__msg__Int64 out = {have_a && have_b ? a * 1000 + b : -1};
-      if (check(rcl_publish(&pub, &out, NULL), "rcl_publish")) {
-        code = 1;
-        break;
-      }
+    if (!code && timer_mode && wait_set.size_of_timers && wait_set.timers[0] &&
+      rcl_timer_call(&timer) == RCL_RET_OK)
+    {
+      code = publish(&pub, have_a && have_b, a, b);
     }
   }
   /* teardown: a failure here changes nothing the run saw */
