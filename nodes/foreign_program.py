@@ -11,7 +11,7 @@ deterministic function of its inputs.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -39,6 +39,11 @@ class ForeignParams(BaseModel):
     silent_at_start: bool = Field(False, description="true: the program publishes nothing "
                                   "at tick 0 (checked for a Python program; needed for any "
                                   "other, whose outputs then no node may consume)")
+
+    gate: Literal["auto", "python", "rmw"] = Field(
+        "auto", description="what makes its executor take each tick whole: 'python' (cosim's "
+        "rclpy gate), 'rmw' (cosim's RMW implementation, any language on rcl), or 'auto': "
+        "python for a Python program, rmw for any other")
 
     _types_exist = field_validator("outputs")(lambda cls, value: installed_types(value))
 
