@@ -49,7 +49,7 @@ def assert_outputs_follow_the_schedule(run, rate: int, timer: bool) -> None:
         assert out.get(tick, []) == want, (tick, samples)
     for tick, (sink,) in values["/sink"].items():
         assert sink == expected_sink(tick, out), tick
-    assert run.manifest["foreign"]["fusion"]["gated"]
+    assert run.manifest["foreign"]["fusion"]["gate"] == "rmw"
 
 
 @pytest.mark.parametrize(("order", "trigger", "quiet_runs"), [("ab", "timer", 3), ("ba", "b", 1)])

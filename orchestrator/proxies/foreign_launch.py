@@ -1,7 +1,8 @@
 """How a foreign program is started (kept apart from ``orchestrator.proxies.foreign_proxy``, which
 loads rclpy: the orchestrator builds the command before it forks its own node processes).
 
-Every program is *gated*: its inputs and its ``/clock`` are remapped onto private feed topics
+A program a gate serves is *gated* (every program, where ``make install`` built the RMW
+gate): its inputs and its ``/clock`` are remapped onto private feed topics
 that the orchestrator alone publishes, one tick's bundle at a time, and a gate holds the
 program's executor until a whole bundle is in its readers (see the README's delivery
 contract), and acknowledges each tick with how many messages it published on each output,
