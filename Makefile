@@ -10,9 +10,11 @@ JS_STAMP := $(JS)/node_modules/.installed
 .PHONY: install run test lint bench clean
 
 # The ROS interface packages PyPI lacks (interfaces/) are built into the venv; a no-op when
-# nothing changed, and only the changed package is rebuilt (tools/build_interfaces.py).
+# nothing changed, and only the changed package is rebuilt (tools/build_interfaces.py). Then
+# the RMW gate for foreign programs and the C test programs (tools/build_native.py).
 install: $(STAMP) $(JS_STAMP)
 	@$(BIN)/python tools/build_interfaces.py
+	@$(BIN)/python tools/build_native.py
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

@@ -34,7 +34,7 @@ SECTIONS = [
     ("nav: multi-process over in-process", lambda: nav.main(["--repeats", "3"])),
     ("nav over zenoh: multi-process over in-process",
      lambda: nav.main(["--transport", "zenoh", "--repeats", "3"])),
-    ("nav: the controller as a foreign rclpy program over built-in",
+    ("nav: the controller as a foreign rclpy program over built-in, per gate",
      lambda: foreign_nav.main(["--repeats", "3"])),
     ("nav: the same, timer-driven (callbacks store, a 10 Hz timer publishes)",
      lambda: foreign_nav.main(["--repeats", "3", "--timer"])),

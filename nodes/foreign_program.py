@@ -11,7 +11,7 @@ deterministic function of its inputs.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -34,11 +34,18 @@ class ForeignParams(BaseModel):
                                     "{/cmd_vel: geometry_msgs/msg/Twist}")
     per_activation: dict[str, int] = Field(default_factory=dict, description="topic -> "
                                            "the exact number of messages per activation, "
-                                           "checked at every tick (a Python program: any "
-                                           "number where not declared; any other: 1)")
+                                           "checked at every tick (a gated program: any "
+                                           "number where not declared; an ungated one: 1)")
     silent_at_start: bool = Field(False, description="true: the program publishes nothing "
-                                  "at tick 0 (checked for a Python program; needed for any "
-                                  "other, whose outputs then no node may consume)")
+                                  "at tick 0 (checked for a gated program; needed for an "
+                                  "ungated one, whose outputs then no node may consume)")
+
+    gate: Literal["auto", "python", "rmw"] = Field(
+        "auto", description="what makes its executor take each tick whole: 'python' (cosim's "
+        "rclpy gate), 'rmw' (cosim's RMW implementation, any language on rcl), or 'auto': "
+        "python for a Python program, rmw for any other. A program is gated when its gate "
+        "serves it (rmw: where make install built it), and may then publish any number of "
+        "messages per tick")
 
     _types_exist = field_validator("outputs")(lambda cls, value: installed_types(value))
 

@@ -5,7 +5,13 @@ is returned as warnings (refused too in a strict run)."""
 
 from __future__ import annotations
 
-from orchestrator.proxies.foreign_launch import is_python, missing_program
+from orchestrator.proxies.foreign_launch import (
+    PYTHON_GATE,
+    gate_of,
+    is_python,
+    missing_program,
+    rmw_gate_library,
+)
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
@@ -46,12 +52,19 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
                 "not covered (the orchestrator reads each foreign program's outputs once, to "
                 "hash them, and cannot yet feed them on with their per-tick counts).",
                 "a cosim node between them, or the two programs' work in one program.")
-        if not is_python(plan) and len(plan.inputs) > 1:
+        if plan.params.gate == PYTHON_GATE and not is_python(plan):
             raise ScenarioError(
-                scenario.file, key, f"{plan.spec.command[0]!r} is not a Python program, so "
-                "cosim cannot gate its executor, and with several inputs its callbacks would "
-                "see samples of different ticks from run to run (not deterministic).",
-                "a Python (rclpy) program, which cosim gates, or a program with one input.")
+                scenario.file, f"nodes[{i}] ({name}).params.gate", f"{plan.spec.command[0]!r} "
+                "is not a Python program, so the Python gate cannot serve it.",
+                "gate: rmw (or auto) for a program on rcl in another language.")
+        if gate_of(plan) is None and len(plan.inputs) > 1:
+            raise ScenarioError(
+                scenario.file, key, f"{plan.spec.command[0]!r} is not a Python program and "
+                f"the RMW gate that serves other languages is not built ({rmw_gate_library()} "
+                "is missing: it is x86-64 only), so its callbacks would see samples of "
+                "different ticks from run to run (not deterministic).",
+                "`make install` on x86-64, a Python (rclpy) program, or a program with one "
+                "input.")
     if options.twin and scenario.model.twin is None:
         raise ScenarioError(scenario.file, "twin", f"--twin {options.twin}: the scenario has no "
                             "twin: section (the topic map)", "a twin: section, e.g. twin: "

@@ -195,7 +195,8 @@ class ScenarioChecks:
         return self.model.duration // tick_ns
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
-        """An ungated foreign program (not Python: no gate acknowledges its ticks) is known
+        """An ungated foreign program (no gate serves it, ``plan.gates``: not Python and
+        the RMW gate not built, so nothing acknowledges its ticks) is known
         to have finished a tick only by counting its messages, and its consumers map its
         n-th message to its n-th activation: an output others consume must then carry one
         message per activation. A gated program may publish any number (its consumers see
@@ -209,14 +210,16 @@ class ScenarioChecks:
                 if graph in consumed and plan.params.silent_at_start:
                     raise self.fail(self.node_key(i, "params.silent_at_start"),
                                     f"{graph} is consumed by other nodes, which need the "
-                                    "program's sample of tick 0, and this program (not "
-                                    "Python, so not gated) publishes nothing then.",
+                                    "program's sample of tick 0, and this program "
+                                    "(ungated: not Python, RMW gate not built) publishes "
+                                    "nothing then.",
                                     "false, or no node consuming its outputs.")
                 if graph in consumed and plan.params.count(own) != 1:
                     raise self.fail(self.node_key(i, f"params.per_activation.{own}"),
                                     f"{graph} is consumed by other nodes, which take one "
-                                    f"message per activation of this program (not Python, "
-                                    f"so not gated), not {plan.params.count(own)}.",
+                                    f"message per activation of this program (ungated: "
+                                    "not Python, RMW gate not built), not "
+                                    f"{plan.params.count(own)}.",
                                     "1 for a consumed topic (or leave it out).")
 
     def check_twin(self, nodes: dict[str, NodePlan]) -> None:

@@ -7,13 +7,13 @@ what it returns.
 from __future__ import annotations
 
 import shlex
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel
 
+from plan.gates import gate_for, is_python_command
 from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout
@@ -77,15 +77,24 @@ class NodePlan:
         return self.spec.command is not None
 
     @property
-    def gated(self) -> bool:
-        """Whether this node is a foreign program that carries cosim's gate (a Python one):
-        it acknowledges every tick with how many messages it published on each output, so
-        it may publish any number of them per tick (the README's delivery contract)."""
+    def python_program(self) -> bool:
+        """Whether this node is a foreign program run by a Python interpreter."""
+        return self.foreign and is_python_command(self.spec.command)
+
+    @property
+    def gate(self) -> str | None:
+        """The gate that serves this foreign program ('python' or 'rmw', ``plan.gates``), or
+        None: not foreign, or the RMW gate it needs is not built."""
         if not self.foreign:
-            return False
-        first = self.spec.command[0]
-        return (first in ("python", "python3") or Path(first).name.startswith("python")
-                or first.endswith(".py") or first == sys.executable)
+            return None
+        return gate_for(self.spec.command, self.params.gate)
+
+    @property
+    def gated(self) -> bool:
+        """Whether this node is a foreign program that a gate serves (python or rmw): it
+        acknowledges every tick with how many messages it published on each output, so it
+        may publish any number of them per tick (the README's delivery contract)."""
+        return self.gate is not None
 
     @property
     def gated_outputs(self) -> list[str]:

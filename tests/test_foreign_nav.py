@@ -61,10 +61,23 @@ def test_a_command_that_does_not_exist_is_bad_input(tmp_path):
     assert script.code == 2 and "the script 'missing.py' does not exist" in script.stderr
 
 
-def test_a_non_python_program_with_several_inputs_is_refused(tmp_path):
-    done = orchestrate(scenario_with(tmp_path, ["cat"]), tmp_path / "r")
-    assert done.code == 2 and "'cat' is not a Python program" in done.stderr
-    assert "not deterministic" in done.stderr and not (tmp_path / "r").exists()
+def test_the_python_gate_for_a_program_that_is_not_python_is_refused(tmp_path):
+    path = scenario_with(tmp_path, ["cat"])
+    doc = yaml.safe_load(path.read_text())
+    doc["nodes"][3]["params"]["gate"] = "python"
+    path.write_text(yaml.safe_dump(doc))
+    done = orchestrate(path, tmp_path / "r")
+    assert done.code == 2 and "'cat' is not a Python program" in done.stderr, done.stderr
+    assert "nodes[3] (fusion).params.gate" in done.stderr and not (tmp_path / "r").exists()
+
+
+def test_a_program_that_is_not_python_gets_the_rmw_gate(tmp_path):
+    # a shell never subscribes: what was refused for a non-Python program with several
+    # inputs now starts behind the RMW gate, and is named at the start deadline
+    done = orchestrate(scenario_with(tmp_path, ["sh", "-c", "exec sleep 30", "sh"], start="2s"),
+                       tmp_path / "r")
+    assert done.code == 3, done.stderr
+    assert "never subscribed to its declared input /a" in done.stderr, done.stderr
 
 
 def test_a_program_that_never_subscribes_a_declared_input_is_named(tmp_path):

@@ -111,3 +111,29 @@ def test_one_foreign_program_feeding_another_is_refused(tmp_path):
     assert "nodes[2] (echo2).inputs" in done.stderr
     assert "/echoed comes from foreign program 'echo'" in done.stderr
     assert not (tmp_path / "r").exists()
+
+
+def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
+    """One rule (plan.gates, NodePlan.gated) for the proxy, the checks and the run rules: a
+    program that is not Python is gated by the RMW gate where it is built; without it, it is
+    ungated, and with two inputs refused before anything starts."""
+    import plan.gates
+    from plan.load import load_scenario
+
+    doc = yaml.safe_load((SCENARIOS / "foreign_fusion.yaml").read_text())
+    doc["nodes"][3]["command"] = ["cat"]
+    path = tmp_path / "fusion_cat.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    python = variant(tmp_path, SCENARIOS / "foreign_fusion.yaml")
+    assert plan.gates.rmw_gate_library().is_file(), "make install builds the RMW gate"
+    cat = load_scenario(path).nodes["fusion"]
+    assert (cat.gate, cat.gated, cat.python_program) == ("rmw", True, False)
+    assert load_scenario(python).nodes["fusion"].gate == "python"
+    monkeypatch.setattr(plan.gates, "rmw_gate_library", lambda: tmp_path / "not-built.so")
+    cat = load_scenario(path).nodes["fusion"]
+    assert (cat.gate, cat.gated) == (None, False)
+    with pytest.raises(ScenarioError, match="the RMW gate that serves other languages is not "
+                                            "built"):
+        run(path, out=tmp_path / "r")
+    assert not (tmp_path / "r").exists()
+    assert load_scenario(python).nodes["fusion"].gated  # the Python gate needs no build

@@ -138,8 +138,9 @@ def digests_entry(scenario: Scenario, outcome) -> dict[str, Any]:
 
 
 def foreign_entry(scenario: Scenario) -> dict[str, Any]:
-    """Per foreign program, the rule its outputs follow: what its consumers see, and the
-    message counts the scenario declares exactly (checked at every tick)."""
+    """Per foreign program, the gate that serves it ('python', 'rmw' or None), the rule its
+    outputs follow: what its consumers see, and the message counts the scenario declares
+    exactly (checked at every tick)."""
     # imported here: the rule's module loads rclpy, which must not be loaded before nodes fork
     from runtime.gated_output import FOREIGN_OUTPUT_RULE
 
@@ -155,7 +156,7 @@ def foreign_entry(scenario: Scenario) -> dict[str, Any]:
             rule = ("not gated: counted, its n-th message on an output is its sample of its "
                     "n-th activation")
             exact = {graph: params.count(own) for own, graph in plan.output_names.items()}
-        out[name] = {"gated": plan.gated, "outputs": rule, "exact_counts": exact,
+        out[name] = {"gated": plan.gated, "gate": plan.gate, "outputs": rule, "exact_counts": exact,
                      "silent_at_start": params.silent_at_start}
     return out
 

@@ -1,14 +1,25 @@
 """How a foreign program is started (kept apart from ``orchestrator.proxies.foreign_proxy``, which
 loads rclpy: the orchestrator builds the command before it forks its own node processes).
 
-A Python program (its command runs ``python``/``python3`` or a ``.py`` file) is *gated*: its
-inputs and its ``/clock`` are remapped onto private feed topics that the orchestrator alone
-publishes, one tick's bundle at a time, and cosim's gate (``runtime/foreign_gate``,
-injected through ``sitecustomize`` on its ``PYTHONPATH``) holds the program's executor until
-a whole bundle is in its readers, and acknowledges each tick with how many messages it
-published on each output (see the README's delivery contract). Any other program reads the
-run's topics directly: deterministic only with a single input and a fixed message count,
-so the run rules refuse it otherwise.
+A program a gate serves is *gated* (every program, where ``make install`` built the RMW
+gate): its inputs and its ``/clock`` are remapped onto private feed topics
+that the orchestrator alone publishes, one tick's bundle at a time, and a gate holds the
+program's executor until a whole bundle is in its readers (see the README's delivery
+contract), and acknowledges each tick with how many messages it published on each output,
+so the program may publish zero, one or several per tick. Two gates keep that one contract
+(``NodePlan.gate``, ``plan.gates``):
+
+- ``python``: for a Python program (its command runs ``python``/``python3`` or a ``.py``
+  file), ``runtime/foreign_gate`` injected through ``sitecustomize`` on its ``PYTHONPATH``;
+- ``rmw``: for any program on rcl (C, C++, Python), ``librmw_cosim_gate.so``
+  (``runtime/rmw_gate``, built by ``make install``), preloaded with
+  ``RMW_IMPLEMENTATION=rmw_cosim_gate`` and configured by ``COSIM_RMW_GATE`` (which names
+  the outputs it counts, in the same order as the Python gate's configuration).
+
+``params.gate`` picks one (``auto``: python for a Python program, rmw for any other). Without
+the RMW library (not built: not x86-64) a program that is not Python is ungated and reads
+the run's topics directly: deterministic only with a single input and a fixed message count,
+so the run rules refuse it with more inputs and plan.checks holds it to its counts.
 """
 
 from __future__ import annotations
@@ -19,17 +30,19 @@ import shutil
 import sys
 from pathlib import Path
 
+from plan.gates import PYTHON_GATE, PYTHONS, RMW_GATE_NAME, rmw_gate_library
 from plan.robots import robot_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import DELAYED, Schedule
 from runtime.gated_output import ack_topic, feed_prefix
 
 __all__ = ["ack_topic", "clock_topic", "feed_prefix", "feed_topic", "foreign_argv",
-           "foreign_env", "gate_config", "is_python", "missing_program"]
+           "foreign_env", "gate_config", "gate_of", "is_python", "missing_program",
+           "rmw_gate_library", "rmw_gate_text"]
 
 GATE_DIR = Path(__file__).resolve().parents[2] / "runtime" / "foreign_gate"
 GATE_ENV = "COSIM_GATE"
-PYTHONS = ("python", "python3")
+RMW_GATE_ENV = "COSIM_RMW_GATE"
 
 
 def feed_topic(name: str, own_topic: str) -> str:
@@ -43,8 +56,14 @@ def clock_topic(name: str) -> str:
 
 
 def is_python(plan: NodePlan) -> bool:
-    """Whether the program runs on a Python interpreter (and so carries the gate)."""
-    return plan.gated
+    """Whether the program runs on a Python interpreter (and so can carry the Python gate)."""
+    return plan.python_program
+
+
+def gate_of(plan: NodePlan) -> str | None:
+    """Which gate serves the program: 'python', 'rmw', or None (ungated: the RMW gate is
+    not built). The same as ``plan.gate``."""
+    return plan.gate
 
 
 def missing_program(plan: NodePlan, scenario_dir: Path) -> str | None:
@@ -109,7 +128,8 @@ def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
     if argv[0] in PYTHONS:
         argv[0] = sys.executable
     argv += ["--ros-args", "-p", "use_sim_time:=true"]
-    fed = {inp.topic for inp in plan.inputs} if is_python(plan) else set()
+    gated = gate_of(plan) is not None
+    fed = {inp.topic for inp in plan.inputs} if gated else set()
     # a robot's copy runs in the robot's namespace (__ns:=/ROBOT): its own topics are
     # matched as the relative names they are there ('in' is /robot_3/in)
     rule = (lambda own: own.lstrip("/")) if robot_of(plan.name) else (lambda own: own)
@@ -118,19 +138,45 @@ def foreign_argv(plan: NodePlan, scenario_dir: Path) -> list[str]:
             argv += ["-r", f"{rule(own)}:={graph}"]
     for own in sorted(fed):
         argv += ["-r", f"{rule(own)}:={feed_topic(plan.name, own)}"]
-    if fed or is_python(plan):
+    if gated:
         argv += ["-r", f"/clock:={clock_topic(plan.name)}"]
     return argv
 
 
+def rmw_gate_text(config: dict) -> str:
+    """The RMW gate's configuration (``COSIM_RMW_GATE``, one item a line) from the gate
+    configuration both gates share."""
+    lines = [f"prefix {config['prefix']}", f"node {config['node']}",
+             f"period {config['period']}", f"start {config['start']}"]
+    for entry in config["inputs"]:
+        lines.append(f"input {entry['topic']} {entry.get('period', config['period'])} "
+                     f"{entry.get('phase', config['start'])} {entry.get('first', 0)}")
+    # the outputs it counts per acknowledgement, in this order (resolved topic names)
+    lines += [f"output {topic}" for topic in config["outputs"]]
+    return "\n".join(lines) + "\n"
+
+
 def foreign_env(plan: NodePlan, schedule: Schedule,
                 readers: list[int] | None = None) -> dict[str, str] | None:
-    """The environment of a gated program (the gate on PYTHONPATH, its configuration with
-    ``readers``), or None for an ungated one (it inherits the orchestrator's)."""
-    if not is_python(plan):
+    """The environment of a gated program (its gate and the gate's configuration, with
+    ``readers`` for the Python gate), or None for an ungated one (it inherits the
+    orchestrator's)."""
+    gate = gate_of(plan)
+    if gate is None:
         return None
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
-    env[GATE_ENV] = json.dumps(gate_config(plan, schedule, readers))
+    config = gate_config(plan, schedule, readers)
+    if gate == PYTHON_GATE:
+        env["PYTHONPATH"] = os.pathsep.join(
+            [str(GATE_DIR), *filter(None, [env.get("PYTHONPATH")])])
+        env[GATE_ENV] = json.dumps(config)
+        return env
+    # The wheels' librcl links librmw_fastrtps_cpp itself (no rmw_implementation loader):
+    # preloading the gate puts its rmw_* definitions first; RMW_IMPLEMENTATION makes rcl
+    # refuse to start if the preload did not take.
+    env["LD_PRELOAD"] = " ".join([str(rmw_gate_library()),
+                                  *filter(None, [env.get("LD_PRELOAD")])])
+    env["RMW_IMPLEMENTATION"] = RMW_GATE_NAME
+    env[RMW_GATE_ENV] = rmw_gate_text(config)
+    env.pop(GATE_ENV, None)
     return env

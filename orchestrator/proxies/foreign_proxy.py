@@ -14,9 +14,10 @@ the tick published on each output (zero, one or several: from callbacks and time
 and the activation is done once those messages are here; the digest covers exactly them,
 in order. Where the scenario declares an exact count (``per_activation``,
 ``silent_at_start``) a different count is an error naming the topic, the tick and both
-counts. An ungated program (not Python) is counted: an activation is done once every output
-carries its declared number of messages (default 1); more is an error the moment it
-happens, fewer is caught by the tick deadline, naming what is missing.
+counts. An ungated program (no gate serves it: not Python and the RMW gate not built, see
+``plan.gates``) is counted: an activation is done once every output carries its declared
+number of messages (default 1); more is an error the moment it happens, fewer is caught by
+the tick deadline, naming what is missing.
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ class ForeignProxy(Participant):
         self.clock_tick = -1  # the latest tick the master published /clock for
         self.pending: list[Status] = []  # activations done without a message (silent)
         self._matched_since: float | None = None
-        self.gated = plan.gated
+        self.gated = plan.gated  # a gate (python or rmw) serves it: plan.gates
         self.own_of = {graph: own for own, graph in plan.output_names.items()}
         # gated: per output, how many of its messages the acknowledged activations hold
         self.ends: dict[str, list[int]] = {t: [] for t in self.classes}
@@ -130,7 +131,9 @@ class ForeignProxy(Participant):
                       f"{feed_topic(self.name, own)})" for own in self._unsubscribed()]
             if not parts and not self.gate_ready:
                 parts.append(f"its cosim gate never reported ready on {self.ack} (is it an "
-                             "rclpy program run by this interpreter, with use_sim_time true?)")
+                             "rclpy program run by this interpreter, or, with the RMW gate, "
+                             "a program on rcl that reads LD_PRELOAD? with use_sim_time "
+                             "true?)")
         missing = [t for t, sub in self.subs.items() if sub.matched() < 1]
         if missing:
             parts.append("its outputs are not advertised yet: "
@@ -275,7 +278,7 @@ class ForeignProxy(Participant):
         if self.gated:
             return ("its gate acknowledged the tick, but of the messages it counted only "
                     + ", ".join(parts) + " arrived (foreign program)")
-        return ("it published " + ", ".join(parts) + " (a foreign program that is not "
-                "Python, so not gated: it must publish exactly the declared count per tick, "
-                "params.per_activation and params.silent_at_start; if it publishes fewer, "
-                "declare that)")
+        return ("it published " + ", ".join(parts) + " (a foreign program no gate serves "
+                "(not Python, and the RMW gate is not built): it must publish exactly the "
+                "declared count per tick, params.per_activation and params.silent_at_start; "
+                "if it publishes fewer, declare that)")

@@ -12,7 +12,9 @@ output (``outputs`` in the configuration) since the previous acknowledgement, fr
 callbacks and timers alike: zero, one or several, so consumers know which messages belong
 to tick ``j`` without counting on a fixed number.
 
-This module makes an unmodified rclpy program honour that protocol.  It is
+This module makes an unmodified rclpy program honour that protocol; the RMW gate
+(``runtime/rmw_gate/rmw_cosim_gate.c``) honours the same one for any program on rcl, at
+the middleware layer.  It is
 injected through ``sitecustomize`` (see ``sitecustomize.py`` next to it) and
 changes nothing in the program's code.  It works at the level of the wait set
 that :meth:`rclpy.executors.Executor._wait_for_ready_callbacks` builds on every
