@@ -12,6 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from plan.robots import topic_token
+
 PYTHON_GATE, RMW_GATE = "python", "rmw"
 RMW_GATE_NAME = "rmw_cosim_gate"
 PYTHONS = ("python", "python3")
@@ -38,3 +40,19 @@ def gate_for(command: list[str], wanted: str) -> str | None:
     if wanted == RMW_GATE and not rmw_gate_library().is_file():
         return None
     return wanted
+
+
+FOREIGN_OUTPUT_RULE = ("a gated foreign program may publish any number of messages per "
+                       "tick on each output; its consumers see the latest one at or before "
+                       "the scheduled producer tick (none before its first message); the "
+                       "bag and the digest hold every message, in order")
+
+
+def feed_prefix(name: str) -> str:
+    """The private topic prefix of a foreign program's feed: '/cosim/feed/<node>/'."""
+    return f"/cosim/feed/{topic_token(name)}/"
+
+
+def ack_topic(name: str) -> str:
+    """Where a gated program acknowledges each tick taken, with its message counts."""
+    return feed_prefix(name) + "taken"

@@ -25,29 +25,12 @@ from collections import deque
 
 from std_msgs.msg import Int64MultiArray
 
-from plan.robots import topic_token
 from runtime.cdr.decode import decode
 from runtime.exchange import InputHistory
 from runtime.transport.base import Received
 
 ACK_TYPE = Int64MultiArray
 READY_TICK = -1
-FOREIGN_OUTPUT_RULE = ("a gated foreign program may publish any number of messages per "
-                       "tick on each output; its consumers see the latest one at or before "
-                       "the scheduled producer tick (none before its first message); the "
-                       "bag and the digest hold every message, in order")
-
-
-def feed_prefix(name: str) -> str:
-    """The private topic prefix of a foreign program's feed: '/cosim/feed/<node>/'."""
-    return f"/cosim/feed/{topic_token(name)}/"
-
-
-def ack_topic(name: str) -> str:
-    """Where a gated program acknowledges each tick taken, with its message counts."""
-    return feed_prefix(name) + "taken"
-
-
 def decode_ack(data: bytes) -> tuple[int, list[int]]:
     """(tick, messages per output) of an acknowledgement (the tick is -1 for 'ready')."""
     values = list(decode(data, ACK_TYPE).data)

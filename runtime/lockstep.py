@@ -22,10 +22,11 @@ from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
+from plan.gates import ack_topic
 from plan.packing import subscribers
 from runtime.activation import Activation
 from runtime.exchange import InputHistory, output_digest
-from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, ack_topic, decode_ack
+from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,

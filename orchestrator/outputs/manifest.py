@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from orchestrator.outputs.swarm import swarm_entry
 from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
+from plan.gates import FOREIGN_OUTPUT_RULE
 from plan.run_paths import RunPaths
 from runtime.timing import read_summary
 
@@ -141,9 +142,6 @@ def foreign_entry(scenario: Scenario) -> dict[str, Any]:
     """Per foreign program, the gate that serves it ('python', 'rmw' or None), the rule its
     outputs follow: what its consumers see, and the message counts the scenario declares
     exactly (checked at every tick)."""
-    # imported here: the rule's module loads rclpy, which must not be loaded before nodes fork
-    from runtime.gated_output import FOREIGN_OUTPUT_RULE
-
     out = {}
     for name, plan in scenario.nodes.items():
         if not plan.foreign:

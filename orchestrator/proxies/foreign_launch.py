@@ -30,11 +30,17 @@ import shutil
 import sys
 from pathlib import Path
 
-from plan.gates import PYTHON_GATE, PYTHONS, RMW_GATE_NAME, rmw_gate_library
+from plan.gates import (
+    PYTHON_GATE,
+    PYTHONS,
+    RMW_GATE_NAME,
+    ack_topic,
+    feed_prefix,
+    rmw_gate_library,
+)
 from plan.robots import robot_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import DELAYED, Schedule
-from runtime.gated_output import ack_topic, feed_prefix
 
 __all__ = ["ack_topic", "clock_topic", "feed_prefix", "feed_topic", "foreign_argv",
            "foreign_env", "gate_config", "gate_of", "is_python", "missing_program",
