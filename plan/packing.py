@@ -40,13 +40,23 @@ def _group_of(name: str, plan: NodePlan, pack: str | None) -> str:
     return f"robot:{robot}" if robot else "robot"
 
 
+LABEL_MAX = 80  # characters: the label names the process's log file (NAME_MAX is 255)
+
+
+def process_label(names: list[str]) -> str:
+    """The name of a process holding ``names``: 'a+b+c', or for a long group (a swarm's
+    controllers packed together) its first node and how many more, 'control@robot_0+15_more'."""
+    label = "+".join(names)
+    return label if len(label) <= LABEL_MAX else f"{names[0]}+{len(names) - 1}_more"
+
+
 def process_of(scenario: Scenario, pack: str | None) -> dict[str, str]:
     """node name -> the process it runs in (a packed group's label; its own name when it
     runs alone or is not a cosim node process)."""
     out = {name: name for name in scenario.nodes}
     for group in process_groups(scenario, pack):
         for name in group:
-            out[name] = "+".join(group)
+            out[name] = process_label(group)
     return out
 
 

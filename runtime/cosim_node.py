@@ -91,9 +91,10 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    from plan.packing import process_label
     from runtime.parent import name_this_process
 
-    name_this_process("+".join(names))
+    name_this_process(process_label(names))
     if args.realtime:
         return run_realtime(scenario, names[0], args.rtf, options, live)
     if len(names) > 1:

@@ -8,6 +8,7 @@ import yaml
 
 from orchestrator.lockstep.inprocess import run_in_process
 from plan.load import load_scenario
+from plan.packing import process_label
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
@@ -61,3 +62,12 @@ def test_a_foreign_program_cannot_share_a_process(tmp_path):
     done = orchestrate(path, tmp_path / "runs")
     assert done.code == 2 and "nodes[1] (echo).process" in done.stderr
     assert "only cosim nodes the orchestrator starts share a process" in done.stderr
+
+
+def test_a_long_packed_group_gets_a_short_process_label():
+    # a swarm's controllers packed by kind: the joined names would be a log file name over
+    # the file system's 255-character limit
+    names = [f"control@robot_{i}" for i in range(64)]
+    label = process_label(names)
+    assert label == "control@robot_0+63_more"
+    assert process_label(["physics", "lidar"]) == "physics+lidar"

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 from orchestrator.lockstep.supervisor import NodeProcess, Supervisor, fork_is_safe, node_argv
 from plan.options import RunOptions
+from plan.packing import process_label
 from plan.run_paths import RunPaths
 from plan.scenario import NodePlan, Scenario
 from runtime.arrivals import Arrivals, Replay
@@ -61,7 +62,7 @@ def start_cosim(site: Site, names: list[str]) -> Started:
 
     scenario, options = site.scenario, site.options
     plan = scenario.nodes[names[0]]
-    label = "+".join(names)
+    label = process_label(names)
     if options.spawn == "fork" and fork_is_safe() and not plan.launch_prefix:
         target = (partial(run_lockstep, scenario, names[0], site.paths.root, options)
                   if len(names) == 1 else
@@ -129,7 +130,7 @@ def start_all(site: Site) -> list[Started]:
     start and join) and user-started nodes announced, in file order; then the cosim node
     processes (``plan.packing``), shuffled with the run option ``shuffle_start``; then the
     external node."""
-    from plan.packing import process_groups
+    from plan.packing import process_groups, process_label
 
     scenario = site.scenario
     started = []
@@ -142,7 +143,7 @@ def start_all(site: Site) -> list[Started]:
     if site.options.shuffle_start is not None:
         random.Random(site.options.shuffle_start).shuffle(groups)
     started += [start_cosim(site, names) for names in groups]
-    log.info("started %s", ", ".join("+".join(g) for g in groups))
+    log.info("started %s", ", ".join(process_label(g) for g in groups))
     started += [start_in_orchestrator(site, plan) for plan in scenario.nodes.values()
                 if plan.in_orchestrator]
     return started
