@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from tests.helpers import SCENARIOS, orchestrate
-from tests.test_foreign_determinism import both_cores_busy, by_tick, expected_sink, variant
+from tests.test_foreign_determinism import by_tick, every_core_busy, expected_sink, variant
 from tests.test_foreign_nav import nav_with_foreign_control
 
 FUSION_C = Path(sys.prefix) / "cosim_native" / "bin" / "fusion_c"
@@ -58,7 +58,7 @@ def test_a_c_program_with_two_inputs_gives_one_digest_every_run(tmp_path, order,
     assert FUSION_C.is_file(), "make install builds tests/programs/fusion_c.c"
     path = c_variant(tmp_path, order, trigger)
     runs = [orchestrate(path, tmp_path / f"run{n}") for n in range(quiet_runs)]
-    with both_cores_busy():
+    with every_core_busy():
         runs.append(orchestrate(path, tmp_path / "loaded"))
     for run in runs:
         assert run.code == 0, run.stderr
