@@ -27,23 +27,13 @@ def no_process_left_behind(request):
     which stops it itself."""
     before = {_identity(p) for p in session_processes()}
     yield
-    left = [p for p in session_processes() if _identity(p) not in before]
-    if left:
-        _, left = psutil.wait_procs(left, timeout=5)
-    if left:
-        names = [_describe(p) for p in left if alive(p)]
-        for proc in left:
-            try:
-                proc.kill()
-            except psutil.Error:
-                pass
-        if names:
-            pytest.fail(f"{request.node.nodeid} left processes behind: {names}")
+    names = _stop_leftovers([p for p in session_processes() if _identity(p) not in before])
+    if names:
+        pytest.fail(f"{request.node.nodeid} left processes behind: {names}")
 
 
-def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    """Fail the session if anything outlived it (a wider fixture's processes included)."""
-    left = session_processes()
+def _stop_leftovers(left: list) -> list[str]:
+    """Give ``left`` 5 s to end, kill what remains, and name what was still alive."""
     if left:
         _, left = psutil.wait_procs(left, timeout=5)
     names = [_describe(p) for p in left if alive(p)]
@@ -52,6 +42,12 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             proc.kill()
         except psutil.Error:
             pass
+    return names
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the session if anything outlived it (a wider fixture's processes included)."""
+    names = _stop_leftovers(session_processes())
     if names:
         print(f"\nthe test session left processes behind: {names}")
         session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -165,10 +165,19 @@ def load_world(path: Path | None, laser_frame: str = "laser") -> World:
     world = World()
     if path is None or not Path(path).exists():
         return world
-    from plan.world_geometry import site_offset, static_obstacles
+    from plan.world_geometry import site_offset
     from plan.worldfile import load_world_model
 
     model = load_world_model(Path(path))
+    add_obstacles(world, model)
+    world.laser = site_offset(model, laser_frame)
+    return world
+
+
+def add_obstacles(world: World, model) -> None:
+    """Add a compiled world's visible static obstacles to the picture's ``world``."""
+    from plan.world_geometry import static_obstacles
+
     for o in static_obstacles(model):
         if not o.visible:
             continue
@@ -176,8 +185,6 @@ def load_world(path: Path | None, laser_frame: str = "laser") -> World:
             world.circles.append((o.centre[0], o.centre[1], o.radius))
         else:
             world.polygons.append(o.polygon)
-    world.laser = site_offset(model, laser_frame)
-    return world
 
 
 def scan_points(scan, pose: tuple[float, float, float],

@@ -8,7 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.outputs.picture import DPI, World, draw_obstacles, read_bag, title
+from orchestrator.outputs.picture import (
+    DPI,
+    World,
+    add_obstacles,
+    draw_obstacles,
+    read_bag,
+    title,
+)
 from orchestrator.outputs.swarm import swarm_entry
 from plan.robots import namespaced
 from plan.run_paths import RunPaths
@@ -30,16 +37,9 @@ def write_swarm_png(scenario, run_dir: Path, bag: Path | None, outcome=None) -> 
 def arena(scenario) -> World:
     """The static obstacles of the swarm's world (the robots are not static)."""
     from plan.robots import swarm_model
-    from plan.world_geometry import static_obstacles
 
     world = World()
-    for o in static_obstacles(swarm_model(scenario.world, scenario.robots)):
-        if not o.visible:
-            continue
-        if o.is_circle:
-            world.circles.append((o.centre[0], o.centre[1], o.radius))
-        else:
-            world.polygons.append(o.polygon)
+    add_obstacles(world, swarm_model(scenario.world, scenario.robots))
     return world
 
 
