@@ -14,6 +14,19 @@ COSIM_NODE = [sys.executable, "-m", "runtime.cosim_node"]
 """The cosim-node command, run with this interpreter."""
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
+NAV = ROOT / "scenarios" / "nav.yaml"
+
+
+def nav_without_camera_doc(duration: str) -> dict:
+    """scenarios/nav.yaml as a document, its camera node left out, its world path absolute
+    (so the document can be written anywhere), running ``duration``."""
+    import yaml
+
+    doc = yaml.safe_load(NAV.read_text())
+    doc["duration"] = duration
+    doc["world"] = str((NAV.parent / doc["world"]).resolve())
+    doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    return doc
 
 
 @dataclass

@@ -6,18 +6,14 @@ from __future__ import annotations
 
 import yaml
 
-from tests.helpers import ROOT, SCENARIOS, orchestrate
+from tests.helpers import ROOT, SCENARIOS, nav_without_camera_doc, orchestrate
 
-NAV = ROOT / "scenarios" / "nav.yaml"
 CONTROLLER = ROOT / "examples" / "control_as_ros_node.py"
 
 
 def nav_with_foreign_control(tmp_path, duration="3s"):
     """nav.yaml (camera left out) with its control node replaced by the rclpy program."""
-    doc = yaml.safe_load(NAV.read_text())
-    doc["duration"] = duration
-    doc["world"] = str((NAV.parent / doc["world"]).resolve())
-    doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    doc = nav_without_camera_doc(duration)
     builtin = tmp_path / "builtin.yaml"
     builtin.write_text(yaml.safe_dump(doc))
     control = next(n for n in doc["nodes"] if n["name"] == "control")

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import yaml
 
-from tests.helpers import ROOT, orchestrate
+from tests.helpers import nav_without_camera_doc, orchestrate
 
-NAV = ROOT / "scenarios" / "nav.yaml"
 # numpy's dispatch targets above its x86-64 baseline; names it does not know are ignored
 # with a warning on a machine without them, so this works on any x86-64.
 NPY_BASELINE_ONLY = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
@@ -18,10 +17,7 @@ NPY_BASELINE_ONLY = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
 
 def nav_without_camera(tmp_path, duration: str = "1s"):
     """nav minus its camera (rendered pixels depend on the renderer, not the CPU), short."""
-    doc = yaml.safe_load(NAV.read_text())
-    doc["duration"] = duration
-    doc["world"] = str((NAV.parent / doc["world"]).resolve())
-    doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    doc = nav_without_camera_doc(duration)
     path = tmp_path / "nav_nocam.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
