@@ -14,7 +14,7 @@ from pathlib import Path
 
 from tests.helpers import ROOT
 
-PACKAGES = ("plan", "nodes", "runtime", "orchestrator")
+PACKAGES = ("plan", "descriptions", "nodes", "runtime", "orchestrator")
 MAY_IMPORT = {pkg: set(PACKAGES[:i + 1]) for i, pkg in enumerate(PACKAGES)}
 
 

@@ -1,0 +1,137 @@
+"""The robot model: what every description format (MJCF, USD, URDF or xacro) produces, and what
+every node that needs a robot is given instead of finding it through naming conventions.
+
+A scenario with one robot has a swarm of one: the same model, with an empty name and prefix.
+In a swarm every robot's model is the description's model scoped to it (``scoped``): the same
+links, joints and sensors, every MuJoCo name and TF frame prefixed ``ROBOT/`` (REP-105, as
+robot_state_publisher's ``frame_prefix`` does).
+
+The model is plain frozen data (names and numbers), so it pickles into forked and spawned nodes
+and compares equal across processes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+CommandInterface = Literal["position", "velocity", "effort"]
+JointKind = Literal["revolute", "continuous", "prismatic", "fixed", "floating", "planar"]
+SensorKind = Literal["lidar", "camera", "imu"]
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """A joint's limits as URDF's ``<limit>`` gives them (None: not given)."""
+
+    lower: float | None = None
+    upper: float | None = None
+    effort: float | None = None
+    velocity: float | None = None
+
+
+@dataclass(frozen=True)
+class Link:
+    """One link of the description: a TF frame. ``body`` is the MuJoCo body that carries it;
+    a link fused into its parent (a fixed joint) keeps its frame as a site on the parent body,
+    ``site``, so sensor and footprint frames never vanish."""
+
+    name: str
+    body: str
+    site: str | None = None
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint between two links, as the description names it."""
+
+    name: str
+    kind: JointKind
+    parent: str
+    child: str
+    limits: JointLimits = JointLimits()
+
+
+@dataclass(frozen=True)
+class ActuatedJoint:
+    """A joint cosim commands: its MuJoCo joint and actuator, and the command interface."""
+
+    joint: str
+    actuator: str
+    interface: CommandInterface = "position"
+    state_interfaces: tuple[str, ...] = ("position", "velocity")
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A differential drive: the two wheel joints and actuators, wheel radius and separation
+    in metres."""
+
+    left_joint: str
+    right_joint: str
+    left_actuator: str
+    right_actuator: str
+    wheel_radius: float
+    wheel_separation: float
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A sensor hung on a link: its kind, the link (TF frame) and the MuJoCo site or camera
+    that renders it, and parameters the description carries (a Gazebo ``<sensor>`` tag's
+    samples, angles, ranges, update rate), empty when it carries none."""
+
+    kind: SensorKind
+    name: str
+    link: str
+    mujoco_name: str
+    params: tuple[tuple[str, float | int | str], ...] = ()
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """One robot: its name and prefix, base link, drive, commanded joints, sensors, links and
+    joints, and its footprint radius (metres, from its collision geometry)."""
+
+    name: str
+    prefix: str
+    base_link: str
+    mobile: bool
+    footprint_radius: float
+    drive: Drive | None = None
+    actuated: tuple[ActuatedJoint, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
+    links: tuple[Link, ...] = ()
+    joints: tuple[Joint, ...] = ()
+    source: str = ""  # the description file it came from
+    notes: tuple[str, ...] = field(default=(), compare=False)  # what the conversion changed
+
+    def sensor(self, kind: SensorKind, name: str | None = None) -> Sensor | None:
+        """The robot's first sensor of ``kind`` (or the one named ``name``), None if absent."""
+        for sensor in self.sensors:
+            if sensor.kind == kind and (name is None or sensor.name == name):
+                return sensor
+        return None
+
+    def scoped(self, robot: str) -> RobotModel:
+        """This model as robot ``robot`` of a swarm: every MuJoCo name and frame prefixed
+        ``robot/``; the unscoped model (robot '') is returned as it is."""
+        if not robot:
+            return self
+        p = f"{robot}/"
+        return replace(
+            self, name=robot, prefix=p, base_link=p + self.base_link,
+            drive=None if self.drive is None else replace(
+                self.drive, left_joint=p + self.drive.left_joint,
+                right_joint=p + self.drive.right_joint,
+                left_actuator=p + self.drive.left_actuator,
+                right_actuator=p + self.drive.right_actuator),
+            actuated=tuple(replace(a, joint=p + a.joint, actuator=p + a.actuator)
+                           for a in self.actuated),
+            sensors=tuple(replace(s, link=p + s.link, mujoco_name=p + s.mujoco_name)
+                          for s in self.sensors),
+            links=tuple(replace(k, name=p + k.name, body=p + k.body,
+                                site=None if k.site is None else p + k.site)
+                        for k in self.links),
+            joints=tuple(replace(j, name=p + j.name, parent=p + j.parent, child=p + j.child)
+                         for j in self.joints))
