@@ -137,3 +137,14 @@ def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
         run(path, out=tmp_path / "r")
     assert not (tmp_path / "r").exists()
     assert load_scenario(python).nodes["fusion"].gated  # the Python gate needs no build
+
+
+# -- the rules themselves ------------------------------------------------------------------
+
+def test_every_rule_is_a_named_check_with_a_docstring():
+    from orchestrator.run_rules import FOREIGN_RULES, RULES
+
+    names = [r.name for r in [*RULES, *FOREIGN_RULES]]
+    assert len(names) == len(set(names)) >= 10, names
+    assert all(r.doc.strip() for r in [*RULES, *FOREIGN_RULES])
+    assert names[:2] == ["in_process_runs_step_classes", "zenoh_carries_cosim_nodes"]
