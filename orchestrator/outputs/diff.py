@@ -1,9 +1,10 @@
 """Where two runs part: the first (tick, topic) whose recorded message differs.
 
-The run digest says *whether* two runs differ; this module says *where*. Every message of a
-run's bag is hashed (its serialised bytes are canonical: equal messages give equal bytes) and
-the two runs are walked side by side in (tick, topic) order. ``/clock`` is left out: it is not
-part of the digest and depends only on how many ticks ran.
+The run digest says *whether* two runs differ; this module says *where*, down to the first
+field of the first message that differs, with both values (``runtime.message_diff``).
+Every message of a run's bag is hashed (its serialised bytes are canonical: equal messages
+give equal bytes) and the two runs are walked side by side in (tick, topic) order. ``/clock``
+is left out: it is not part of the digest and depends only on how many ticks ran.
 
 A run can also be kept as a compact *fingerprint* (per topic: its ticks as arithmetic runs and
 a short hash prefix per message, base64) so a golden file can name the first difference
@@ -16,10 +17,13 @@ import base64
 import hashlib
 import json
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
+from plan.ros_types import message_class
 from plan.run_paths import RunPaths
+from runtime.message_diff import field_difference
 
 CLOCK_TOPIC = "/clock"
 FINGERPRINT_HASH_BYTES = 3
@@ -38,11 +42,14 @@ class Difference:
     topic: str
     kind: str  # differs | missing (only in the reference) | extra (only in this run)
     tick_ns: int | None = None
+    occurrence: int = 0  # which message of this topic at this tick (0: the first)
+    field: str | None = None  # where two messages differ: 'angular.x: 6.91e-310 vs 6.95e-310'
 
     def describe(self) -> str:
-        """'topic /odom at tick 37 (t = 0.740 s): the message differs'."""
+        """'topic /odom at tick 37 (t = 0.740 s): pose.pose.position.x: 1.25 vs 1.5' (the
+        reference run's value first), or '...: the message differs' when no field is named."""
         when = f" (t = {self.tick * self.tick_ns / 1e9:.3f} s)" if self.tick_ns else ""
-        what = {"differs": "the message differs",
+        what = {"differs": self.field or "the message differs",
                 "missing": "the reference run has a message here, this run has none",
                 "extra": "this run has a message here, the reference run has none"}[self.kind]
         return f"topic {self.topic} at tick {self.tick}{when}: {what}"
@@ -62,9 +69,14 @@ def bag_entries(bag: Path, tick_ns: int) -> list[Entry]:
 def run_dir_entries(run_dir: Path) -> tuple[list[Entry], int]:
     """A run directory's messages (see ``bag_entries``) and its tick in ns, from the manifest."""
     manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
-    bag = manifest.get("outputs", {}).get("bag") or "bag"
     tick_ns = int(manifest["tick_ns"])
-    return bag_entries(Path(run_dir) / bag, tick_ns), tick_ns
+    return bag_entries(run_bag(run_dir), tick_ns), tick_ns
+
+
+def run_bag(run_dir: Path) -> Path:
+    """A run directory's bag, as its manifest names it."""
+    manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
+    return Path(run_dir) / (manifest.get("outputs", {}).get("bag") or "bag")
 
 
 def first_difference(reference: Iterable[Entry], actual: Iterable[Entry],
@@ -76,16 +88,49 @@ def first_difference(reference: Iterable[Entry], actual: Iterable[Entry],
     """
     ref, act = _keyed(reference), _keyed(actual)
     for key in sorted(set(ref) | set(act)):
-        tick, topic, _ = key
+        tick, topic, occurrence = key
         if key not in act:
-            return Difference(tick, topic, "missing", tick_ns)
+            return Difference(tick, topic, "missing", tick_ns, occurrence)
         if key not in ref:
-            return Difference(tick, topic, "extra", tick_ns)
+            return Difference(tick, topic, "extra", tick_ns, occurrence)
         a, b = ref[key], act[key]
         n = min(len(a), len(b))
         if a[:n] != b[:n]:
-            return Difference(tick, topic, "differs", tick_ns)
+            return Difference(tick, topic, "differs", tick_ns, occurrence)
     return None
+
+
+def with_field(diff: Difference, reference_bag: Path, bag: Path) -> Difference:
+    """``diff`` naming the first field that differs (``field``), both messages decoded from
+    the two bags; unchanged when it is not a differing message or the messages cannot be
+    decoded."""
+    if diff.kind != "differs" or not diff.tick_ns:
+        return diff
+    first = message_at(reference_bag, diff.topic, diff.tick, diff.tick_ns, diff.occurrence)
+    second = message_at(bag, diff.topic, diff.tick, diff.tick_ns, diff.occurrence)
+    if first is None or second is None:
+        return diff
+    found = field_difference(first, second)
+    if found is None:
+        return replace(diff, field="the bytes differ where no field is (padding)")
+    return replace(diff, field=found.describe())
+
+
+def message_at(bag: Path, topic: str, tick: int, tick_ns: int, occurrence: int = 0) -> Any:
+    """The ``occurrence``-th message of ``topic`` at ``tick`` in a bag, decoded (as the
+    rclpy class its type names, else as a rosbags object); None when there is none."""
+    from orchestrator.outputs.bag import BagReader
+    from runtime.cdr.decode import decode
+
+    with BagReader(Path(bag)) as reader:
+        found = [raw for _, stamp, raw in reader.raw([topic]) if stamp // tick_ns == tick]
+        if len(found) <= occurrence:
+            return None
+        raw = found[occurrence]
+        try:
+            return decode(raw, message_class(reader.msgtype(topic)))
+        except ValueError:  # a type not installed here: the bag's own definition
+            return reader.deserialize(raw, topic)
 
 
 def _keyed(entries: Iterable[Entry]) -> dict[tuple[int, str, int], bytes]:
@@ -212,6 +257,8 @@ def digest_mismatch(expected: str, run_dir: Path, against: Path | None,
         reference = [e for e in reference if e[1] not in left_out]
         actual = [e for e in actual if e[1] not in left_out]
     diff = first_difference(reference, actual, tick_ns)
+    if diff is not None:
+        diff = with_field(diff, run_bag(against), run_bag(run_dir))
     if diff is None:
         text += (f" Every recorded message equals {against}'s; the runs differ in what "
                  "the digest covers beyond the messages (nodes, schedule).")
