@@ -9,6 +9,8 @@
 
 Errors are the ones the command line reports: ``ScenarioError`` (bad input, nothing was
 started: exit code 2) and ``SimulationError`` (a node failed: exit code 3).
+``check_node(MyNode, params)`` runs a step class through cosim's rules before it joins a
+scenario (``runtime.node_check``).
 """
 
 from __future__ import annotations
@@ -27,9 +29,11 @@ from plan.load import load_scenario
 from plan.options import RunOptions
 from plan.scenario import Scenario
 from runtime.arrivals import Arrivals, Replay
+from runtime.node_check import NodeCheckError, NodeCheckReport, check_node
 
-__all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "RunOptions", "ScenarioError",
-           "ScenarioWarning", "SimulationError", "load", "overrides_for", "replay", "run"]
+__all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "NodeCheckError", "NodeCheckReport",
+           "RunOptions", "ScenarioError", "ScenarioWarning", "SimulationError", "check_node",
+           "load", "overrides_for", "replay", "run"]
 
 EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
 """Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
