@@ -151,3 +151,17 @@ def test_the_floor_plan_keeps_its_limits():
     assert not long, long
     top = sorted(p.name for p in (ROOT / "orchestrator").glob("*.py") if p.name != "__init__.py")
     assert len(top) <= 12, top
+
+
+def test_the_run_rules_and_node_checks_are_named_checks():
+    # a refusal written outside the registries would be a rule nobody can list or name
+    from orchestrator import run_rules
+    from runtime.node_check import NODE_CHECKS
+
+    registered = {r.check.__name__ for r in [*run_rules.RULES, *run_rules.FOREIGN_RULES]}
+    tree = ast.parse((ROOT / "orchestrator" / "run_rules.py").read_text())
+    raising = {f.name for f in tree.body if isinstance(f, ast.FunctionDef)
+               and any(isinstance(n, ast.Raise) for n in ast.walk(f))}
+    assert raising <= registered, sorted(raising - registered)
+    assert all(r.doc.strip() for r in [*run_rules.RULES, *run_rules.FOREIGN_RULES])
+    assert all(c.doc for c in NODE_CHECKS)
