@@ -59,7 +59,7 @@ class NodeCheckError(AssertionError):
 @dataclass
 class Watched:
     """What one call of reset or step did besides returning: clocks read, sleeps, draws
-    from global or OS randomness (name -> calls), and what it raised."""
+    from global or OS randomness (name -> calls), and what went wrong ('raised ...')."""
 
     clocks: Counter = field(default_factory=Counter)
     sleeps: Counter = field(default_factory=Counter)
@@ -290,6 +290,9 @@ def _episode(label, node, seed, config, ticks, feed, outputs, latched) -> Episod
         copies = {topic: decode(data, cls) for topic, (cls, data) in given.items()}
         watched, returned = _watch(lambda t=tick, c=copies: node.step(t, c))
         node.take_notes()
+        if not isinstance(returned, dict) and watched.error is None:
+            watched.error = (f"returned {type(returned).__name__}, not a dict of topic -> "
+                             "message")
         returned = returned if isinstance(returned, dict) else {}
         serialised, encode_errors = {}, {}
         for topic, msg in returned.items():
@@ -330,7 +333,7 @@ def _watch(call: Callable[[], Any]) -> tuple[Watched, Any]:
     try:
         result = call()
     except Exception as exc:  # noqa: BLE001 - a user's node: any failure is the report
-        watched.error = _error(exc, traceback.extract_tb(exc.__traceback__)[-1:])
+        watched.error = "raised " + _error(exc, traceback.extract_tb(exc.__traceback__)[-1:])
     finally:
         sys.setprofile(previous)
     if random.getstate() != before_random:
@@ -366,13 +369,13 @@ def valid_setup(trial: Trial) -> list[str]:
 
 @node_check
 def no_exception(trial: Trial) -> list[str]:
-    """reset and every step return without raising."""
+    """reset and every step return without raising (step: a dict of topic -> message)."""
     problems, seen = [], set()
     for episode in trial.episodes.values():
         for where, watched in episode.calls():
             if watched.error is not None and watched.error not in seen:
                 seen.add(watched.error)  # the same failure in every episode: say it once
-                problems.append(f"{where} raised {watched.error}")
+                problems.append(f"{where} {watched.error}")
     return problems
 
 
@@ -383,10 +386,6 @@ def declared_topics(trial: Trial) -> list[str]:
     episode = trial.episodes["first"]
     for i, act in enumerate(episode.steps):
         if act.watched.error is not None:
-            continue
-        if not isinstance(act.outputs, dict):
-            problems.append(f"{episode.where(i)} returned {type(act.outputs).__name__}, not "
-                            "a dict of topic -> message")
             continue
         undeclared = sorted(set(act.outputs) - set(trial.outputs) - set(trial.latched))
         missing = sorted(set(trial.outputs) - set(act.outputs))

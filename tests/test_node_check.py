@@ -109,6 +109,14 @@ class LeakyNode(CounterNode):
         return {self.params.output: Int64(data=LeakyNode.total)}
 
 
+class SilentNode(CounterNode):
+    """Forgets to return its outputs."""
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Count, return nothing."""
+        super().step(tick, inputs)
+
+
 def test_the_checks_are_named_and_documented():
     names = [c.name for c in NODE_CHECKS]
     assert len(names) == len(set(names)) and all(c.doc for c in NODE_CHECKS)
@@ -172,6 +180,9 @@ def test_setup_problems_are_reported_and_nothing_else_is_judged():
                          check=False)  # String has no .data of a number: the step raises
     assert list(raising.failures) == ["no_exception"]
     assert raising.failures["no_exception"][0].startswith("step at tick 0 raised TypeError")
+    silent = check_node(SilentNode, COUNTER, check=False)
+    assert silent.failures == {"no_exception": (
+        "step at tick 0 returned NoneType, not a dict of topic -> message",)}
 
 
 def test_cosim_nodes_pass_with_the_nav_scenario_params():
