@@ -154,15 +154,20 @@ class BagReader:
             raise KeyError(f"{topic} was not recorded; topics: {', '.join(sorted(self._types))}")
         return self._types[topic]
 
-    def raw(self, topics: Iterable[str] | None = None, exclude: Iterable[str] = ()
+    def raw(self, topics: Iterable[str] | None = None, exclude: Iterable[str] = (),
+            start: int | None = None, stop: int | None = None
             ) -> Iterator[tuple[str, int, bytes]]:
         """(topic, log time in ns, CDR bytes) of the chosen topics (all but ``exclude`` when
-        None), in log order."""
+        None), in log order; only those logged at or after ``start`` and before ``stop``
+        (ns) when given."""
         chosen = None if topics is None else set(topics)
         skipped = set(exclude)
         conns = [c for c in self._reader.connections
                  if (chosen is None or c.topic in chosen) and c.topic not in skipped]
-        for conn, stamp, raw in self._reader.messages(connections=conns):
+        if not conns:
+            return
+        for conn, stamp, raw in self._reader.messages(connections=conns, start=start,
+                                                      stop=stop):
             yield conn.topic, stamp, raw
 
     def deserialize(self, raw: bytes, topic: str) -> Any:

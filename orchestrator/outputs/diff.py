@@ -123,7 +123,8 @@ def message_at(bag: Path, topic: str, tick: int, tick_ns: int, occurrence: int =
     from runtime.cdr.decode import decode
 
     with BagReader(Path(bag)) as reader:
-        found = [raw for _, stamp, raw in reader.raw([topic]) if stamp // tick_ns == tick]
+        found = [raw for _, _, raw in reader.raw([topic], start=tick * tick_ns,
+                                                 stop=(tick + 1) * tick_ns)]
         if len(found) <= occurrence:
             return None
         raw = found[occurrence]
