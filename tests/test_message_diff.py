@@ -62,6 +62,15 @@ def test_serialised_messages_are_decoded_and_compared():
     assert serialized_difference(encode(a), encode(a), Twist) is None
 
 
+def test_rosbags_objects_compare_too():
+    # a type not installed here is read with the bag's own definition, as rosbags objects
+    store = get_typestore(Stores.ROS2_JAZZY)
+    scan, other = LaserScan(ranges=[1.0] * 4), LaserScan(ranges=[1.0] * 4)
+    other.ranges[2] = 0.5
+    a, b = (store.deserialize_cdr(encode(m), "sensor_msgs/msg/LaserScan") for m in (scan, other))
+    assert field_difference(a, b).describe() == "ranges[2]: 1.0 vs 0.5"
+
+
 def write_bag(path, messages):
     """A rosbag2 (MCAP) of /poses messages [(tick, PoseArray)], as cosim writes one."""
     store = get_typestore(Stores.ROS2_JAZZY)
