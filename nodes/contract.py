@@ -99,6 +99,15 @@ class StepNode:
         return {}
 
     @classmethod
+    def client_inputs(cls, params: BaseModel) -> dict[str, str]:
+        """Input topic -> ROS 2 type name ('std_msgs/msg/Float64MultiArray') of what ROS 2
+        clients may send this node in an interactive scenario, beyond the goals and poses
+        every node may take (plan/interactive.py): they enter through the external node at
+        a tick boundary and are recorded. A topic the scenario wires to the node itself
+        (its ``inputs:``) is left to that wiring. Nothing by default."""
+        return {}
+
+    @classmethod
     def world_problems(cls, params: BaseModel, model: Any, goal: dict[str, float] | None
                        ) -> list[tuple[str, str, str]]:
         """What makes this node unable to work in the world ``model`` (a compiled MjModel),

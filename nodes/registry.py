@@ -18,6 +18,7 @@ KINDS: dict[str, str] = {
     "sensors": "nodes.sensors.node:SensorsNode",
     "control": "nodes.control.node:ControlNode",
     "joint_targets": "nodes.arm.node:JointTargetsNode",
+    "ros2_control": "nodes.ros2_control.node:ControllerManagerNode",
     "counter": "nodes.testing:CounterNode",
     "integrator": "nodes.testing:IntegratorNode",
     "wallclock": "nodes.testing:WallClockNode",

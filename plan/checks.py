@@ -94,7 +94,8 @@ class ScenarioChecks:
     def node_params(self, i: int, spec: NodeSpec, cls: type) -> BaseModel:
         """The node's parameters checked against its class's Params model."""
         try:
-            return cls.Params.model_validate(spec.params)
+            return cls.Params.model_validate(spec.params,
+                                             context={"scenario_dir": self.path.parent})
         except ValidationError as exc:
             key, problem, accepted = describe_validation_error(exc, spec.params, cls.Params)
             raise self.fail(self.node_key(i, f"params.{key}" if key else "params"),

@@ -96,7 +96,10 @@ def register_installed(typestore, classes: Iterable[type]) -> None:
         lines = []
         for field, idl in cls.get_fields_and_field_types().items():
             lines.append(f"{_msg_type(idl, todo)} {field}")
-        typestore.register(get_types_from_msg("\n".join(lines), name))
+        types = get_types_from_msg("\n".join(lines), name)
+        if name not in types:  # rosbags files 'pkg/srv/Name_Request' under 'pkg/srv/msg/...'
+            types = {name: next(iter(types.values()))}
+        typestore.register(types)
 
 
 def _msg_type(idl: str, todo: list[type]) -> str:

@@ -125,6 +125,10 @@ class SimServices:
                                          self._simulate_steps, callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
         self.navigate = _navigate(self.node, group, scenario, self.control, arrivals)
+        from orchestrator.ros_surface.controller_manager import controller_managers
+
+        self.controller_managers = controller_managers(self.node, group, scenario,
+                                                       self.control, arrivals)
         # the same callbacks, for goals from the live endpoints (rosbridge's send_action_goal)
         self.local_actions = {self.prefix + "simulate_steps": LocalAction(
             SimulateSteps, None, self._simulate_steps)}

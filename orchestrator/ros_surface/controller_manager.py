@@ -1,0 +1,222 @@
+"""The controller manager's face of an interactive run with a ``ros2_control`` node: the
+services ``/controller_manager/list_controllers``, ``list_controller_types`` and
+``switch_controller``, and each trajectory controller's ``~/follow_joint_trajectory`` action.
+
+What changes the run (a goal, a cancel, a switch) is put into the run's external arrivals and
+enters the controller manager node at its next activation, at a tick boundary, recorded like
+any message; the answers follow the node's metrics of the ticks the master decides (its
+controllers' states, each trajectory controller's newest goal: number, state, result code).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+
+from control_msgs.action import FollowJointTrajectory
+from controller_manager_msgs.msg import ControllerState
+from controller_manager_msgs.srv import ListControllers, ListControllerTypes, SwitchController
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+
+from nodes.registry import KINDS
+from nodes.ros2_control import config as c
+from nodes.ros2_control.controllers import ABORTED, ACTIVE, CANCELED, SUCCEEDED
+from nodes.ros2_control.node import GOAL_SUFFIX, SWITCH_TOPIC, read
+from orchestrator.ros_surface.simcontrol import RunControl
+from plan.scenario import EXTERNAL_NAME, Scenario
+from runtime.arrivals import Arrivals
+
+WAIT_S = 0.1
+PREFIX = "/controller_manager/"
+log = logging.getLogger("cosim")
+RESULT_TEXT = {0: "", -1: "invalid goal", -2: "invalid joints", -3: "old header timestamp",
+               -4: "path tolerance violated", -5: "goal tolerance violated"}
+
+
+class ControllerManagerServer:
+    """list/switch controllers and the trajectory controllers' actions of one node."""
+
+    def __init__(self, node, group, control: RunControl, arrivals: Arrivals, plan):
+        self.control = control
+        self.arrivals = arrivals
+        self.manager = plan.name
+        self.file = read(plan.params)
+        self.topics = {inp.topic: inp.graph_topic for inp in plan.inputs
+                       if inp.producer == EXTERNAL_NAME}
+        self.active = {s.name: s.name not in plan.params.inactive for s in self.file.controllers}
+        self._cond = threading.Condition()
+        self._reports: deque[tuple[int, dict[str, float]]] = deque(maxlen=4096)
+        self._seq = 0
+        self._goals_put: dict[str, int] = {}
+        self._latest: dict[str, object] = {}
+        self._cancelled: dict[int, int] = {}
+        node.create_service(ListControllers, PREFIX + "list_controllers", self._list,
+                            callback_group=group)
+        node.create_service(ListControllerTypes, PREFIX + "list_controller_types", self._types,
+                            callback_group=group)
+        node.create_service(SwitchController, PREFIX + "switch_controller", self._switch,
+                            callback_group=group)
+        self.actions = []
+        for spec in self.file.controllers:
+            if spec.type == c.JTC and f"/{spec.name}{GOAL_SUFFIX}" in self.topics:
+                self.actions.append(ActionServer(
+                    node, FollowJointTrajectory, f"/{spec.name}/follow_joint_trajectory",
+                    self._executor(spec.name), callback_group=group,
+                    goal_callback=self._goal_callback(spec.name),
+                    cancel_callback=self._cancel_callback(spec.name)))
+        control.observers.append(self._observe)
+
+    def _observe(self, tick: int, reports: dict) -> None:
+        done = reports.get(self.manager)
+        if done is None:
+            return
+        with self._cond:
+            self._seq += 1
+            self._reports.append((self._seq, dict(done.metrics)))
+            for name in self.active:
+                if f"active:{name}" in done.metrics:
+                    self.active[name] = bool(done.metrics[f"active:{name}"])
+            self._cond.notify_all()
+
+    def _list(self, request, response):
+        with self._cond:
+            active = dict(self.active)
+        for spec in self.file.controllers:
+            state = ControllerState(name=spec.name, type=spec.type,
+                                    state="active" if active[spec.name] else "inactive",
+                                    update_rate=self.file.update_rate)
+            if spec.type not in (c.JSB, c.DIFF_DRIVE):
+                state.required_command_interfaces = [f"{j}/position" for j in spec.joints]
+            elif spec.type == c.DIFF_DRIVE:
+                state.required_command_interfaces = [f"{j}/velocity" for j in spec.joints]
+            if active[spec.name]:
+                state.claimed_interfaces = list(state.required_command_interfaces)
+            state.required_state_interfaces = [f"{j}/{i}" for j in spec.joints
+                                               for i in ("position", "velocity")]
+            response.controller.append(state)
+        return response
+
+    def _types(self, request, response):
+        response.types = list(c.SUPPORTED)
+        response.base_classes = ["controller_interface::ControllerInterface"] * len(c.SUPPORTED)
+        return response
+
+    def _switch(self, request, response):
+        names = set(self.active)
+        unknown = [n for n in [*request.activate_controllers, *request.deactivate_controllers]
+                   if n not in names]
+        if unknown:
+            response.ok = False
+            response.message = f"no controller {unknown[0]!r}; controllers: " + \
+                ", ".join(sorted(names))
+            return response
+        msg = SwitchController.Request(activate_controllers=list(request.activate_controllers),
+                                       deactivate_controllers=list(
+                                           request.deactivate_controllers))
+        with self._cond:
+            seen = self._seq
+            self.arrivals.put(self.topics[SWITCH_TOPIC], msg)
+        wanted = {**{n: False for n in request.deactivate_controllers},
+                  **{n: True for n in request.activate_controllers}}
+        while True:
+            ended = self.control.ended
+            with self._cond:
+                if self._seq == seen:
+                    self._cond.wait(WAIT_S)
+                fresh = [m for s, m in self._reports if s > seen]
+            if any(all(m.get(f"active:{n}") == float(v) for n, v in wanted.items())
+                   for m in fresh):
+                response.ok = True
+                return response
+            if ended is not None:
+                response.ok = False
+                response.message = f"the run ended before the switch: {ended}"
+                return response
+
+    def _goal_callback(self, name: str):
+        def on_goal(request) -> GoalResponse:
+            with self._cond:
+                self._goals_put[name] = self._goals_put.get(name, 0) + 1
+                request._cosim_seq = self._goals_put[name]
+                self._latest[name] = request
+                self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"], _goal(request))
+            log.info("FollowJointTrajectory: goal %d for %s from %s", request._cosim_seq, name,
+                     self.control.at())
+            return GoalResponse.ACCEPT
+        return on_goal
+
+    def _cancel_callback(self, name: str):
+        def on_cancel(handle) -> CancelResponse:
+            with self._cond:
+                if self._latest.get(name) is handle.request:
+                    self._cancelled[handle.request._cosim_seq] = self._seq
+                    self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"],
+                                      FollowJointTrajectory.Goal())
+            return CancelResponse.ACCEPT
+        return on_cancel
+
+    def _executor(self, name: str):
+        def execute(handle) -> FollowJointTrajectory.Result:
+            mine = handle.request._cosim_seq
+            seen = 0
+            while True:
+                ended = self.control.ended
+                with self._cond:
+                    if self._seq == seen:
+                        self._cond.wait(WAIT_S)
+                    fresh = [(s, m) for s, m in self._reports if s > seen]
+                    seen = fresh[-1][0] if fresh else seen
+                for _, m in fresh:
+                    if m.get(f"goal_seq:{name}", 0.0) != float(mine):
+                        if m.get(f"goal_seq:{name}", 0.0) > mine:
+                            return _finish(handle, "abort", -1, "replaced by a newer goal")
+                        continue
+                    state = m.get(f"goal_state:{name}")
+                    code = int(m.get(f"error_code:{name}", 0.0))
+                    joint = int(m.get(f"error_joint:{name}", -1.0))
+                    if state == SUCCEEDED:
+                        return _finish(handle, "succeed", 0, "")
+                    if state == ABORTED:
+                        text = RESULT_TEXT.get(code, "")
+                        if joint >= 0:
+                            spec = self.file.named(name)
+                            text += f" (joint {spec.joints[joint]})"
+                        return _finish(handle, "abort", code, text)
+                    if state == CANCELED:
+                        how = "canceled" if handle.is_cancel_requested else "abort"
+                        return _finish(handle, how, 0, "cancelled: holding position"
+                                       if how == "canceled" else "preempted")
+                    if state == ACTIVE:
+                        continue
+                if ended is not None:
+                    how = "canceled" if handle.is_cancel_requested else "abort"
+                    return _finish(handle, how, -1, f"the run ended: {ended}")
+        return execute
+
+
+def _goal(request) -> FollowJointTrajectory.Goal:
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory = request.trajectory
+    goal.path_tolerance = list(request.path_tolerance)
+    goal.goal_tolerance = list(request.goal_tolerance)
+    goal.goal_time_tolerance = request.goal_time_tolerance
+    return goal
+
+
+def _finish(handle, how: str, code: int, text: str) -> FollowJointTrajectory.Result:
+    log.info("FollowJointTrajectory: %s %s", how, text)
+    getattr(handle, how)()
+    return FollowJointTrajectory.Result(error_code=code, error_string=text)
+
+
+def controller_managers(node, group, scenario: Scenario, control: RunControl,
+                        arrivals: Arrivals | None) -> list[ControllerManagerServer]:
+    """A server for every ros2_control node of the scenario, when the run's arrivals are
+    live (an interactive run)."""
+    if arrivals is None:
+        return []
+    return [ControllerManagerServer(node, group, control, arrivals, plan)
+            for plan in scenario.nodes.values() if plan.class_ref == KINDS["ros2_control"]
+            and any(inp.topic == SWITCH_TOPIC and inp.producer == EXTERNAL_NAME
+                    for inp in plan.inputs)]
