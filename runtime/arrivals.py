@@ -20,8 +20,10 @@ class Arrivals:
         self._waiting: dict[str, Any] = {}
         self.count = 0
 
-    def put(self, topic: str, msg: Any) -> None:
-        """A message arrived; it enters at the node's next activation (the last per topic)."""
+    def put(self, topic: str, msg: Any) -> Any:
+        """A message arrived; it enters at the node's next activation (the last per topic).
+        Returns the message it replaced, one that arrived since the last activation and now
+        never enters, or None."""
         if topic not in self.topics:
             raise KeyError(f"{topic} is not {self.what} "
                            f"({', '.join(sorted(self.topics))})")
@@ -29,8 +31,10 @@ class Arrivals:
             raise TypeError(f"{topic} takes {self.topics[topic].__name__}, "
                             f"not {type(msg).__name__}")
         with self._lock:
+            replaced = self._waiting.get(topic)
             self._waiting[topic] = msg
             self.count += 1
+        return replaced
 
     def take(self, tick: int | None = None) -> dict[str, Any]:
         """Everything that arrived since the last take (enters at ``tick``)."""

@@ -21,7 +21,8 @@ Topics under each controller's name, as ros2_controllers' Jazzy documentation gi
 - forward_command_controller, position_controllers/JointGroupPositionController: ``~/commands``;
 - diff_drive_controller: ``~/cmd_vel`` (TwistStamped) in, ``~/odom`` out.
 
-Switches (controller_manager/switch_controller) enter on ``/controller_manager/cosim/switch``.
+Switches (controller_manager/switch_controller) enter on ``/controller_manager/cosim/switch``
+(std_msgs/String: ``+name`` activates, ``-name`` deactivates).
 The metrics report each controller's state and the trajectory controllers' goals, which the
 orchestrator's controller manager services answer from.
 """
@@ -37,12 +38,11 @@ import mujoco
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import DynamicJointState, InterfaceValue, JointTrajectoryControllerState
-from controller_manager_msgs.srv import SwitchController
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from nodes.contract import StepNode, Tick
@@ -61,7 +61,8 @@ BASE_COMMAND = "/cosim/base_command"  # physics' /cmd_vel, remapped
 SWITCH_TOPIC = "/controller_manager/cosim/switch"
 GOAL_SUFFIX = "/cosim/goal"
 GOAL_TYPE = "control_msgs/action/FollowJointTrajectory_Goal"
-SWITCH_TYPE = "controller_manager_msgs/srv/SwitchController_Request"
+SWITCH_TYPE = "std_msgs/msg/String"  # '+name' activates, '-name' deactivates, space-separated
+GOAL_ID, CANCEL_ID = "cosim-goal-", "cosim-cancel-"  # + a number: the trajectory's frame_id
 
 
 class ControllerManagerParams(BaseModel):
@@ -89,11 +90,15 @@ class ControllerManagerParams(BaseModel):
 
 def read(params: ControllerManagerParams) -> c.ControllersFile:
     """The node's controllers file, read and checked (once per process and file)."""
-    return _read(params.controllers)
+    try:
+        stat = Path(params.controllers).stat()
+    except OSError:
+        return c.read_controllers_file(params.controllers)  # says the file cannot be read
+    return _read(params.controllers, stat.st_mtime_ns, stat.st_size)
 
 
 @functools.lru_cache(maxsize=8)
-def _read(path: str) -> c.ControllersFile:
+def _read(path: str, mtime_ns: int, size: int) -> c.ControllersFile:
     return c.read_controllers_file(path)
 
 
@@ -146,8 +151,7 @@ class ControllerManagerNode(StepNode):
     @classmethod
     def input_types(cls, params: ControllerManagerParams) -> dict[str, type]:
         """JointState from physics; the command topics' types."""
-        types: dict[str, type] = {HARDWARE_STATES: JointState, SWITCH_TOPIC:
-                                  SwitchController.Request}
+        types: dict[str, type] = {HARDWARE_STATES: JointState, SWITCH_TOPIC: String}
         for spec in read(params).controllers:
             if spec.type == c.JTC:
                 types[f"/{spec.name}/joint_trajectory"] = JointTrajectory
@@ -234,6 +238,7 @@ class ControllerManagerNode(StepNode):
             elif spec.type != c.JSB:
                 self.controllers[spec.name] = ForwardCommand(spec)
         self.command: dict[str, float] = {}
+        self.last_taken: dict[str, Any] = {}
         self.first = True
         self.dt = self.config.period_ns / NS_PER_S
         for note in self.file.notes:
@@ -250,7 +255,7 @@ class ControllerManagerNode(StepNode):
             strict=True)}
         if self.first:
             self.command = {j: state[j].position for j in self.command_joints}
-            for name, ctrl in self.controllers.items():
+            for ctrl in self.controllers.values():
                 if isinstance(ctrl, TrajectoryController):
                     ctrl.activate(state)
             self.first = False
@@ -274,23 +279,39 @@ class ControllerManagerNode(StepNode):
                 self.command.update(ctrl.positions())
         return self._outputs(tick, state)
 
-    def _switch(self, msg, state) -> None:
+    def _fresh(self, topic: str, msg) -> bool:
+        """Whether ``msg`` on ``topic`` is news: the external node publishes the latest
+        message from outside at every activation, so one equal to the last is held, not sent
+        again (its header stamp, the tick's, is left out of the comparison)."""
         if msg is None:
+            return False
+        key = (list(msg.joint_names), list(msg.points)) if isinstance(msg, JointTrajectory) \
+            else msg
+        if self.last_taken.get(topic) == key:
+            return False
+        self.last_taken[topic] = key
+        return True
+
+    def _switch(self, msg, state) -> None:
+        if not self._fresh(SWITCH_TOPIC, msg):
             return
         known = set(self.active)
-        asked = [*msg.activate_controllers, *msg.deactivate_controllers]
-        unknown = [n for n in asked if n not in known]
-        if unknown:
-            self.note(f"switch_controller refused: no controller {unknown[0]!r}")
+        words = msg.data.split()
+        activate = [w[1:] for w in words if w.startswith("+")]
+        deactivate = [w[1:] for w in words if w.startswith("-")]
+        unknown = [n for n in [*activate, *deactivate] if n not in known]
+        if unknown or len(activate) + len(deactivate) != len(words):
+            self.note(f"switch_controller refused: {msg.data!r} names no controller "
+                      f"{(unknown or words)[0]!r}")
             return
-        for name in msg.deactivate_controllers:
+        for name in deactivate:
             self.active[name] = False
             ctrl = self.controllers.get(name)
             if isinstance(ctrl, TrajectoryController):
                 ctrl.stop(state)
             elif isinstance(ctrl, DiffDrive):
                 ctrl.take(0.0, 0.0, -1)
-        for name in msg.activate_controllers:
+        for name in activate:
             if not self.active[name]:
                 self.active[name] = True
                 ctrl = self.controllers.get(name)
@@ -301,16 +322,19 @@ class ControllerManagerNode(StepNode):
 
     def _trajectory_inputs(self, ctrl: TrajectoryController, inputs, now: int, state) -> None:
         topic = inputs.get(f"/{ctrl.spec.name}/joint_trajectory")
-        if topic is not None:
+        if self._fresh(f"/{ctrl.spec.name}/joint_trajectory", topic):
             if ctrl.goal_state == 1:  # a topic message preempts an action goal
                 ctrl.goal_state, ctrl.error_code = 4, 0
                 ctrl.from_action = False
             if why := ctrl.take(topic, now, state):
                 self.note(f"{ctrl.spec.name}/joint_trajectory refused: {why[1]}")
         goal = inputs.get(f"/{ctrl.spec.name}{GOAL_SUFFIX}")
-        if goal is None:
+        # the orchestrator names each goal and cancel in the trajectory's frame_id
+        if goal is None or not goal.trajectory.header.frame_id.startswith("cosim-") or \
+                not self._fresh(f"/{ctrl.spec.name}{GOAL_SUFFIX}",
+                                goal.trajectory.header.frame_id):
             return
-        if not goal.trajectory.points and not goal.trajectory.joint_names:  # a cancel
+        if goal.trajectory.header.frame_id.startswith(CANCEL_ID):
             if ctrl.goal_state == 1:
                 ctrl.stop(state)
                 ctrl.goal_state, ctrl.from_action = 4, False

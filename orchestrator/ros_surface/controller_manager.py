@@ -18,12 +18,13 @@ from control_msgs.action import FollowJointTrajectory
 from controller_manager_msgs.msg import ControllerState
 from controller_manager_msgs.srv import ListControllers, ListControllerTypes, SwitchController
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from std_msgs.msg import String
 
 from nodes.registry import KINDS
 from nodes.ros2_control import config as c
 from nodes.ros2_control.controllers import ABORTED, ACTIVE, CANCELED, SUCCEEDED
-from nodes.ros2_control.node import GOAL_SUFFIX, SWITCH_TOPIC, read
-from orchestrator.ros_surface.simcontrol import RunControl
+from nodes.ros2_control.node import CANCEL_ID, GOAL_ID, GOAL_SUFFIX, SWITCH_TOPIC, read
+from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
@@ -50,7 +51,9 @@ class ControllerManagerServer:
         self._seq = 0
         self._goals_put: dict[str, int] = {}
         self._latest: dict[str, object] = {}
-        self._cancelled: dict[int, int] = {}
+        self._sent = 0  # goals and cancels put, which name them
+        self._seq_of: dict[int, int] = {}  # id of a goal request -> its number
+        self._never_entered: dict[int, str] = {}  # id of a goal request -> why
         node.create_service(ListControllers, PREFIX + "list_controllers", self._list,
                             callback_group=group)
         node.create_service(ListControllerTypes, PREFIX + "list_controller_types", self._types,
@@ -111,12 +114,15 @@ class ControllerManagerServer:
             response.message = f"no controller {unknown[0]!r}; controllers: " + \
                 ", ".join(sorted(names))
             return response
-        msg = SwitchController.Request(activate_controllers=list(request.activate_controllers),
-                                       deactivate_controllers=list(
-                                           request.deactivate_controllers))
+        msg = String(data=" ".join([*(f"-{n}" for n in request.deactivate_controllers),
+                                    *(f"+{n}" for n in request.activate_controllers)]))
         with self._cond:
             seen = self._seq
             self.arrivals.put(self.topics[SWITCH_TOPIC], msg)
+        if self.control.state == PAUSED:  # it cannot wait for a tick nobody asks for
+            response.ok = True
+            response.message = f"the switch enters at {self.control.at()} (the run is paused)"
+            return response
         wanted = {**{n: False for n in request.deactivate_controllers},
                   **{n: True for n in request.activate_controllers}}
         while True:
@@ -137,11 +143,19 @@ class ControllerManagerServer:
     def _goal_callback(self, name: str):
         def on_goal(request) -> GoalResponse:
             with self._cond:
-                self._goals_put[name] = self._goals_put.get(name, 0) + 1
-                request._cosim_seq = self._goals_put[name]
+                self._sent += 1
+                replaced = self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"],
+                                             _goal(request, f"{GOAL_ID}{self._sent}"))
+                previous = self._latest.get(name)
+                if replaced is not None and previous and \
+                        replaced.trajectory.header.frame_id.startswith(GOAL_ID):
+                    self._never_entered[id(previous)] = "replaced by a newer goal before it " \
+                        "entered the run (both arrived within one tick)"
+                else:  # a goal that enters: the controller counts it
+                    self._goals_put[name] = self._goals_put.get(name, 0) + 1
+                self._seq_of[id(request)] = self._goals_put[name]
                 self._latest[name] = request
-                self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"], _goal(request))
-            log.info("FollowJointTrajectory: goal %d for %s from %s", request._cosim_seq, name,
+            log.info("FollowJointTrajectory: goal %d for %s from %s", self._goals_put[name], name,
                      self.control.at())
             return GoalResponse.ACCEPT
         return on_goal
@@ -150,21 +164,34 @@ class ControllerManagerServer:
         def on_cancel(handle) -> CancelResponse:
             with self._cond:
                 if self._latest.get(name) is handle.request:
-                    self._cancelled[handle.request._cosim_seq] = self._seq
-                    self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"],
-                                      FollowJointTrajectory.Goal())
+                    self._sent += 1
+                    cancel = FollowJointTrajectory.Goal()
+                    cancel.trajectory.header.frame_id = f"{CANCEL_ID}{self._sent}"
+                    replaced = self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"], cancel)
+                    if replaced is not None and \
+                            replaced.trajectory.header.frame_id.startswith(GOAL_ID):
+                        self._never_entered[id(handle.request)] = "cancelled before it " \
+                            "entered the run"
+                        self._goals_put[name] -= 1
             return CancelResponse.ACCEPT
         return on_cancel
 
     def _executor(self, name: str):
         def execute(handle) -> FollowJointTrajectory.Result:
-            mine = handle.request._cosim_seq
+            with self._cond:
+                mine = self._seq_of.pop(id(handle.request))
             seen = 0
             while True:
                 ended = self.control.ended
                 with self._cond:
-                    if self._seq == seen:
+                    why = self._never_entered.pop(id(handle.request), None)
+                    if why is None and self._seq == seen:
                         self._cond.wait(WAIT_S)
+                        why = self._never_entered.pop(id(handle.request), None)
+                if why is not None:
+                    how = "canceled" if handle.is_cancel_requested else "abort"
+                    return _finish(handle, how, -1 if how == "abort" else 0, why)
+                with self._cond:
                     fresh = [(s, m) for s, m in self._reports if s > seen]
                     seen = fresh[-1][0] if fresh else seen
                 for _, m in fresh:
@@ -195,9 +222,12 @@ class ControllerManagerServer:
         return execute
 
 
-def _goal(request) -> FollowJointTrajectory.Goal:
+def _goal(request, name: str) -> FollowJointTrajectory.Goal:
+    """The goal as it enters the run, named in its trajectory's frame_id (the controller
+    tells a new goal from the one the external node holds by it)."""
     goal = FollowJointTrajectory.Goal()
     goal.trajectory = request.trajectory
+    goal.trajectory.header.frame_id = name
     goal.path_tolerance = list(request.path_tolerance)
     goal.goal_tolerance = list(request.goal_tolerance)
     goal.goal_time_tolerance = request.goal_time_tolerance
