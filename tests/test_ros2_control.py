@@ -300,3 +300,36 @@ def recorded_inputs(run_dir, scenario) -> dict[int, dict]:
                 inputs.setdefault(stamp // TICK_NS, {})[topic] = msg
     del last
     return inputs
+
+
+# -- a Nav2 user's diff drive controller -------------------------------------------------------
+
+def test_the_nav_controller_reaches_the_goal_through_a_diff_drive_controller(tmp_path):
+    """nav_control.yaml: the built-in controller's TwistStamped goes to
+    /diff_drive_controller/cmd_vel; the controller drives the base; its wheel odometry
+    follows the ground truth; one digest in-process and multi-process."""
+    from orchestrator.api import run
+
+    done = run(ROOT / "scenarios" / "nav_control.yaml", in_process=True, out=tmp_path / "a")
+    assert done.success
+    with BagReader(done.run_dir / "bag") as bag:
+        odom = message_class("nav_msgs/msg/Odometry")
+        truth = dict(bag.messages("/odom", odom))
+        wheels = dict(bag.messages("/diff_drive_controller/odom", odom))
+        commands = list(bag.messages("/cosim/base_command",
+                                     message_class("geometry_msgs/msg/Twist")))
+    assert max(abs(c.linear.x) for _, c in commands) <= 0.8 + 1e-9  # linear.x.max_velocity
+    end = max(wheels)
+    (tx, ty), (wx, wy) = ((m.pose.pose.position.x, m.pose.pose.position.y)
+                          for m in (truth[end], wheels[end]))
+    # the wheel odometry starts at its own origin: compare the travel from the start
+    (sx, sy) = (truth[min(truth)].pose.pose.position.x, truth[min(truth)].pose.pose.position.y)
+    assert math.hypot(tx - sx, ty - sy) > 8.0
+    assert wheels[end].header.frame_id == "odom" and wheels[end].child_frame_id == "base_link"
+    assert wheels[end].pose.covariance[0] == 0.001
+    travelled = math.hypot(wx, wy)
+    assert abs(travelled - math.hypot(tx - sx, ty - sy)) < 0.3, (travelled, tx, ty)
+    short = run(ROOT / "scenarios" / "nav_control.yaml", in_process=True, out=tmp_path / "b",
+                duration="4s")
+    multi = run(ROOT / "scenarios" / "nav_control.yaml", out=tmp_path / "c", duration="4s")
+    assert multi.digest == short.digest
