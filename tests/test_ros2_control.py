@@ -229,6 +229,9 @@ def session(sim: SimClient, checks: bool) -> tuple[int, list[float]]:
         assert first.result.error_code == FollowJointTrajectory.Result.INVALID_JOINTS
         assert success.status == SUCCEEDED, success.result.error_string
         assert success.result.error_code == FollowJointTrajectory.Result.SUCCESSFUL
+        sim.spin_until(lambda: len(reached.feedback) > 10)
+        assert reached.feedback[-1].joint_names == JOINTS
+        assert len(reached.feedback[-1].actual.positions) == 6
         assert violated.status == ABORTED, violated.result.error_string
         assert violated.result.error_code == \
             FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED

@@ -15,9 +15,11 @@ import threading
 from collections import deque
 
 from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTrajectoryControllerState
 from controller_manager_msgs.msg import ControllerState
 from controller_manager_msgs.srv import ListControllers, ListControllerTypes, SwitchController
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
 from nodes.registry import KINDS
@@ -61,8 +63,12 @@ class ControllerManagerServer:
         node.create_service(SwitchController, PREFIX + "switch_controller", self._switch,
                             callback_group=group)
         self.actions = []
+        self._active_handles: dict[str, object] = {}  # controller -> its executing goal
         for spec in self.file.controllers:
             if spec.type == c.JTC and f"/{spec.name}{GOAL_SUFFIX}" in self.topics:
+                node.create_subscription(
+                    JointTrajectoryControllerState, f"/{spec.name}/controller_state",
+                    self._feedback(spec.name), QoSProfile(depth=10), callback_group=group)
                 self.actions.append(ActionServer(
                     node, FollowJointTrajectory, f"/{spec.name}/follow_joint_trajectory",
                     self._executor(spec.name), callback_group=group,
@@ -176,8 +182,23 @@ class ControllerManagerServer:
             return CancelResponse.ACCEPT
         return on_cancel
 
+    def _feedback(self, name: str):
+        """Feedback of the executing goal from the controller's ~/controller_state (it tells
+        the client how the motion goes; nothing of it enters the run)."""
+        def forward(state: JointTrajectoryControllerState) -> None:
+            handle = self._active_handles.get(name)
+            if handle is None or not handle.is_active:
+                return
+            fb = FollowJointTrajectory.Feedback(header=state.header,
+                                                joint_names=list(state.joint_names),
+                                                desired=state.reference, actual=state.feedback,
+                                                error=state.error)
+            handle.publish_feedback(fb)
+        return forward
+
     def _executor(self, name: str):
         def execute(handle) -> FollowJointTrajectory.Result:
+            self._active_handles[name] = handle
             with self._cond:
                 mine = self._seq_of.pop(id(handle.request))
             seen = 0
