@@ -24,6 +24,7 @@ KINDS: dict[str, str] = {
     "wallclock": "nodes.testing:WallClockNode",
     "faulty": "nodes.testing:FaultyNode",
 }
+TEST_KINDS = frozenset({"counter", "integrator", "wallclock", "faulty"})  # the suite's own
 FOREIGN = "nodes.foreign_program:ForeignNode"
 EXTERNAL = "nodes.external_inputs:ExternalInputs"
 
@@ -57,6 +58,7 @@ class Catalogue:
     """What the plan needs of the node kinds (``plan.kinds.Catalogue``)."""
 
     kinds: dict[str, str] = field(default_factory=lambda: KINDS)
+    listed: tuple[str, ...] = tuple(sorted(set(KINDS) - TEST_KINDS))
     foreign: str = FOREIGN
     external: str = EXTERNAL
 

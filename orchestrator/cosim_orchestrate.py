@@ -7,9 +7,12 @@ import signal
 import sys
 from pathlib import Path
 
+from runtime.entry import guarded
+
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
 EXIT_DIGEST_MISMATCH = 4
+EXIT_INTERNAL_ERROR = 70  # runtime.entry's: what nobody expected, cosim's own fault
 
 EPILOG = """\
 exit codes:
@@ -20,10 +23,13 @@ exit codes:
   4    the run finished but its digest is not the one --expect-digest (or --against) names
        (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
        or a rendered frame is below the --rendered-psnr floor
+  70   internal error: an exception cosim did not expect (its fault, not the scenario's);
+       the traceback is printed and kept in a file the last line names
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
 
 outputs go to runs/<scenario>-<timestamp>/ (see --out): manifest.json with the run
-digest, per-node logs under logs/, and what every node published under parts/.
+digest, bag/ (every topic, MCAP), report.png and per-node logs under logs/ (parts/, what
+each node recorded itself, stays only when the bag could not be built from it).
 """
 
 
@@ -157,10 +163,26 @@ def _images_pass(args: argparse.Namespace, outcome) -> bool:
     return not failed
 
 
+def _check_twin_has_robot(scenario, args: argparse.Namespace) -> None:
+    """A scenario with a twin: section is a twin of a robot: refuse to run it with no robot to
+    connect to (it would run to "success" mirroring nothing), unless rosbridge clients feed
+    its external topics instead."""
+    from plan.errors import ScenarioError
+
+    twin = scenario.model.twin
+    if twin is None or args.twin or twin.url or args.rosbridge:
+        return
+    raise ScenarioError(scenario.file, "twin", "the scenario is a digital twin (a twin: "
+                        "section) but names no robot to connect to: no --twin and no twin.url.",
+                        "--twin ws://HOST:PORT (the robot's rosbridge server) or twin.url; "
+                        "to feed its external topics yourself instead, --rosbridge.")
+
+
 def _interrupt(signum, _frame):
     raise KeyboardInterrupt
 
 
+@guarded("cosim-orchestrate")
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-orchestrate."""
     if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
@@ -178,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
     from plan.load import load_scenario
+    from plan.run_paths import out_problem
 
     recorded = None
     try:
@@ -192,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
             scenario = recorded.scenario
         else:
             scenario = load_scenario(args.scenario, overrides_from(args))
+            _check_twin_has_robot(scenario, args)
         if args.rendered_psnr is not None:
             if args.against is None:
                 raise ValueError("--rendered-psnr needs --against DIR (a recorded run whose "
@@ -204,6 +228,8 @@ def main(argv: list[str] | None = None) -> int:
         if recorded is not None and expected is None:
             expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
+        if problem := out_problem(args.out):
+            raise ValueError(problem)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)

@@ -23,7 +23,7 @@ from orchestrator.lockstep.starters import Site, join_all, start_all
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
 from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
-from orchestrator.proxies.twin import twin_address, twin_run
+from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
@@ -113,6 +113,9 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick,
                                             external)
         _judge(scenario, outcome)
+        if unreached := never_reached(external):  # exit 3: a failure of the run, named
+            outcome.status, outcome.success, outcome.error = "failed", False, unreached
+            log.error("%s", unreached)
     except SimulationError as exc:
         outcome.status, outcome.error = "failed", str(exc)
         log.error("%s", exc)

@@ -136,6 +136,24 @@ def process_groups(scenario: Scenario, options: RunOptions) -> list:
 
 
 @rule
+def launch_prefixes(scenario: Scenario, options: RunOptions) -> list:
+    """A ``prefix:`` wraps a node's process: its program must be there to start it (an
+    in-process run starts no process, so it uses no prefix)."""
+    import shutil
+
+    if options.in_process:
+        return []
+    for i, (name, plan) in enumerate(scenario.nodes.items()):
+        prefix = plan.launch_prefix
+        if prefix and shutil.which(prefix[0]) is None:
+            raise ScenarioError(scenario.file, f"nodes[{i}] ({name}).prefix",
+                                f"no program {prefix[0]!r} on PATH to start the node with.",
+                                "a program that exists (e.g. prefix: 'gdb -ex run --args', "
+                                "'valgrind'), installed or given by its path; or no prefix.")
+    return []
+
+
+@rule
 def foreign_programs(scenario: Scenario, options: RunOptions) -> list:
     """Each foreign program, in the scenario's order, holds every rule of ``FOREIGN_RULES``."""
     for i, (name, plan) in enumerate(scenario.nodes.items()):

@@ -68,7 +68,7 @@ class ScenarioChecks:
         if len(given) != 1:
             raise self.fail(self.node_key(i), "give exactly one of 'kind', 'module' or "
                             f"'command' (found {', '.join(given) or 'none'}).",
-                            f"kind: one of {', '.join(sorted(kinds.kinds))}; "
+                            f"kind: one of {', '.join(kinds.listed)}; "
                             "or module: 'package.module:Class'; or command: [program, args...] "
                             "for a foreign ROS 2 program.")
         if spec.command is not None:
@@ -76,7 +76,8 @@ class ScenarioChecks:
         if spec.kind is not None:
             if spec.kind not in kinds.kinds:
                 raise self.fail(self.node_key(i, "kind"), f"unknown node kind {spec.kind!r}.",
-                                f"one of {', '.join(sorted(kinds.kinds))}.")
+                                f"one of {', '.join(kinds.listed)}; or module: "
+                                "'package.module:Class' for a node class of your own.")
             try:
                 return kinds.kinds[spec.kind], kinds.load(kinds.kinds[spec.kind])
             except Exception as exc:  # noqa: BLE001 - report, don't crash: nothing has started

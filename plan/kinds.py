@@ -16,6 +16,7 @@ class Catalogue(Protocol):
     """The node kinds a scenario may name and how to load a node class."""
 
     kinds: Mapping[str, str]  # kind -> 'package.module:Class'
+    listed: tuple[str, ...]  # the kinds told to users (the test suite's own are not)
     foreign: str  # the class that stands in for a foreign program (scenario key command)
     external: str  # the class of the scenario's external node
 

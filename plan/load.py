@@ -8,6 +8,7 @@ reported as a ``ScenarioError`` naming the file, the key path and what is accept
 from __future__ import annotations
 
 import hashlib
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
     """
     path = Path(path)
     raw, text = _read_yaml(path)
+    make_importable(path.parent, Path.cwd())
     overrides = dict(overrides or {})
     overridden = {key: apply_override(raw, key, value, path) for key, value in overrides.items()}
     try:
@@ -41,6 +43,16 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
         return resolve(path, model, hashlib.sha256(text).hexdigest(), overrides)
     except ScenarioError as exc:
         raise blame_override(exc, raw, overridden, overrides) from None
+
+
+def make_importable(*folders: Path) -> None:
+    """Let ``module: mypkg.mymod:MyNode`` load from the scenario's folder and the working
+    directory, as pytest's rootdir does, in the orchestrator and in every node process (each
+    loads the scenario): added after the installed packages, so they never shadow one."""
+    for folder in folders:
+        entry = str(folder.resolve())
+        if entry not in sys.path:
+            sys.path.append(entry)
 
 
 # libyaml's safe loader when PyYAML was built with it (10x faster; every process of a run

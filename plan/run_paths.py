@@ -4,6 +4,7 @@ them, the API, diff and report read them)."""
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,3 +79,19 @@ def make_run_dir(root: Path, scenario_name: str) -> RunPaths:
         except FileExistsError:
             continue
     raise RuntimeError(f"cannot create a run directory under {root}")
+
+
+def out_problem(root: Path) -> str | None:
+    """Why run directories cannot be made under ``root`` (a file where a directory must be,
+    a directory not writable), or None. Checked before anything starts: bad input."""
+    for path in (root, *root.parents):
+        if not path.exists():
+            continue
+        if not path.is_dir():
+            what = "is a file" if path == root else f"cannot be made: {path} is a file"
+            return (f"--out {root} {what}; give a directory (made if missing) to receive "
+                    "the run directory")
+        if not os.access(path, os.W_OK | os.X_OK):
+            return f"--out {root}: {path} is not writable; give a directory you can write to"
+        return None
+    return None

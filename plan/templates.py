@@ -31,6 +31,13 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
         if layout is None:
             raise ScenarioError(path, f"{key}.for_each", "the scenario has no robots: section.",
                                 "a robots: section, or leave for_each out.")
+        cls = _class_of(spec)
+        if cls is not None and "robots" in getattr(cls.Params, "model_fields", {}):
+            what = f"kind {spec.kind}" if spec.kind else spec.module
+            raise ScenarioError(path, f"{key}.for_each", f"{spec.name} ({what}) steps one world "
+                                "for every robot, so it cannot be templated per robot.",
+                                "leave for_each out: one such node simulates every robot of "
+                                "the robots: section, each robot's topics under /ROBOT/.")
         chosen = spec.robots or layout.names
         for j, robot in enumerate(chosen):
             if robot not in layout.names:

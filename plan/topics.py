@@ -31,8 +31,22 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
                  ) -> tuple[dict[str, type], dict[str, str], frozenset[str]]:
     """The node's outputs under graph names (after remap), own -> graph names, and the
     own names of its latched outputs (published once, at the first activation)."""
-    own = cls.outputs(params)
-    latched = cls.latched_outputs(params)
+    try:
+        own = cls.outputs(params)
+        latched = cls.latched_outputs(params)
+    except Exception as exc:  # noqa: BLE001 - the node class's code: the user's to fix
+        key = "module" if spec.module else "kind"
+        what = ("does not implement outputs(params)" if isinstance(exc, NotImplementedError)
+                else f"raised {type(exc).__name__} in outputs(params): {exc}")
+        raise where.fail(where.node_key(i, key), f"{cls.__module__}.{cls.__qualname__} {what}.",
+                         "a node class with the whole contract: outputs(params) returning "
+                         "{topic: message class}, reset and step (see 'Writing your own "
+                         "node' in the README).") from None
+    if missing := _not_implemented(cls, "step"):
+        raise where.fail(where.node_key(i, "module" if spec.module else "kind"),
+                         f"{cls.__module__}.{cls.__qualname__} {missing}.",
+                         "a node class with the whole contract: outputs(params), reset and "
+                         "step(tick, inputs) (see 'Writing your own node' in the README).")
     if both := sorted(set(own) & set(latched)):
         raise where.fail(where.node_key(i), f"the node declares {both[0]} both as an output "
                          "of every activation and as a latched one.",
@@ -119,3 +133,12 @@ def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, param
     raise where.fail(key, f"this node takes {topic} as {ros_type(wanted)}, but node "
                      f"{source.name!r} publishes {graph} as {ros_type(source.msg)}.",
                      f"the same message type at both ends: change {ours} or {theirs}.")
+
+
+def _not_implemented(cls: type, method: str) -> str | None:
+    """'does not implement step(...)' when ``cls`` takes ``method`` from the root of its
+    node classes (the contract's base, whose own raises NotImplementedError), else None."""
+    owners = [c for c in cls.__mro__ if method in vars(c)]
+    if len(owners) >= 1 and owners[0] is owners[-1] and owners[0] is not cls:
+        return f"does not implement {method}(tick, inputs)"
+    return None

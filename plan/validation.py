@@ -81,7 +81,7 @@ def describe_validation_error(exc: ValidationError, raw: Any,
         fields = ", ".join(keys_of(owner)) if owner else ""
         accepted = f"keys here are: {fields}." if fields else "no keys here."
         if owner is None:
-            accepted = "see the scenario reference in the README."
+            accepted = _reference(loc)
         return key, f"unknown key {loc[-1]!r}.{more}", accepted
     if kind == "missing":
         return key, f"required key is missing.{more}", _describe_field(model, loc)
@@ -92,11 +92,19 @@ def describe_validation_error(exc: ValidationError, raw: Any,
     return key, f"{shown} is not valid: {message}.{more}", _describe_field(model, loc)
 
 
+def _reference(loc: tuple) -> str:
+    """Where a key the schema cannot describe here is explained: the README's section on it
+    and the schema (plan/model.py, every key with its description)."""
+    section = "Remapping" if "remap" in loc else "A scenario, walked through"
+    return (f"see the README, section '{section}', and the schema in plan/model.py (every "
+            "key described).")
+
+
 def _describe_field(model: type[BaseModel], loc: tuple) -> str:
     """What the field at ``loc`` accepts: its description, or its type in words."""
     name, info, annotation = _field_at(model, loc)
     if name is None:
-        return "see the scenario reference in the README."
+        return _reference(loc)
     hint = info.description if info is not None and info.description else None
     return f"{name}: {hint or describe_annotation(annotation)}."
 

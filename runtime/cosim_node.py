@@ -8,16 +8,27 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from runtime.entry import guarded
+
 if TYPE_CHECKING:
     from plan.scenario import Scenario
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EPILOG = """\
+exit codes:
+  0    stopped as asked (by its orchestrator, or Ctrl-C for --realtime)
+  1    the node failed: its step raised, or its runtime could not go on (the log says why)
+  2    bad input: the scenario, the node or an option is invalid; nothing was started
+  70   internal error: an exception cosim did not expect (its fault); the traceback is
+       printed and kept in a file the last line names
+  130  interrupted (SIGINT) in lockstep before its orchestrator asked it to stop
+"""
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """Command-line options."""
     p = argparse.ArgumentParser(
-        prog="cosim-node",
+        prog="cosim-node", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run one node of a cosim scenario. With --lockstep (the default) it joins "
                     "an orchestrator's run and acts only when /clock says so.")
     p.add_argument("kind", help="the node's kind (physics, sensors, control, ...) or 'any'")
@@ -49,11 +60,18 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
-    """The node to run: by name, or the only node of ``kind``."""
+    """The node to run: by name (of kind ``kind`` unless that is 'any'), or the only node of
+    ``kind``."""
     if name:
         if name not in scenario.nodes:
             raise ValueError(f"{scenario.file}: no node named {name!r} "
                              f"(nodes: {', '.join(scenario.nodes)})")
+        actual = scenario.nodes[name].spec.kind
+        if kind != "any" and actual != kind:
+            what = f"of kind {actual!r}" if actual else "not of a built-in kind (module:)"
+            fix = actual or "any"
+            raise ValueError(f"{scenario.file}: node {name!r} is {what}, not {kind!r}; run "
+                             f"cosim-node {fix} --scenario {scenario.file} --node {name}")
         return name
     matches = [n for n, p in scenario.nodes.items() if p.spec.kind == kind]
     if len(matches) != 1:
@@ -62,15 +80,17 @@ def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
     return matches[0]
 
 
+@guarded("cosim-node")
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-node."""
     if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
         from runtime.ros_libraries import ensure_own_libraries
 
         ensure_own_libraries()
-    from runtime.parent import die_with_parent
+    from runtime.parent import die_with_parent, started_by_orchestrator
 
-    die_with_parent()
+    if started_by_orchestrator():  # a node the user starts is the user's: it outlives a shell
+        die_with_parent()
     args = parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from plan.errors import ScenarioError
@@ -99,7 +119,29 @@ def main(argv: list[str] | None = None) -> int:
         return run_realtime(scenario, names[0], args.rtf, options, live)
     if len(names) > 1:
         return run_packed(scenario, names, args.run_dir, options)
+    if not started_by_orchestrator():
+        print(f"cosim-node {names[0]}: {lockstep_waits_for(scenario, names[0])}",
+              file=sys.stderr, flush=True)
     return run_lockstep(scenario, names[0], args.run_dir, options)
+
+
+def lockstep_waits_for(scenario: Scenario, name: str) -> str:
+    """What a lockstep node started by hand waits for, where, and what the user probably
+    meant instead."""
+    import os
+
+    if scenario.model.transport == "zenoh":
+        where = "over zenoh (the scenario's zenoh: section)"
+    else:
+        where = f"on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} (ros2)"
+    if scenario.nodes[name].spec.external:
+        then = (f"start the run with cosim-orchestrate {scenario.file} on that domain: it "
+                "waits for this node (external: true)")
+    else:
+        then = (f"to run the scenario, use cosim-orchestrate {scenario.file} (it starts this "
+                "node itself); to run this node alone on wall time, add --realtime")
+    return (f"lockstep: waiting for an orchestrator's /clock and grants {where}; nothing "
+            f"happens until one runs. {then[0].upper()}{then[1:]}.")
 
 
 def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=None) -> int:

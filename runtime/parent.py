@@ -33,3 +33,9 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
     expected = os.environ.get("COSIM_PARENT_PID")
     if expected and os.getppid() != int(expected):
         os._exit(1)  # the parent died before the signal was armed
+
+
+def started_by_orchestrator() -> bool:
+    """Whether an orchestrator started this process (it sets ``COSIM_PARENT_PID`` for the
+    nodes it spawns or forks); only those die with their parent."""
+    return bool(os.environ.get("COSIM_PARENT_PID"))

@@ -67,6 +67,7 @@ class RealtimeRuntime:
             transport.subscription(CLOCK_TOPIC, Clock, 10)
         self.stop_requested = False
         self.served = -1
+        self.waiting_said = False  # the note on waiting for the first inputs was printed
         self.observe: Callable[[str, bytes], None] | None = None  # live endpoints' offer
         # client messages for the node's inputs (graph topics), taken at its next step
         self.inbox = Arrivals({g: m for g, (_, m) in self.own_topic.items()},
@@ -129,6 +130,15 @@ class RealtimeRuntime:
     def _step(self, k: int) -> None:
         tick = Tick(k, k * self.tick_ns)
         self.latest.update({self.own_topic[g][0]: msg for g, msg in self.inbox.take(k).items()})
+        if missing := [i.graph_topic for i in self.plan.inputs
+                       if i.mode == "same_tick" and i.topic not in self.latest]:
+            if not self.waiting_said:  # once: a node that started first waits every time
+                self.waiting_said = True
+                print(f"note: {self.plan.name} at tick {k}: waiting for the first "
+                      f"{', '.join(missing)} (it steps once every same_tick input has "
+                      "arrived; until then it skips its activations)", file=sys.stderr,
+                      flush=True)
+            return
         items = self.activation(tick, dict(self.latest))
         for topic, data in items:
             self.publishers[topic].publish(data)

@@ -277,13 +277,19 @@ def _rendered_hint(manifest: dict, reference: dict | None, ignore_rendered: bool
     if ignore_rendered or not rendered:
         return ""
     renderer = (manifest.get("digest_versions") or {}).get("renderer", "unknown")
-    if reference is not None and reference.get("digest_without_rendered") is not None and \
-            reference.get("digest_without_rendered") == manifest.get("digest_without_rendered"):
+    without = reference.get("digest_without_rendered") if reference is not None else None
+    if without is not None and without == manifest.get("digest_without_rendered"):
         return (f" Only the rendered topics ({', '.join(rendered)}) differ; their pixels "
                 f"depend on the renderer (this run: {renderer}). --ignore-rendered compares "
                 "without them.")
-    return (f" The digest covers rendered topics ({', '.join(rendered)}), whose pixels depend "
-            f"on the renderer (this run: {renderer}); --ignore-rendered compares without them.")
+    if without is not None:  # the rest differs too: not (only) the renderer's doing
+        return (" The topics that are not rendered differ too: more than the renderer "
+                "changed (another seed, scenario, input or version).")
+    # only a digest to compare with: which part differs is unknown, so blame nothing
+    return (f" The digest also covers rendered topics ({', '.join(rendered)}), whose pixels "
+            f"depend on the renderer (this run: {renderer}): if a run on another machine is "
+            f"the reference, compare its digest_without_rendered with --ignore-rendered "
+            f"(this run's: {manifest.get('digest_without_rendered')}).")
 
 
 def versions_text(before: dict | None, after: dict | None) -> str:

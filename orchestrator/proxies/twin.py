@@ -436,6 +436,19 @@ def _reason(exc: BaseException) -> str:
     return text.splitlines()[0][:200]
 
 
+def never_reached(external: Any) -> str | None:
+    """Why a live twin run failed when its robot never answered (the link never connected:
+    nothing of the robot entered the run), else None. Such a run is no twin of anything."""
+    link = getattr(external, "link", None) if isinstance(external, TwinArrivals) else None
+    if link is None or link.connects:
+        return None
+    return (f"twin: the robot at {link.address.url} never answered ({link.attempts} "
+            f"attempt(s) to connect over {time.monotonic() - link.started:.1f} s): nothing of "
+            "it entered the run, so the run is no twin. Start the robot's rosbridge server "
+            "(or a stand-in: cosim-node physics --scenario scenarios/nav.yaml --realtime "
+            "--rosbridge HOST:PORT) and give its address with --twin ws://HOST:PORT")
+
+
 def twin_run(scenario: Scenario, options: RunOptions, on_tick: Callable[[int], None] | None,
              external: Any) -> tuple[TwinArrivals, RunOptions, Callable[[int], None]]:
     """What a live twin run changes: its arrivals (with the link to the robot, started with

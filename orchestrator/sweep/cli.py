@@ -12,6 +12,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from runtime.entry import guarded
+
 EXIT_ALL_SUCCEEDED, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
 PICTURE_NAME = "summary.png"
@@ -41,6 +43,8 @@ exit codes:
   1    every run finished, some missed the goal
   2    bad input (scenario, --seeds, --set, --ray address): nothing was started or written
   3    some runs failed, crashed or timed out (the others finished; see the table)
+  70   internal error: an exception cosim did not expect (its fault, not a run's); the
+       traceback is printed and kept in a file the last line names
   130  interrupted (Ctrl-C, SIGTERM): every run was stopped, no process is left, and the
        table holds the runs that finished; --resume goes on from there
 """
@@ -84,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@guarded("cosim-sweep")
 def main(argv: list[str] | None = None) -> int:
     """Entry point of cosim-sweep."""
     if argv is None:  # a command (not a call from a program): its own ROS 2 libraries
