@@ -202,14 +202,15 @@ def _yaw(q) -> float:
     return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
-def test_no_robot_at_the_start_is_a_message_and_retries_while_the_run_goes_on(tmp_path):
+def test_no_robot_at_all_is_a_message_retries_and_a_failed_run(tmp_path):
     port = free_port()  # nothing listens there
     done = subprocess.run([*ORCHESTRATE, str(TWIN), "--twin", f"ws://127.0.0.1:{port}",
                            "--duration", "1s", "--in-process", "--quiet", "--out",
                            str(tmp_path / "out")], cwd=ROOT, capture_output=True, text=True,
                           timeout=HANG_S)
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 3, done.stderr  # a twin that never reached its robot failed
     assert f"twin: no robot at ws://127.0.0.1:{port}" in done.stderr
+    assert f"twin: the robot at ws://127.0.0.1:{port} never answered" in done.stderr
     assert "Traceback" not in done.stderr
     link = json.loads((run_dir(tmp_path / "out") / "manifest.json").read_text())["live"]["twin"]
     assert link["connects"] == 0 and link["attempts"] >= 2  # it kept trying
