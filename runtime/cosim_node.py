@@ -100,7 +100,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         scenario = load_scenario(args.scenario, parse_overrides(args.set))
-        names = [pick_node(scenario, args.kind, n) for n in args.node or [None]]
+        # several --node: a process of packed nodes, named by its first node's kind
+        names = [pick_node(scenario, args.kind if i == 0 else "any", n)
+                 for i, n in enumerate(args.node or [None])]
         if len(names) > 1 and args.realtime:
             raise ValueError("--realtime runs one node; give --node once")
         options = RunOptions.from_node_json(args.run_options)
@@ -238,11 +240,13 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
     runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
     install_stop_handlers(runtime)
     try:
-        runtime.node = make_node(scenario, name, options)
+        runtime.node = _built(make_node, scenario, name, options)
         _run_maybe_profiled(runtime, paths, name, options.profile)
         return EXIT_OK
     except KeyboardInterrupt:  # a step cut short by the orchestrator's stop is a clean end
         return EXIT_OK if runtime.stop_requested else EXIT_INTERRUPTED
+    except SetUpFailed:
+        return EXIT_FAILED
     except NodeFailure as exc:
         return _failed(runtime, exc)
     finally:
@@ -279,12 +283,14 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
     try:
         for rt in runtimes:
             failed = rt
-            rt.node = make_node(scenario, rt.name, options)
+            rt.node = _built(make_node, scenario, rt.name, options)
         failed = None
         packed.run()
         return EXIT_OK
     except KeyboardInterrupt:
         return EXIT_OK if packed.stop_requested else EXIT_INTERRUPTED
+    except SetUpFailed:
+        return EXIT_FAILED
     except NodeFailure as exc:
         return _failed(next((rt for rt in runtimes if rt.in_step), failed) or runtimes[0], exc)
     finally:
@@ -308,6 +314,24 @@ def _open_transport(scenario: Scenario, options, participant: str):
         return create_transport(TransportSettings.of(scenario, options), participant)
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGALRM})
+
+
+class SetUpFailed(Exception):
+    """The node's own set-up (its class's reset/setup) raised: the node failed, exit 1."""
+
+
+def _built(make_node, scenario: Scenario, name: str, options):
+    """``make_node(...)``; what the node's code raises while setting up is the node's failure
+    (exit 1, the traceback in its log), never an internal error of cosim."""
+    try:
+        return make_node(scenario, name, options)
+    except Exception as exc:  # noqa: BLE001 - the node class's code: the node failed
+        import traceback
+
+        traceback.print_exc()
+        print(f"cosim-node {name}: the node failed to set up: {type(exc).__name__}: {exc}",
+              file=sys.stderr, flush=True)
+        raise SetUpFailed(str(exc)) from exc
 
 
 def _failed(runtime, exc) -> int:

@@ -173,6 +173,11 @@ def test_node_kind_any_takes_any_named_node(monkeypatch):
     assert cosim_node.main(["any", "--scenario", str(NAV), "--node", "lidar"]) == 0
     assert cosim_node.main(["sensors", "--scenario", str(NAV), "--node", "lidar"]) == 0
     assert ran == ["lidar", "lidar"]
+    # a process of packed nodes (--pack robot, spawned) is named by its first node's kind
+    monkeypatch.setattr(cosim_node, "run_packed", lambda _s, names, *_a: ran.append(names) or 0)
+    assert cosim_node.main(["physics", "--scenario", str(NAV), "--node", "physics",
+                            "--node", "lidar"]) == 0
+    assert ran[-1] == ["physics", "lidar"]
 
 
 # ---------------------------------------------------------------- cosim-sweep
@@ -206,3 +211,18 @@ def test_every_command_documents_70_and_the_readme_table_has_every_code():
     in_help = {int(m) for m in re.findall(r"^  (\d+) ", cosim_orchestrate.EPILOG, re.M)}
     assert in_help <= documented == {0, 1, 2, 3, 4, 70, 130}
 
+
+
+@pytest.mark.parametrize("spawn", ["fork", "exec"])
+def test_a_node_whose_own_setup_raises_failed_it_is_not_cosims_fault(tmp_path, spawn):
+    """The node's code raising is the node failing (its exit 1, the run's 3), spawned or
+    forked; never the internal-error code."""
+    from tests.helpers import orchestrate
+
+    path = tiny(tmp_path, TINY.replace("kind: counter", "kind: faulty").replace(
+        "params: {output: /a}", "params: {output: /a, mode: setup}"))
+    run = orchestrate(path, tmp_path / "out", "--spawn", spawn, timeout=120)
+    assert run.code == 3, run.stderr
+    assert "node a died at start (exit code 1)" in run.stderr
+    assert "RuntimeError: injected failure in setup" in run.stderr
+    assert "internal error" not in run.stderr
