@@ -73,7 +73,8 @@ def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
             raise ValueError(f"{scenario.file}: node {name!r} is {what}, not {kind!r}; run "
                              f"cosim-node {fix} --scenario {scenario.file} --node {name}")
         return name
-    matches = [n for n, p in scenario.nodes.items() if p.spec.kind == kind]
+    matches = [n for n, p in scenario.nodes.items()
+               if p.spec.kind == kind or (kind == "any" and not p.foreign)]
     if len(matches) != 1:
         raise ValueError(f"{scenario.file}: {len(matches)} nodes of kind {kind!r}; "
                          f"name one with --node ({', '.join(scenario.nodes)})")
@@ -168,7 +169,7 @@ def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=N
     transport = create_transport(TransportSettings.of(scenario, options), f"cosim_{name}")
     endpoints = None
     try:
-        runtime = RealtimeRuntime(scenario, name, make_node(scenario, name, options),
+        runtime = RealtimeRuntime(scenario, name, _built(make_node, scenario, name, options),
                                   transport, rtf)
         signal.signal(signal.SIGINT, runtime.request_stop)
         signal.signal(signal.SIGTERM, runtime.request_stop)
@@ -176,10 +177,20 @@ def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=N
         clock = "publishing /clock" if runtime.publish_clock else "following /clock"
         print(f"cosim-node {name}: running on wall time at rtf {rtf:g}, {clock}; Ctrl-C stops",
               file=sys.stderr, flush=True)
-        runtime.run()
+        try:
+            runtime.run()
+        except Exception as exc:  # noqa: BLE001 - the node's step raised: the node failed
+            import traceback
+
+            traceback.print_exc()
+            print(f"cosim-node {name}: the node failed: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
+            return EXIT_FAILED
         return EXIT_OK
     except KeyboardInterrupt:
         return EXIT_OK
+    except SetUpFailed:
+        return EXIT_FAILED
     except ValueError as exc:
         print(f"cosim-node {name}: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

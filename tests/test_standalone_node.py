@@ -164,3 +164,31 @@ def test_a_lockstep_node_with_no_orchestrator_says_what_it_waits_for(monkeypatch
     monkeypatch.setenv("COSIM_PARENT_PID", str(os.getppid()))  # an orchestrator's: no word
     assert cosim_node.main(["control", "--scenario", str(NAV)]) == 0
     assert "waiting for" not in capsys.readouterr().err
+
+
+
+def test_a_realtime_node_whose_step_raises_failed_it_is_not_bad_input(tmp_path):
+    (tmp_path / "brittle.py").write_text(textwrap.dedent("""
+        from std_msgs.msg import Int64
+
+        from nodes.contract import StepNode
+
+
+        class Brittle(StepNode):
+            @classmethod
+            def outputs(cls, params):
+                return {"/a": Int64}
+
+            def step(self, tick, inputs):
+                if tick.index == 2:
+                    raise ValueError("a value this node cannot take")
+                return {"/a": Int64(data=tick.index)}
+    """))
+    path = tmp_path / "one.yaml"
+    path.write_text("name: one\nduration: 1s\nnodes:\n  - {name: a, module: brittle:Brittle, "
+                    "rate: 10}\n")
+    done = subprocess.run([sys.executable, "-m", "runtime.cosim_node", "any", "--scenario",
+                           str(path), "--realtime"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 1, done.stderr  # the node failed (2 would say: bad input)
+    assert "the node failed: ValueError: a value this node cannot take" in done.stderr
