@@ -19,7 +19,8 @@ exit codes:
   0    success: the scenario's success criteria were met
   1    the run finished but the goal was not met (or too many collisions)
   2    bad input: the scenario or an option is invalid; nothing was started or written
-  3    a node failed: crashed, reported an error, or missed its deadline
+  3    a node failed: crashed, reported an error, or missed its deadline; or a twin
+       (--twin) never reached its robot
   4    the run finished but its digest is not the one --expect-digest (or --against) names
        (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
        or a rendered frame is below the --rendered-psnr floor
