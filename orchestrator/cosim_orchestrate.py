@@ -201,7 +201,6 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
     from plan.load import load_scenario
-    from plan.run_paths import out_problem
 
     recorded = None
     try:
@@ -229,8 +228,6 @@ def main(argv: list[str] | None = None) -> int:
         if recorded is not None and expected is None:
             expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
-        if problem := out_problem(args.out):
-            raise ValueError(problem)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)

@@ -233,6 +233,17 @@ def listen_addresses(scenario: Scenario, options: RunOptions) -> list:
 
 
 @rule
+def out_is_a_directory(scenario: Scenario, options: RunOptions) -> list:
+    """``out`` (--out) can receive the run directory: no file where a directory must be,
+    writable (else a ValueError naming the option)."""
+    from plan.run_paths import out_problem
+
+    if problem := out_problem(options.out):
+        raise ValueError(problem)
+    return []
+
+
+@rule
 def scenario_warnings(scenario: Scenario, options: RunOptions) -> list:
     """The scenario's warnings are the run's; a strict run refuses the first of them."""
     warnings = list(scenario.warnings)

@@ -99,6 +99,16 @@ def test_orchestrate_out_naming_an_existing_file_is_bad_input(tmp_path, capsys):
     assert file.read_text() == "mine"
 
 
+def test_every_front_end_refuses_out_naming_a_file_before_anything(tmp_path):
+    from orchestrator.api import run
+
+    file = tmp_path / "taken"
+    file.write_text("mine")
+    with pytest.raises(ValueError, match="is a file"):
+        run(tiny(tmp_path), in_process=True, out=file)
+    assert file.read_text() == "mine"
+
+
 def test_orchestrate_prefix_program_not_on_path_is_bad_input(tmp_path, capsys):
     path = tiny(tmp_path, TINY + "    prefix: no-such-debugger-xyz --args\n")
     code = cosim_orchestrate.main([str(path), "--out", str(tmp_path / "out")])
