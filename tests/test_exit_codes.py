@@ -219,7 +219,7 @@ def test_every_command_documents_70_and_the_readme_table_has_every_code():
     table = table[:table.index("\n\n")]
     documented = {int(m) for m in re.findall(r"^\| (\d+) \|", table, re.M)}
     in_help = {int(m) for m in re.findall(r"^  (\d+) ", cosim_orchestrate.EPILOG, re.M)}
-    assert in_help <= documented == {0, 1, 2, 3, 4, 70, 130}
+    assert in_help | {0, 1, 2, 3, 4, 70, 130} <= documented, documented
 
 
 
