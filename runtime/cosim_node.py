@@ -138,8 +138,9 @@ def lockstep_waits_for(scenario: Scenario, name: str) -> str:
     else:
         where = f"on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} (ros2)"
     if scenario.nodes[name].spec.external:
-        then = (f"start the run with cosim-orchestrate {scenario.file} on that domain: it "
-                "waits for this node (external: true)")
+        then = (f"start the run with cosim-orchestrate {scenario.file}: it waits for this "
+                "node (external: true) and prints the command that starts it on the run's "
+                "domain")
     else:
         then = (f"to run the scenario, use cosim-orchestrate {scenario.file} (it starts this "
                 "node itself); to run this node alone on wall time, add --realtime")
