@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from plan.packing import ProcessLayout
     from plan.scenario import Scenario
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -91,15 +92,18 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from plan.packing import process_label
+    from plan.packing import layout_of, process_label
     from runtime.parent import name_this_process
 
     name_this_process(process_label(names))
     if args.realtime:
         return run_realtime(scenario, names[0], args.rtf, options, live)
+    # a process started from a command line has only the file and the options: it lays the
+    # run out as the orchestrator did (the same function of the same two values)
+    layout = layout_of(scenario, options.pack)
     if len(names) > 1:
-        return run_packed(scenario, names, args.run_dir, options)
-    return run_lockstep(scenario, names[0], args.run_dir, options)
+        return run_packed(scenario, names, args.run_dir, options, layout)
+    return run_lockstep(scenario, names[0], args.run_dir, options, layout)
 
 
 def run_realtime(scenario: Scenario, name: str, rtf: float, options=None, live=None) -> int:
@@ -176,8 +180,9 @@ def _start_endpoints(scenario: Scenario, name: str, runtime, live):
     return endpoints
 
 
-def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=None) -> int:
-    """Run node ``name`` under an orchestrator until told to stop."""
+def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options,
+                 layout: ProcessLayout) -> int:
+    """Run node ``name`` under an orchestrator until told to stop, in the run's ``layout``."""
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
@@ -193,7 +198,7 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
     transport = _open_transport(scenario, options, f"cosim_{name}")
     recorder = PartWriter(paths.part(name)) if paths else None
     notes = NoteWriter(paths.notes(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, layout=layout)
     install_stop_handlers(runtime)
     try:
         runtime.node = make_node(scenario, name, options)
@@ -212,7 +217,8 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
         transport.close()
 
 
-def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options=None) -> int:
+def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options,
+               layout: ProcessLayout) -> int:
     """Run several nodes in this process, on one transport session with one wait."""
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
@@ -230,7 +236,7 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
     notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
     runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], notes[n],
-                                options.pack) for n in names]
+                                layout=layout) for n in names]
     packed = PackedRuntimes(runtimes, shared)
     install_packed_stop_handlers(packed)
     failed = None
