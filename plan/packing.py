@@ -5,7 +5,11 @@ or the run asks for a packing (``--pack``): ``node`` (each node alone), ``kind``
 of one kind together, e.g. every sensors node), ``robot`` (every node of a robot together:
 with one robot, all of the scenario's cosim nodes). Foreign programs, external nodes (that
 you start yourself), the orchestrator's own nodes and nodes with a launch ``prefix`` are
-never packed by ``--pack``.
+never packed by ``--pack`` (only the role ``STEP`` packs, ``plan.roles``).
+
+A run decides this once, into a ``ProcessLayout`` (``layout_of``), and carries that value to
+the starters, the master, the node runtimes, the external node and the foreign programs'
+readers; nothing else groups nodes again.
 """
 
 from __future__ import annotations
