@@ -7,6 +7,7 @@ import signal
 import sys
 from pathlib import Path
 
+from plan.options import PACKINGS, PROFILE_MODES, SPAWN_MODES, TRANSPORTS
 from runtime.entry import guarded
 
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
@@ -51,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run every node in this process with no transport (the reference)")
     p.add_argument("--out", type=Path, default=Path("runs"),
                    help="directory that receives the run directory (default: runs)")
-    p.add_argument("--transport", choices=["ros2", "zenoh"],
+    p.add_argument("--transport", choices=TRANSPORTS,
                    help="override the scenario's transport")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", help="override the scenario's duration, e.g. 10s")
@@ -102,18 +103,18 @@ def build_parser() -> argparse.ArgumentParser:
     how = p.add_argument_group("how the work is done (never changes the digest)")
     how.add_argument("--no-pipeline", action="store_true",
                      help="every node finishes tick k before /clock says k+1 (strict lockstep)")
-    how.add_argument("--spawn", choices=["fork", "exec"], default="fork",
+    how.add_argument("--spawn", choices=SPAWN_MODES, default="fork",
                      help="start cosim nodes as forks of this process (default) or as fresh\n"
                           "interpreters")
     how.add_argument("--no-zenoh-shm", action="store_true",
                      help="zenoh: no shared memory for large messages")
     how.add_argument("--no-camera-warm-up", action="store_true",
                      help="cameras build their GL renderer at the first frame, not at set-up")
-    how.add_argument("--pack", choices=["node", "robot", "kind"],
+    how.add_argument("--pack", choices=PACKINGS,
                      help="which nodes share a process: each node alone, a robot's nodes\n"
                           "together, each kind's nodes together (default: the scenario's\n"
                           "process: keys, else each node alone)")
-    how.add_argument("--profile", choices=["wall", "cpu"],
+    how.add_argument("--profile", choices=PROFILE_MODES,
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
     return p

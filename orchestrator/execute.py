@@ -19,14 +19,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
-from orchestrator.lockstep.starters import Site, join_all, start_all
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
 from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
+from orchestrator.starters import Site, join_all, start_all
 from plan.errors import SimulationError
 from plan.options import RunOptions, TransportSettings
+from plan.packing import layout_of
+from plan.roles import NodeRole
 from plan.run_paths import RunPaths, make_run_dir
 from plan.scenario import Scenario
 from runtime.arrivals import Arrivals, Replay
@@ -198,12 +200,12 @@ def _export_usd_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
 
 def _arrivals_for(scenario: Scenario) -> Arrivals | None:
     """Live arrivals for the scenario's external node, when it has one."""
-    plan = next((p for p in scenario.nodes.values() if p.in_orchestrator), None)
+    plan = next((p for p in scenario.nodes.values() if p.role is NodeRole.ORCHESTRATOR), None)
     return Arrivals(plan.outputs) if plan is not None else None
 
 
 def _external_name(scenario: Scenario) -> str | None:
-    return next((n for n, p in scenario.nodes.items() if p.in_orchestrator), None)
+    return next((n for n, p in scenario.nodes.items() if p.role is NodeRole.ORCHESTRATOR), None)
 
 
 def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
@@ -256,7 +258,8 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                    outcome: RunOutcome, started: float, on_tick: OnTick | None,
                    external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    site = Site(scenario, paths, options, supervisor, external)
+    layout = layout_of(scenario, options.pack)  # the one place a run decides its processes
+    site = Site(scenario, paths, options, supervisor, layout, external)
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
     # then start as fresh interpreters: a process with a session open must not fork).
@@ -289,15 +292,16 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             transport = _open_transport(settings)
             network.callback(transport.close)
         participants = join_all(site, starting, transport)
-        for participant in participants.values():
-            if participant.foreign or participant.in_orchestrator:
+        for name, participant in participants.items():
+            if scenario.nodes[name].role.stood_in:
                 run.callback(participant.recorder.close)
         master = LockstepMaster(scenario, transport, supervisor, participants, options,
-                                on_tick, paths)
+                                layout, on_tick, paths)
         run.callback(_keep_node_stats, outcome, master, supervisor)
         # the arrivals that ROS 2 servers put into (None: a replay, or no external node)
-        live = next((p.arrivals for p in participants.values()
-                     if p.in_orchestrator and isinstance(p.arrivals, Arrivals)), None)
+        live = next((p.arrivals for n, p in participants.items()
+                     if scenario.nodes[n].role is NodeRole.ORCHESTRATOR
+                     and isinstance(p.arrivals, Arrivals)), None)
         control, services = _ros_interfaces(scenario, options, paths, live)
         if services:
             run.callback(services.close)
@@ -355,7 +359,7 @@ def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
     from orchestrator.ros_surface.sim_services import start_services
     from orchestrator.ros_surface.simcontrol import RunControl
 
-    foreign = [n for n, p in scenario.nodes.items() if p.foreign]
+    foreign = [n for n, p in scenario.nodes.items() if p.role.is_foreign]
     why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
     control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
     return control, start_services(scenario, control, live, paths)

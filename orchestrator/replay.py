@@ -20,6 +20,7 @@ from typing import Any
 from orchestrator.proxies.arrivals_record import external_topic
 from plan.errors import ScenarioError
 from plan.load import load_scenario
+from plan.roles import NodeRole
 from plan.run_paths import RunPaths
 from plan.scenario import Scenario
 
@@ -84,7 +85,7 @@ def read_arrivals(bag: Path, scenario: Scenario) -> dict[int, dict[str, Any]]:
     from orchestrator.outputs.bag import BagReader
     from runtime.cdr.decode import decode
 
-    external = next((p for p in scenario.nodes.values() if p.in_orchestrator), None)
+    external = next((p for p in scenario.nodes.values() if p.role is NodeRole.ORCHESTRATOR), None)
     classes = external.outputs if external is not None else {}
     out: dict[int, dict[str, Any]] = {}
     with BagReader(bag) as reader:

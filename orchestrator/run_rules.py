@@ -24,7 +24,6 @@ from orchestrator.proxies.foreign_launch import (
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.listen import address_problems, exposure_warnings
 from plan.options import RunOptions
-from plan.packing import packable
 from plan.scenario import NodePlan, Scenario
 
 
@@ -88,7 +87,7 @@ def check_run(scenario: Scenario, options: RunOptions) -> list[str]:
 
 def _foreign(scenario: Scenario) -> list[str]:
     """The names of the scenario's foreign programs (``command:``)."""
-    return [name for name, plan in scenario.nodes.items() if plan.foreign]
+    return [name for name, plan in scenario.nodes.items() if plan.role.is_foreign]
 
 
 @rule
@@ -122,9 +121,9 @@ def process_groups(scenario: Scenario, options: RunOptions) -> list:
         if group is None:
             continue
         key = f"nodes[{i}] ({name}).process"
-        if not packable(plan):
-            raise ScenarioError(scenario.file, key, f"{name} is "
-                                f"{'a foreign program' if plan.foreign else 'started by you'}"
+        if not plan.role.packable:
+            what = "a foreign program" if plan.role.is_foreign else "started by you"
+            raise ScenarioError(scenario.file, key, f"{name} is {what}"
                                 "; only cosim nodes the orchestrator starts share a process.",
                                 "leave process out for this node.")
         first = prefixes.setdefault(group, (name, plan.spec.prefix))
@@ -157,7 +156,7 @@ def launch_prefixes(scenario: Scenario, options: RunOptions) -> list:
 def foreign_programs(scenario: Scenario, options: RunOptions) -> list:
     """Each foreign program, in the scenario's order, holds every rule of ``FOREIGN_RULES``."""
     for i, (name, plan) in enumerate(scenario.nodes.items()):
-        if plan.foreign:
+        if plan.role.is_foreign:
             for each in FOREIGN_RULES:
                 each.check(scenario, i, name, plan)
     return []
@@ -177,7 +176,7 @@ def program_exists(scenario: Scenario, i: int, name: str, plan: NodePlan) -> Non
 def not_fed_by_a_foreign_program(scenario: Scenario, i: int, name: str, plan: NodePlan
                                  ) -> None:
     """No foreign program takes an input another foreign program publishes."""
-    fed_by = [inp for inp in plan.inputs if scenario.nodes[inp.producer].foreign]
+    fed_by = [inp for inp in plan.inputs if scenario.nodes[inp.producer].role.is_foreign]
     if fed_by:
         inp = fed_by[0]
         raise ScenarioError(

@@ -13,6 +13,7 @@ from pydantic import BaseModel, ValidationError
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
+from plan.roles import NodeRole
 from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
@@ -206,7 +207,7 @@ class ScenarioChecks:
         consumed = {e.topic for e in edges}
         for i, spec in enumerate(self.model.nodes):
             plan = nodes[spec.name]
-            if not plan.foreign or plan.gated:
+            if plan.role is not NodeRole.UNGATED:
                 continue
             for own, graph in plan.output_names.items():
                 if graph in consumed and plan.params.silent_at_start:
@@ -228,7 +229,7 @@ class ScenarioChecks:
         """A twin's topic map names only topics of the run (plan/twin.py)."""
         if self.model.twin is None:
             return
-        external = {t: c for p in nodes.values() if p.in_orchestrator
+        external = {t: c for p in nodes.values() if p.role is NodeRole.ORCHESTRATOR
                     for t, c in p.outputs.items()}
         topics = {t: c for p in nodes.values() for t, c in p.outputs.items()}
         for key, problem, accepted in twin_problems(self.model.twin, external, topics):

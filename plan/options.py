@@ -23,6 +23,9 @@ if TYPE_CHECKING:
 SPAWN_MODES = ("fork", "exec")
 PACKINGS = ("node", "robot", "kind")
 PROFILE_MODES = ("wall", "cpu")
+TRANSPORTS = ("ros2", "zenoh")  # the scenario's transport: (plan.model), --transport
+"""The choices of the run options, spelled once: the CLI's ``choices=`` and the checks of
+``RunOptions`` read them (tests/test_architecture.py holds the type hints to them)."""
 
 
 @dataclass(frozen=True)

@@ -5,28 +5,81 @@ or the run asks for a packing (``--pack``): ``node`` (each node alone), ``kind``
 of one kind together, e.g. every sensors node), ``robot`` (every node of a robot together:
 with one robot, all of the scenario's cosim nodes). Foreign programs, external nodes (that
 you start yourself), the orchestrator's own nodes and nodes with a launch ``prefix`` are
-never packed by ``--pack``.
+never packed by ``--pack`` (only the role ``STEP`` packs, ``plan.roles``).
+
+A run decides this once, into a ``ProcessLayout`` (``layout_of``), and carries that value to
+the starters, the master, the node runtimes, the external node and the foreign programs'
+readers; nothing else groups nodes again.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from plan.robots import robot_of
+from plan.roles import NodeRole
 from plan.scenario import NodePlan, Scenario
 
 
-def packable(plan: NodePlan) -> bool:
-    """Whether the node runs as a cosim node process the orchestrator starts."""
-    return not (plan.foreign or plan.in_orchestrator or plan.spec.external)
+@dataclass(frozen=True)
+class Process:
+    """What one starter starts: a process holding cosim nodes (several when packed), a
+    foreign program, a node you start, or the external node's participant inside the
+    orchestrator. ``label`` names it (its log file, its process name)."""
+
+    label: str
+    names: tuple[str, ...]
+    role: NodeRole
 
 
-def process_groups(scenario: Scenario, pack: str | None) -> list[list[str]]:
-    """The cosim node processes to start: lists of node names, in file order."""
-    groups: dict[str, list[str]] = {}
+@dataclass(frozen=True)
+class ProcessLayout:
+    """The run's process layout, decided once from the scenario and the packing
+    (``layout_of``) and carried to everyone who needs it: the starters, the master, the
+    node runtimes, the external node and the foreign programs' readers."""
+
+    pack: str | None
+    processes: tuple[Process, ...]  # in the order of their first node in the file
+    process_of: dict[str, str]  # node name -> the label of the process it runs in
+    readers: dict[str, dict[str, int]]  # producer -> output topic -> subscriptions it matches
+
+    def subscribers(self, producer: str) -> dict[str, int]:
+        """How many subscriptions each output topic of ``producer`` will match: one per
+        process with a consumer of it (packed consumers share one subscription)."""
+        return self.readers[producer]
+
+    def of_role(self, *roles: NodeRole) -> list[Process]:
+        """The processes of these roles, in layout order."""
+        return [p for p in self.processes if p.role in roles]
+
+    @property
+    def node_processes(self) -> list[Process]:
+        """The processes running cosim step nodes (the orchestrator's and yours): each has
+        one /cosim/command subscription, and one /clock subscription when a node in it
+        follows /clock."""
+        return [p for p in self.processes if p.role.runs_step_runtime]
+
+
+def layout_of(scenario: Scenario, pack: str | None) -> ProcessLayout:
+    """The process layout of a run of ``scenario`` with packing ``pack``: computed once per
+    run (by the orchestrator; by a node process from its command line)."""
+    keyed: dict[str, list[str]] = {}
+    roles: dict[str, NodeRole] = {}
     for name, plan in scenario.nodes.items():
-        if not packable(plan):
-            continue
-        groups.setdefault(_group_of(name, plan, pack), []).append(name)
-    return list(groups.values())
+        key = _group_of(name, plan, pack) if plan.role.packable else f"node:{name}"
+        keyed.setdefault(key, []).append(name)
+        roles[key] = plan.role
+    processes = tuple(Process(process_label(names) if roles[key].packable else names[0],
+                              tuple(names), roles[key]) for key, names in keyed.items())
+    where = {name: p.label for p in processes for name in p.names}
+    readers = {}
+    for producer, plan in scenario.nodes.items():
+        seen: dict[str, set[str]] = {topic: set() for topic in plan.outputs}
+        for edge in scenario.schedule.edges:
+            if edge.producer == producer:
+                seen[edge.topic].add(where[edge.consumer])
+        readers[producer] = {topic: len(labels) for topic, labels in seen.items()}
+    return ProcessLayout(pack, processes, where, readers)
 
 
 def _group_of(name: str, plan: NodePlan, pack: str | None) -> str:
@@ -48,25 +101,3 @@ def process_label(names: list[str]) -> str:
     controllers packed together) its first node and how many more, 'control@robot_0+15_more'."""
     label = "+".join(names)
     return label if len(label) <= LABEL_MAX else f"{names[0]}+{len(names) - 1}_more"
-
-
-def process_of(scenario: Scenario, pack: str | None) -> dict[str, str]:
-    """node name -> the process it runs in (a packed group's label; its own name when it
-    runs alone or is not a cosim node process)."""
-    out = {name: name for name in scenario.nodes}
-    for group in process_groups(scenario, pack):
-        for name in group:
-            out[name] = process_label(group)
-    return out
-
-
-def subscribers(scenario: Scenario, pack: str | None, producer: str) -> dict[str, int]:
-    """How many subscriptions each output topic of ``producer`` will match: one per process
-    with a consumer of it (packed consumers share one subscription)."""
-    where = process_of(scenario, pack)
-    plan = scenario.nodes[producer]
-    seen: dict[str, set[str]] = {topic: set() for topic in plan.outputs}
-    for edge in scenario.schedule.edges:
-        if edge.producer == producer:
-            seen[edge.topic].add(where[edge.consumer])
-    return {topic: len(processes) for topic, processes in seen.items()}

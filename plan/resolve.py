@@ -8,9 +8,11 @@ from pathlib import Path
 from plan.checks import ScenarioChecks
 from plan.errors import ScenarioNotice
 from plan.external_node import complete_model
+from plan.kinds import catalogue
 from plan.model import ScenarioModel
 from plan.robot_placement import robots_layout
 from plan.robots import namespaced, robot_of, swarm_model
+from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import Edge, Schedule
 from plan.templates import expand_nodes
@@ -50,7 +52,9 @@ def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scen
         nodes[spec.name] = NodePlan(
             name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
             period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
-            output_names=outputs[i][1], inputs=inputs, latched=outputs[i][2])
+            output_names=outputs[i][1], inputs=inputs, latched=outputs[i][2],
+            role=role_of(spec, classes[i][0], getattr(params[i], "gate", "auto"),
+                         catalogue().external))
     where.check_cycles(edges)
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
     where.check_foreign_counts(nodes, edges)

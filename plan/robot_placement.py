@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plan import poses
 from plan.errors import ScenarioError
 from plan.model import RobotsSpec, ScenarioModel
 from plan.robots import RobotPlacement, RobotsLayout, swarm_model
@@ -143,7 +144,7 @@ def _stage_robots(where: _Where, world: Path) -> list[tuple[str, Path, tuple]]:
         x, y, _ = pose.GetTranslation()
         q = pose.GetRotation().GetQuat()
         w, (qx, qy, qz) = q.GetReal(), q.GetImaginary()
-        yaw = math.atan2(2 * (w * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
+        yaw = poses.yaw(w, qx, qy, qz)
         out.append((mount.prim.rsplit("/", 1)[-1], mount.mjcf, (float(x), float(y), yaw)))
     return out
 

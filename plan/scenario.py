@@ -13,10 +13,9 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from plan.gates import gate_for, is_python_command
-from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout
+from plan.roles import NodeRole
 from plan.schedule import Schedule
 
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
@@ -49,6 +48,7 @@ class NodePlan:
     outputs: dict[str, type]  # graph topic -> message class (latched ones included)
     output_names: dict[str, str]  # node's own topic -> graph topic
     inputs: list[InputPlan]
+    role: NodeRole  # what part it plays in a run (plan.roles), decided once at load
     latched: frozenset[str] = frozenset()  # own names of the outputs published once, latched
 
     @property
@@ -67,34 +67,10 @@ class NodePlan:
         return shlex.split(self.spec.prefix) if self.spec.prefix else []
 
     @property
-    def in_orchestrator(self) -> bool:
-        """Whether the orchestrator steps this node itself (the external node): no process."""
-        return self.class_ref == catalogue().external
-
-    @property
-    def foreign(self) -> bool:
-        """Whether this node is a foreign ROS 2 program started from a command."""
-        return self.spec.command is not None
-
-    @property
-    def python_program(self) -> bool:
-        """Whether this node is a foreign program run by a Python interpreter."""
-        return self.foreign and is_python_command(self.spec.command)
-
-    @property
     def gate(self) -> str | None:
         """The gate that serves this foreign program ('python' or 'rmw', ``plan.gates``), or
-        None: not foreign, or the RMW gate it needs is not built."""
-        if not self.foreign:
-            return None
-        return gate_for(self.spec.command, self.params.gate)
-
-    @property
-    def gated(self) -> bool:
-        """Whether this node is a foreign program that a gate serves (python or rmw): it
-        acknowledges every tick with how many messages it published on each output, so it
-        may publish any number of them per tick (the README's delivery contract)."""
-        return self.gate is not None
+        None: not foreign, or the RMW gate it needs is not built (its role's)."""
+        return self.role.gate
 
     @property
     def gated_outputs(self) -> list[str]:
@@ -143,7 +119,7 @@ class Scenario:
         """The nodes that may trail the others by up to one activation: leaves of the graph
         (nothing consumes their outputs), not foreign. Their metrics never decide an early
         stop, on any driver."""
-        return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].foreign)
+        return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].role.is_foreign)
 
     def producer_of(self, topic: str) -> str:
         """The node that publishes a graph topic."""

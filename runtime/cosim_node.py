@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from runtime.entry import guarded
 
 if TYPE_CHECKING:
+    from plan.packing import ProcessLayout
     from plan.scenario import Scenario
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -74,7 +75,7 @@ def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
                              f"cosim-node {fix} --scenario {scenario.file} --node {name}")
         return name
     matches = [n for n, p in scenario.nodes.items()
-               if p.spec.kind == kind or (kind == "any" and not p.foreign)]
+               if p.spec.kind == kind or (kind == "any" and not p.role.is_foreign)]
     if len(matches) != 1:
         raise ValueError(f"{scenario.file}: {len(matches)} nodes of kind {kind!r}; "
                          f"name one with --node ({', '.join(scenario.nodes)})")
@@ -114,18 +115,21 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"cosim-node: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from plan.packing import process_label
+    from plan.packing import layout_of, process_label
     from runtime.parent import name_this_process
 
     name_this_process(process_label(names))
     if args.realtime:
         return run_realtime(scenario, names[0], args.rtf, options, live)
+    # a process started from a command line has only the file and the options: it lays the
+    # run out as the orchestrator did (the same function of the same two values)
+    layout = layout_of(scenario, options.pack)
     if len(names) > 1:
-        return run_packed(scenario, names, args.run_dir, options)
+        return run_packed(scenario, names, args.run_dir, options, layout)
     if not started_by_orchestrator():
         print(f"cosim-node {names[0]}: {lockstep_waits_for(scenario, names[0])}",
               file=sys.stderr, flush=True)
-    return run_lockstep(scenario, names[0], args.run_dir, options)
+    return run_lockstep(scenario, names[0], args.run_dir, options, layout)
 
 
 def lockstep_waits_for(scenario: Scenario, name: str) -> str:
@@ -137,7 +141,9 @@ def lockstep_waits_for(scenario: Scenario, name: str) -> str:
         where = "over zenoh (the scenario's zenoh: section)"
     else:
         where = f"on ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} (ros2)"
-    if scenario.nodes[name].spec.external:
+    from plan.roles import NodeRole
+
+    if scenario.nodes[name].role == NodeRole.USER_STARTED:
         then = (f"start the run with cosim-orchestrate {scenario.file}: it waits for this "
                 "node (external: true) and prints the command that starts it on the run's "
                 "domain")
@@ -232,8 +238,9 @@ def _start_endpoints(scenario: Scenario, name: str, runtime, live):
     return endpoints
 
 
-def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=None) -> int:
-    """Run node ``name`` under an orchestrator until told to stop."""
+def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options,
+                 layout: ProcessLayout) -> int:
+    """Run node ``name`` under an orchestrator until told to stop, in the run's ``layout``."""
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
@@ -249,7 +256,7 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
     transport = _open_transport(scenario, options, f"cosim_{name}")
     recorder = PartWriter(paths.part(name)) if paths else None
     notes = NoteWriter(paths.notes(name)) if paths else None
-    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, options.pack)
+    runtime = LockstepRuntime(scenario, name, None, transport, recorder, notes, layout=layout)
     install_stop_handlers(runtime)
     try:
         runtime.node = _built(make_node, scenario, name, options)
@@ -270,7 +277,8 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options=No
         transport.close()
 
 
-def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options=None) -> int:
+def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, options,
+               layout: ProcessLayout) -> int:
     """Run several nodes in this process, on one transport session with one wait."""
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
@@ -288,7 +296,7 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
     recorders = {n: PartWriter(paths.part(n)) if paths else None for n in names}
     notes = {n: NoteWriter(paths.notes(n)) if paths else None for n in names}
     runtimes = [LockstepRuntime(scenario, n, None, shared.view(), recorders[n], notes[n],
-                                options.pack) for n in names]
+                                layout=layout) for n in names]
     packed = PackedRuntimes(runtimes, shared)
     install_packed_stop_handlers(packed)
     failed = None

@@ -23,7 +23,6 @@ from std_msgs.msg import String
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from plan.gates import ack_topic
-from plan.packing import subscribers
 from runtime.activation import Activation
 from runtime.exchange import InputHistory, output_digest
 from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
@@ -50,6 +49,7 @@ from runtime.timing import TimeSplit
 from runtime.transport.base import Received, Transport
 
 if TYPE_CHECKING:
+    from plan.packing import ProcessLayout
     from plan.scenario import Scenario
 
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
@@ -107,9 +107,9 @@ class LockstepRuntime:
 
     def __init__(self, scenario: Scenario, name: str, node: StepNode | None, transport: Transport,
                  recorder: PartWriter | None = None, notes: NoteWriter | None = None,
-                 pack: str | None = None):
+                 *, layout: ProcessLayout):
         self.scenario = scenario
-        self.pack = pack  # the run's packing: consumers packed together share a subscription
+        self.layout = layout  # the run's processes: consumers packed together share a reader
         self.name = name
         self.plan = scenario.nodes[name]
         self.sched = scenario.schedule
@@ -143,7 +143,7 @@ class LockstepRuntime:
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
         depth = sched.output_depths(self.name, plan.outputs)
-        self.expected_subscribers = subscribers(self.scenario, self.pack, self.name)
+        self.expected_subscribers = self.layout.subscribers(self.name)
         latched = plan.latched_topics
         self.publishers = {t: self.transport.publisher(t, msg, 1 if t in latched else depth[t],
                                                        latched=t in latched)
@@ -157,7 +157,7 @@ class LockstepRuntime:
             drives = sched.periods[self.name] if edge == driver else None
             depth = sched.history_depth(edge)
             producer = self.scenario.nodes[inp.producer]
-            if producer.gated:  # any number of messages per tick: its gate says how many
+            if producer.role.is_gated:  # any number of messages per tick: its gate says how many
                 channel = GatedChannel(inp.topic, inp.graph_topic, inp.msg_type, period,
                                        producer.gated_outputs.index(inp.graph_topic), drives)
                 acks = ack_topic(inp.producer)

@@ -45,13 +45,21 @@ class PartWriter:
 
 def read_part(path: Path) -> Iterator[tuple[int, str, bytes]]:
     """Every complete record of a part file; a truncated last record is ignored."""
-    blob = path.read_bytes()
+    for tick, topic, data, _ in decode_records(path.read_bytes()):
+        yield tick, topic, data
+
+
+def decode_records(blob: bytes) -> Iterator[tuple[int, str, bytes, int]]:
+    """The complete records at the start of ``blob`` (a part file, or what was appended to
+    it since a record's end), as (tick, topic, CDR bytes, offset just past the record); an
+    incomplete last record (not written yet, or cut short) ends them. The one reader of the
+    format ``PartWriter`` writes: the bag's merge and the live view both read through it."""
     pos = 0
     while pos + _HEAD.size <= len(blob):
         tick, nlen, dlen = _HEAD.unpack_from(blob, pos)
         end = pos + _HEAD.size + nlen + dlen
         if end > len(blob):
             return
-        topic = blob[pos + _HEAD.size: pos + _HEAD.size + nlen].decode()
-        yield tick, topic, blob[end - dlen: end]
+        topic = blob[pos + _HEAD.size: pos + _HEAD.size + nlen].decode(errors="replace")
+        yield tick, topic, blob[end - dlen: end], end
         pos = end

@@ -165,3 +165,116 @@ def test_the_run_rules_and_node_checks_are_named_checks():
     assert raising <= registered, sorted(raising - registered)
     assert all(r.doc.strip() for r in [*run_rules.RULES, *run_rules.FOREIGN_RULES])
     assert all(c.doc for c in NODE_CHECKS)
+
+
+def project_trees() -> list[tuple[Path, ast.AST]]:
+    """(file, its syntax tree) for every module of the packages."""
+    return [(path, ast.parse(path.read_text())) for path in project_files().values()]
+
+
+OLD_FLAGS = {"in_orchestrator", "foreign", "python_program", "gated"}
+"""What a node's nature was before it had one role (plan.roles): five flags, asked in 17 files."""
+GATE_INSIDE = ROOT / "runtime" / "foreign_gate"
+"""The Python gate runs inside a foreign program and knows no plan: its own ``gated`` list of
+subscriptions is not a node's flag (nor is the kind catalogue's class reference
+``kinds.foreign``)."""
+
+
+def test_a_node_has_one_role_and_nothing_re_derives_it():
+    from orchestrator.starters import STARTERS
+    from plan.roles import NodeRole
+    from plan.scenario import NodePlan
+
+    assert not OLD_FLAGS & set(dir(NodePlan)), "NodePlan.role says what these said"
+    assert set(STARTERS) == set(NodeRole), "every role has its starter"
+    found = []
+    for path, tree in project_trees():
+        where = path.relative_to(ROOT)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr in OLD_FLAGS:
+                catalogue = isinstance(node.value, ast.Name) and node.value.id == "kinds"
+                if not (path.is_relative_to(GATE_INSIDE) or catalogue):
+                    found.append(f"{where}:{node.lineno}: .{node.attr}")
+            elif _spec_key(node, "external") and where != Path("plan/roles.py"):
+                found.append(f"{where}:{node.lineno}: spec.external")
+            elif (isinstance(node, ast.Compare) and _spec_key(node.left, "command")
+                  and where.parts[0] != "plan"):
+                found.append(f"{where}:{node.lineno}: spec.command compared")
+    assert not found, "ask the node's role (NodePlan.role, plan.roles):\n" + "\n".join(found)
+
+
+def _spec_key(node: ast.AST, key: str) -> bool:
+    """Whether ``node`` reads ``<something>.spec.<key>``."""
+    return (isinstance(node, ast.Attribute) and node.attr == key
+            and isinstance(node.value, ast.Attribute) and node.value.attr == "spec")
+
+
+LAYOUT_CALLERS = {"orchestrator/execute.py", "runtime/cosim_node.py"}
+"""Where a run's process layout is decided: the orchestrator, once per run, and a node process
+started from a command line (it has only the file and the options, and lays out the same)."""
+
+
+def test_the_process_layout_is_decided_once_and_carried():
+    import plan.packing
+
+    assert not hasattr(plan.packing, "process_groups") and not hasattr(plan.packing,
+                                                                       "subscribers")
+    callers: dict[str, set[str]] = {}
+    for path, tree in project_trees():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call):
+                func = node.func
+                name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
+                if name in ("layout_of", "_group_of"):
+                    callers.setdefault(name, set()).add(str(path.relative_to(ROOT)))
+    assert callers["_group_of"] == {"plan/packing.py"}
+    assert callers["layout_of"] == LAYOUT_CALLERS, "carry the run's ProcessLayout instead"
+
+
+def test_one_reader_of_the_part_record_format():
+    holders = sorted(str(p.relative_to(ROOT)) for p in project_files().values()
+                     if "qHI" in p.read_text())
+    assert holders == ["runtime/recording.py"], "read parts with runtime.recording"
+    tail = (ROOT / "orchestrator" / "live" / "live_tail.py").read_text()
+    assert "decode_records" in tail and "unpack" not in tail and "struct" not in tail
+
+
+def test_the_tick_loop_imports_no_proxies():
+    # the starters start the proxies, one floor up; lockstep/ drives what it is given
+    wrong = sorted(f"{module} imports {target}" for module, targets in import_graph().items()
+                   if module.startswith("orchestrator.lockstep")
+                   for target in targets if target.startswith("orchestrator.proxies"))
+    assert not wrong, "\n".join(wrong)
+
+
+def test_one_quaternion_to_yaw():
+    writers = sorted(str(p.relative_to(ROOT)) for p in project_files().values()
+                     if re.search(r"atan2\(\s*2", p.read_text()))
+    assert writers == ["plan/poses.py"], "use plan.poses.yaw"
+
+
+def test_the_run_choices_are_spelled_once():
+    from typing import get_type_hints
+
+    from orchestrator.cosim_orchestrate import build_parser
+    from plan.model import ScenarioModel
+    from plan.options import PACKINGS, PROFILE_MODES, SPAWN_MODES, TRANSPORTS, RunOptions
+
+    spelled = {"transport": TRANSPORTS, "spawn": SPAWN_MODES, "pack": PACKINGS,
+               "profile": PROFILE_MODES}
+    cli = {a.dest: a.choices for a in build_parser()._actions if a.dest in spelled}
+    assert cli == spelled
+    hints = get_type_hints(RunOptions)
+    for field in ("spawn", "pack", "profile"):
+        assert set(_literals(hints[field])) == set(spelled[field]), field
+    assert set(_literals(ScenarioModel.model_fields["transport"].annotation)) == set(TRANSPORTS)
+
+
+def _literals(hint) -> list[str]:
+    """The string values of a Literal type hint, also inside an Optional."""
+    from typing import get_args
+
+    out = []
+    for arg in get_args(hint):
+        out += [arg] if isinstance(arg, str) else _literals(arg)
+    return out

@@ -11,6 +11,7 @@ import pytest
 
 from orchestrator.proxies.foreign_launch import gate_config, output_readers
 from plan.load import load_scenario
+from plan.packing import layout_of
 from runtime.foreign_gate.cosim_gate import Gate, GateConfig
 from tests.test_foreign_nav import nav_with_foreign_control
 
@@ -19,7 +20,7 @@ def test_each_output_expects_its_consumer_processes_and_the_orchestrator(tmp_pat
     _, foreign = nav_with_foreign_control(tmp_path)
     scenario = load_scenario(foreign)
     plan = scenario.nodes["control"]
-    readers = output_readers(scenario, None, plan)
+    readers = output_readers(scenario, layout_of(scenario, None), plan)
     # /cmd_vel: physics and the orchestrator; /plan: only the orchestrator
     assert dict(zip(plan.gated_outputs, readers, strict=True)) == {"/cmd_vel": 2, "/plan": 1}
     config = GateConfig.from_json(json.dumps(gate_config(plan, scenario.schedule, readers)))

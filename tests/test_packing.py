@@ -8,11 +8,37 @@ import yaml
 
 from orchestrator.lockstep.inprocess import run_in_process
 from plan.load import load_scenario
-from plan.packing import process_label
+from plan.packing import layout_of, process_label
+from plan.roles import NodeRole
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
 NAV = ROOT / "scenarios" / "nav.yaml"
+
+
+def test_the_layout_gives_each_node_one_process_and_counts_its_readers(tmp_path):
+    """The run's layout, decided once: each node in one process with its role, packed
+    consumers counted once as readers, a node you start a process of its own."""
+    doc = yaml.safe_load(PROTOCOL.read_text())
+    doc["nodes"][1]["external"] = True  # middle: started by you
+    doc["external"] = {"rate": 10, "topics": {"/goal_pose": "geometry_msgs/msg/PoseStamped"}}
+    path = tmp_path / "roles.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    scenario = load_scenario(path)
+    roles = {name: plan.role for name, plan in scenario.nodes.items()}
+    assert roles == {"source": NodeRole.STEP, "middle": NodeRole.USER_STARTED,
+                     "loop": NodeRole.STEP, "sink": NodeRole.STEP, "slow": NodeRole.STEP,
+                     "external": NodeRole.ORCHESTRATOR}
+    layout = layout_of(scenario, "robot")
+    assert [(p.label, p.role) for p in layout.processes] == [
+        ("source+loop+sink+slow", NodeRole.STEP), ("middle", NodeRole.USER_STARTED),
+        ("external", NodeRole.ORCHESTRATOR)]
+    assert [p.label for p in layout.node_processes] == ["source+loop+sink+slow", "middle"]
+    assert layout.subscribers("middle") == {"/middle": 1}  # loop and sink share a process
+    assert layout.subscribers("source") == {"/source": 1}
+    alone = layout_of(scenario, None)
+    assert alone.subscribers("middle") == {"/middle": 2}
+    assert alone.process_of["sink"] == "sink"
 
 
 def pids(run) -> dict[str, int]:

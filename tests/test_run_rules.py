@@ -114,11 +114,12 @@ def test_one_foreign_program_feeding_another_is_refused(tmp_path):
 
 
 def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
-    """One rule (plan.gates, NodePlan.gated) for the proxy, the checks and the run rules: a
+    """One rule (plan.gates, the node's role) for the proxy, the checks and the run rules: a
     program that is not Python is gated by the RMW gate where it is built; without it, it is
     ungated, and with two inputs refused before anything starts."""
     import plan.gates
     from plan.load import load_scenario
+    from plan.roles import NodeRole
 
     doc = yaml.safe_load((SCENARIOS / "foreign_fusion.yaml").read_text())
     doc["nodes"][3]["command"] = ["cat"]
@@ -127,16 +128,17 @@ def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
     python = variant(tmp_path, SCENARIOS / "foreign_fusion.yaml")
     assert plan.gates.rmw_gate_library().is_file(), "make install builds the RMW gate"
     cat = load_scenario(path).nodes["fusion"]
-    assert (cat.gate, cat.gated, cat.python_program) == ("rmw", True, False)
+    assert (cat.gate, cat.role) == ("rmw", NodeRole.RMW_GATE)
     assert load_scenario(python).nodes["fusion"].gate == "python"
     monkeypatch.setattr(plan.gates, "rmw_gate_library", lambda: tmp_path / "not-built.so")
     cat = load_scenario(path).nodes["fusion"]
-    assert (cat.gate, cat.gated) == (None, False)
+    assert (cat.gate, cat.role, cat.role.is_gated) == (None, NodeRole.UNGATED, False)
     with pytest.raises(ScenarioError, match="the RMW gate that serves other languages is not "
                                             "built"):
         run(path, out=tmp_path / "r")
     assert not (tmp_path / "r").exists()
-    assert load_scenario(python).nodes["fusion"].gated  # the Python gate needs no build
+    # the Python gate needs no build
+    assert load_scenario(python).nodes["fusion"].role is NodeRole.PYTHON_GATE
 
 
 # -- the rules themselves ------------------------------------------------------------------

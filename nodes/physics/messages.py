@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import array
-import math
 
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
@@ -11,6 +10,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from plan.poses import yaw
 from plan.rot3 import mat_t_vec
 
 # Ground truth: tiny but non-zero variances, so consumers that invert them do not blow up.
@@ -55,9 +55,9 @@ def quat_to_mat(q: np.ndarray) -> np.ndarray:
 
 
 def yaw_of(q: np.ndarray) -> float:
-    """Heading (rotation about z) of a quaternion (w, x, y, z)."""
+    """Heading (rotation about z) of a quaternion array (w, x, y, z): ``plan.poses.yaw``."""
     w, x, y, z = (float(v) for v in q)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return yaw(w, x, y, z)
 
 
 def joint_state(names: list[str], pos: np.ndarray, vel: np.ndarray,

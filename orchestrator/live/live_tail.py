@@ -12,19 +12,18 @@ from __future__ import annotations
 
 import logging
 import os
-import struct
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 from runtime.protocol import CLOCK_TOPIC, encode_clock
+from runtime.recording import decode_records
 
 log = logging.getLogger("cosim")
 
 POLL_S = 0.01
 YIELD_EVERY = 16  # records offered between two yields of the GIL (the master's loop waits)
-_HEAD = struct.Struct("<qHI")  # the part record's head (runtime.recording)
 
 
 class PartFollower:
@@ -55,17 +54,12 @@ class PartFollower:
         self._file.seek(self.offset)
         blob = self._file.read(size - self.offset)
         out, pos = [], 0
-        while pos + _HEAD.size <= len(blob):
-            tick, name_len, data_len = _HEAD.unpack_from(blob, pos)
-            end = pos + _HEAD.size + name_len + data_len
-            if end > len(blob):
-                break  # the rest of this record is not written yet
-            topic = blob[pos + _HEAD.size: pos + _HEAD.size + name_len].decode(errors="replace")
+        for tick, topic, data, end in decode_records(blob):  # a partial last one waits
             if topic not in self.topics or tick < 0:
                 # not where a record starts: rewritten after a reset; start over
                 self.offset, self.restarted = 0, True
                 return out
-            out.append((tick, topic, blob[end - data_len: end]))
+            out.append((tick, topic, data))
             pos = end
         self.offset += pos
         return out

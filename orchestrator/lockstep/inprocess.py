@@ -9,6 +9,7 @@ from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from plan.errors import SimulationError
+from plan.roles import NodeRole
 from plan.scenario import Scenario
 from runtime.activation import Activation
 from runtime.build import make_node
@@ -48,7 +49,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
             for index, wanted in sched.inputs_at(name, k):
                 own = plan.inputs[index].topic
                 inputs[own] = histories[(name, own)].take(wanted)
-            if plan.in_orchestrator and external is not None:
+            if plan.role is NodeRole.ORCHESTRATOR and external is not None:
                 inputs = external(k)
             started = time.perf_counter_ns()  # for the manifest only, never for outputs
             try:

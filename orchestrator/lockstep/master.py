@@ -22,7 +22,8 @@ from orchestrator.lockstep.participants import Participant
 from orchestrator.lockstep.supervisor import Supervisor
 from plan.errors import SimulationError
 from plan.options import RunOptions
-from plan.packing import process_groups
+from plan.packing import ProcessLayout
+from plan.roles import NodeRole
 from plan.run_paths import RunPaths
 from plan.scenario import Scenario
 from plan.schedule import PIPELINE_WINDOW
@@ -73,7 +74,8 @@ class LockstepMaster:
 
     def __init__(self, scenario: Scenario, transport: Transport, supervisor: Supervisor,
                  participants: dict[str, Participant], options: RunOptions,
-                 on_tick: Callable[[int], None] | None = None, paths: RunPaths | None = None):
+                 layout: ProcessLayout, on_tick: Callable[[int], None] | None = None,
+                 paths: RunPaths | None = None):
         self.scenario = scenario
         self.sched = scenario.schedule
         self.transport = transport
@@ -89,18 +91,15 @@ class LockstepMaster:
         self.tick = -1
         self.participants = participants
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
-        self.drainable = [p for p in participants.values() if p.foreign or p.in_orchestrator]
-        # processes that wake for /clock (the orchestrator's own participants need not)
-        # one /clock and one /cosim/command subscription per cosim node process (the nodes
-        # packed into one process share them; the orchestrator's own participants have none)
-        process_of = {n: i for i, group in enumerate(process_groups(scenario, options.pack))
-                      for n in group}
-        for n, p in participants.items():
-            if n not in process_of and not (p.foreign or p.in_orchestrator):
-                process_of[n] = n  # started by the user: a process of its own
-        self.command_subscribers = len(set(process_of.values()))
-        self.clock_subscribers = len({process_of[n] for n in self.sched.clock_driven()
-                                      if n in process_of})
+        roles = {name: plan.role for name, plan in scenario.nodes.items()}
+        self.drainable = [p for n, p in participants.items() if roles[n].stood_in]
+        # one /cosim/command subscription per cosim node process (the nodes packed into one
+        # process share it; the orchestrator's own participants have none), and one /clock
+        # subscription per such process that holds a node woken by /clock
+        clock_driven = set(self.sched.clock_driven())
+        self.command_subscribers = len(layout.node_processes)
+        self.clock_subscribers = sum(1 for p in layout.node_processes
+                                     if clock_driven.intersection(p.names))
         self.tick_limit_s = scenario.model.deadlines.tick / 1e9
         self.trailing = scenario.trailing_nodes
         # Without the pipeline option every node finishes each tick before the next (for
@@ -144,7 +143,7 @@ class LockstepMaster:
         parts = []
         for name in sorted(missing):
             proc = self.supervisor.procs.get(name)
-            if self.scenario.nodes[name].spec.external:
+            if self.scenario.nodes[name].role is NodeRole.USER_STARTED:
                 alive = "external process, started by you"
             else:
                 alive = "process alive" if proc and proc.popen.poll() is None else "process gone"
@@ -252,8 +251,8 @@ class LockstepMaster:
         sent = self._handshake(CommandMessage(Command.RESET, self.epoch), RESETTING)
         counts = {k[5:]: int(v) for values in sent.values() for k, v in values.items()
                   if k.startswith("sent:")}
-        for participant in self.participants.values():
-            if participant.in_orchestrator:
+        for name, participant in self.participants.items():
+            if self.scenario.nodes[name].role is NodeRole.ORCHESTRATOR:
                 counts.update(participant.sent)
                 participant.reset()
         self._handshake(CommandMessage(Command.RESTART, self.epoch, counts), READY)
@@ -263,7 +262,8 @@ class LockstepMaster:
     def _handshake(self, command: CommandMessage, answer: str) -> dict[str, dict[str, str]]:
         """Publish a command and wait until every node answered it with ``answer``."""
         self.command_pub.publish(encode_command(command))
-        pending = {n for n, p in self.participants.items() if not p.in_orchestrator}
+        pending = {n for n in self.participants
+                   if self.scenario.nodes[n].role is not NodeRole.ORCHESTRATOR}
         replies: dict[str, dict[str, str]] = {}
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
         while pending:

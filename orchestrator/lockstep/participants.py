@@ -21,9 +21,7 @@ class Participant(ABC):
     """One node of the run as the master sees it."""
 
     name: str
-    foreign: bool = False  # a foreign program: the orchestrator counts its outputs
     follows_clock: bool = False  # it reads the run's /clock itself: no clock may run ahead
-    in_orchestrator: bool = False  # no process of its own: the orchestrator steps it
 
     @property
     def topics(self) -> frozenset[str]:

@@ -144,18 +144,18 @@ def foreign_entry(scenario: Scenario) -> dict[str, Any]:
     exactly (checked at every tick)."""
     out = {}
     for name, plan in scenario.nodes.items():
-        if not plan.foreign:
+        if not plan.role.is_foreign:
             continue
         params = plan.params
-        if plan.gated:
+        if plan.role.is_gated:
             rule = FOREIGN_OUTPUT_RULE
             exact = {plan.output_names[own]: n for own, n in params.per_activation.items()}
         else:
             rule = ("not gated: counted, its n-th message on an output is its sample of its "
                     "n-th activation")
             exact = {graph: params.count(own) for own, graph in plan.output_names.items()}
-        out[name] = {"gated": plan.gated, "gate": plan.gate, "outputs": rule, "exact_counts": exact,
-                     "silent_at_start": params.silent_at_start}
+        out[name] = {"gated": plan.role.is_gated, "gate": plan.gate, "outputs": rule,
+                     "exact_counts": exact, "silent_at_start": params.silent_at_start}
     return out
 
 

@@ -64,10 +64,11 @@ def rendered_topics(scenario) -> list[str]:
     """The graph topics a node of the scenario renders with GL (its class's
     ``rendered_outputs``), sorted."""
     from nodes.registry import load_class
+    from plan.roles import NodeRole
 
     out: set[str] = set()
     for plan in scenario.nodes.values():
-        if plan.in_orchestrator:
+        if plan.role is NodeRole.ORCHESTRATOR:
             continue
         rendered = getattr(load_class(plan.class_ref), "rendered_outputs", None)
         if rendered is not None:

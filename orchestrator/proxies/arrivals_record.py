@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from plan.roles import NodeRole
 from runtime.cdr.encode import encode
 from runtime.recording import PartWriter
 
@@ -40,7 +41,7 @@ def arrival_topics(scenario) -> dict[str, type]:
     """Recorded arrivals topic -> message class, for the scenario's external node (the bag
     declares them)."""
     return {arrival_topic(topic): cls
-            for plan in scenario.nodes.values() if plan.in_orchestrator
+            for plan in scenario.nodes.values() if plan.role is NodeRole.ORCHESTRATOR
             for topic, cls in plan.outputs.items()}
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from nodes.contract import Tick
 from orchestrator.lockstep.participants import Participant
 from orchestrator.proxies.arrivals_record import arrival_items
-from plan.packing import subscribers
+from plan.packing import ProcessLayout
 from plan.scenario import NodePlan, Scenario
 from runtime.activation import Activation
 from runtime.arrivals import Arrivals, Replay
@@ -28,11 +28,9 @@ from runtime.transport.base import Transport
 class ExternalSource(Participant):
     """Steps the ``external`` node in the orchestrator, one activation per due tick."""
 
-    in_orchestrator = True
-
     def __init__(self, scenario: Scenario, plan: NodePlan, transport: Transport,
                  recorder: PartWriter | None, arrivals: Arrivals | Replay,
-                 pack: str | None = None):
+                 layout: ProcessLayout):
         self.name = plan.name
         self.plan = plan
         self.scenario = scenario
@@ -42,7 +40,7 @@ class ExternalSource(Participant):
         self.arrivals = arrivals
         self.recorder = recorder
         depth = self.schedule.output_depths(self.name, plan.outputs)
-        self.expected = subscribers(scenario, pack, self.name)
+        self.expected = layout.subscribers(self.name)
         self.publishers = {t: transport.publisher(t, cls, depth[t])
                            for t, cls in plan.outputs.items()}
         self.pending: list[Status] = []

@@ -36,8 +36,10 @@ from plan.gates import (
     RMW_GATE_NAME,
     ack_topic,
     feed_prefix,
+    is_python_command,
     rmw_gate_library,
 )
+from plan.packing import ProcessLayout
 from plan.robots import robot_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import DELAYED, Schedule
@@ -63,7 +65,7 @@ def clock_topic(name: str) -> str:
 
 def is_python(plan: NodePlan) -> bool:
     """Whether the program runs on a Python interpreter (and so can carry the Python gate)."""
-    return plan.python_program
+    return is_python_command(plan.spec.command)
 
 
 def gate_of(plan: NodePlan) -> str | None:
@@ -112,17 +114,16 @@ def gate_config(plan: NodePlan, schedule: Schedule, readers: list[int] | None = 
             **({"readers": readers} if readers else {})}
 
 
-def output_readers(scenario: Scenario, pack: str | None, plan: NodePlan) -> list[int] | None:
+def output_readers(scenario: Scenario, layout: ProcessLayout, plan: NodePlan
+                   ) -> list[int] | None:
     """Per gated output of a foreign program, the subscriptions it will match: one per
-    process with a consumer of it (``plan.packing.subscribers``) and the orchestrator's
+    process with a consumer of it (the run's ``layout``) and the orchestrator's
     own. None where a consumer runs in the orchestrator (its readers are not told apart
     there): the orchestrator then waits a settle time instead."""
-    from plan.packing import subscribers
-
     consumers = {e.consumer for e in scenario.schedule.edges if e.producer == plan.name}
-    if any(scenario.nodes[c].in_orchestrator or scenario.nodes[c].foreign for c in consumers):
+    if any(scenario.nodes[c].role.stood_in for c in consumers):
         return None
-    counts = subscribers(scenario, pack, plan.name)
+    counts = layout.subscribers(plan.name)
     return [counts.get(topic, 0) + 1 for topic in plan.gated_outputs]
 
 

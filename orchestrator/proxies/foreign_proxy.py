@@ -45,7 +45,6 @@ SETTLE_S = 0.5
 class ForeignProxy(Participant):
     """Feeds one foreign program and turns its outputs into status reports."""
 
-    foreign = True
 
     def __init__(self, plan: NodePlan, schedule: Schedule, transport: Transport,
                  recorder: PartWriter | None):
@@ -65,14 +64,14 @@ class ForeignProxy(Participant):
         self.clock_tick = -1  # the latest tick the master published /clock for
         self.pending: list[Status] = []  # activations done without a message (silent)
         self._matched_since: float | None = None
-        self.gated = plan.gated  # a gate (python or rmw) serves it: plan.gates
+        self.is_gated = plan.role.is_gated  # a gate (python or rmw) serves it: plan.gates
         self.own_of = {graph: own for own, graph in plan.output_names.items()}
         # gated: per output, how many of its messages the acknowledged activations hold
         self.ends: dict[str, list[int]] = {t: [] for t in self.classes}
-        self.follows_clock = not self.gated  # a gated program sees only its fed clock
+        self.follows_clock = not self.is_gated  # a gated program sees only its fed clock
         self.channels: dict[str, InputChannel] = {}
         self.feeds = {}
-        if self.gated:
+        if self.is_gated:
             self._wire_feed(transport)
 
     def _wire_feed(self, transport: Transport) -> None:
@@ -96,7 +95,7 @@ class ForeignProxy(Participant):
     @property
     def topics(self) -> frozenset[str]:
         """The program's output topics, and for a gated one its inputs and acknowledgements."""
-        if not self.gated:
+        if not self.is_gated:
             return frozenset(self.subs)
         return frozenset(self.subs) | frozenset(self.channels) | {self.ack}
 
@@ -107,12 +106,12 @@ class ForeignProxy(Participant):
         writer drops what it publishes before that: the settle time covers the other half
         of discovery, which cosim cannot observe in a program it does not run, unless the
         program's gate saw it (``[-1, 1]``: every output's publisher matched its readers)."""
-        if self.gated and not (self.gate_ready and not self._unsubscribed()):
+        if self.is_gated and not (self.gate_ready and not self._unsubscribed()):
             return False
         if not all(sub.matched() >= 1 for sub in self.subs.values()):
             self._matched_since = None
             return False
-        if self.gated and self.outputs_matched:  # the gate saw the other half
+        if self.is_gated and self.outputs_matched:  # the gate saw the other half
             return True
         now = time.monotonic()
         if self._matched_since is None:
@@ -126,7 +125,7 @@ class ForeignProxy(Participant):
     def not_ready_text(self) -> str:
         """What the program has not done yet, for the start-deadline message."""
         parts = []
-        if self.gated:
+        if self.is_gated:
             parts += [f"never subscribed to its declared input {own} (fed to it on "
                       f"{feed_topic(self.name, own)})" for own in self._unsubscribed()]
             if not parts and not self.gate_ready:
@@ -144,7 +143,7 @@ class ForeignProxy(Participant):
         """/clock reached ``tick``: feed what is due; an activation that publishes nothing
         (``silent_at_start``) is done."""
         self.clock_tick = tick
-        if self.gated:
+        if self.is_gated:
             self._pump()
         self.pending += self._done_so_far()
 
@@ -164,7 +163,7 @@ class ForeignProxy(Participant):
                                       node=self.name, tick=current_tick) from None
             self._pump()
             return []
-        if self.gated and rec.topic == self.ack:
+        if self.is_gated and rec.topic == self.ack:
             self._acknowledged(*decode_ack(rec.data), current_tick)
             return self._done_so_far()
         return self._count(rec, current_tick)
@@ -215,7 +214,7 @@ class ForeignProxy(Participant):
     def _count(self, rec: Received, current_tick: int) -> list[Status]:
         messages = self.received[rec.topic]
         messages.append(canonical_cdr(rec.data, self.classes[rec.topic]))
-        if self.gated:  # the gate's acknowledgement says which tick it belongs to
+        if self.is_gated:  # the gate's acknowledgement says which tick it belongs to
             return self._done_so_far()
         activation = (len(messages) - 1 + self.skip[rec.topic]) // self.per[rec.topic]
         if activation * self.period > current_tick:
@@ -238,14 +237,14 @@ class ForeignProxy(Participant):
 
     def _span(self, topic: str, activation: int) -> tuple[int, int]:
         """Which of the messages received on ``topic`` belong to ``activation``."""
-        if self.gated:
+        if self.is_gated:
             ends = self.ends[topic]
             return (ends[activation - 1] if activation else 0), ends[activation]
         n, skip = self.per[topic], self.skip[topic]
         return max(activation * n - skip, 0), (activation + 1) * n - skip
 
     def _complete(self, activation: int) -> bool:
-        if self.gated and activation >= len(self.ends[next(iter(self.ends))]):
+        if self.is_gated and activation >= len(self.ends[next(iter(self.ends))]):
             return False  # not acknowledged yet
         return all(len(self.received[t]) >= self._span(t, activation)[1] for t in self.per)
 
@@ -263,7 +262,7 @@ class ForeignProxy(Participant):
     def owed_text(self, tick: int) -> str:
         """What the program still owes for ``tick``, e.g. '0 of 1 messages on /cmd_vel'."""
         activation = tick // self.period
-        if self.gated and activation >= len(self.ends[next(iter(self.ends))]):
+        if self.is_gated and activation >= len(self.ends[next(iter(self.ends))]):
             if self.awaiting is not None:
                 return (f"tick {self.awaiting} was fed and its gate has not acknowledged it: "
                         "a callback or timer of that tick is still running, or blocked "
@@ -275,7 +274,7 @@ class ForeignProxy(Participant):
             first, end = self._span(t, activation)
             parts.append(f"{max(0, len(self.received[t]) - first)} of {end - first} "
                          f"message(s) on {t}")
-        if self.gated:
+        if self.is_gated:
             return ("its gate acknowledged the tick, but of the messages it counted only "
                     + ", ".join(parts) + " arrived (foreign program)")
         return ("it published " + ", ".join(parts) + " (a foreign program no gate serves "

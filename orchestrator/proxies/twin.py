@@ -31,6 +31,7 @@ from collections.abc import Callable
 from typing import Any
 
 from plan.options import RunOptions
+from plan.roles import NodeRole
 from plan.scenario import Scenario
 from plan.twin import TwinAddress, parse_twin_url
 from runtime.arrivals import Arrivals
@@ -455,7 +456,8 @@ def twin_run(scenario: Scenario, options: RunOptions, on_tick: Callable[[int], N
     the run's live endpoints), strict lockstep (tick k starts when k - 1 is decided, so what
     arrived enters at the tick whose wall time it arrived before) and a loop paced on the
     wall clock."""
-    external_plan = next(p for p in scenario.nodes.values() if p.in_orchestrator)
+    external_plan = next(p for p in scenario.nodes.values()
+                         if p.role is NodeRole.ORCHESTRATOR)
     arrivals = TwinArrivals(external_plan.outputs)
     arrivals.link = TwinLink(scenario, twin_address(scenario, options, external), arrivals)
     pacer = Pacer(scenario.tick_ns, on_tick)

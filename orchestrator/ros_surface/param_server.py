@@ -118,7 +118,7 @@ def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, cont
 
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
     return [NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control, period)
-            for plan in scenario.nodes.values() if not plan.foreign and not plan.in_orchestrator]
+            for plan in scenario.nodes.values() if plan.role.runs_step_runtime]
 
 
 def describe(model: type[BaseModel], name: str, runtime: bool) -> ParameterDescriptor:

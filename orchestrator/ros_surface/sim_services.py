@@ -354,7 +354,7 @@ def _robot(scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
     from orchestrator.ros_surface.sim_entities import RobotEntity
 
     for plan in scenario.nodes.values():
-        if (not plan.foreign and "/odom" in plan.output_names
+        if (not plan.role.is_foreign and "/odom" in plan.output_names
                 and isinstance(getattr(plan.params, "base_body", None), str)):
             return RobotEntity(scenario, plan, control, arrivals, paths.part(plan.name))
     return None

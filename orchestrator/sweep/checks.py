@@ -21,6 +21,7 @@ from orchestrator.sweep.combinations import RunSpec, parse_seeds, parse_sweep_se
 from plan.errors import ScenarioError
 from plan.load import load_scenario
 from plan.options import RunOptions
+from plan.roles import NodeRole
 
 PLAN_NAME = "sweep.json"
 
@@ -54,7 +55,7 @@ def check_sweep(args: argparse.Namespace) -> CheckedSweep:
     for key, key_values in values.items():
         for value in key_values if len(key_values) > 1 else ():
             check_run(load_scenario(args.scenario, {**fixed, key: value}), options)
-    external = [name for name, plan in base.nodes.items() if plan.spec.external]
+    external = [name for name, plan in base.nodes.items() if plan.role is NodeRole.USER_STARTED]
     if external and not in_process:
         raise ScenarioError(base.file, "nodes", f"node(s) {', '.join(external)} are external: "
                             "a sweep cannot wait for someone to start them.",

@@ -1,11 +1,14 @@
-"""One starter per kind of participant, as mosaik's starters: a cosim node process (alone
-or packed with others), a foreign ROS 2 program, a cosim node the user starts
-(``external: true``) and the external inputs the orchestrator steps itself.
+"""One starter per role of node (``plan.roles``), as mosaik's ``StarterCollection`` is a dict
+of starters: a cosim node process (alone or packed with others), a foreign ROS 2 program
+(behind either gate or none), a cosim node the user starts (``external: true``) and the
+external inputs the orchestrator steps itself. A new kind of participant is one entry of
+``STARTERS``.
 
-A starter starts its process and returns it with the participant the tick loop talks to.
-The participant is built by ``join`` once the orchestrator's transport is open: over ros2
-that must wait until every node is forked (a process with rclpy loaded must not fork).
-Nothing here imports rclpy or zenoh at module level, for the same reason.
+A starter starts one process of the run's layout (``plan.packing.ProcessLayout``) and
+returns it with the participant the tick loop talks to. The participant is built by ``join``
+once the orchestrator's transport is open: over ros2 that must wait until every node is
+forked (a process with rclpy loaded must not fork). Nothing here imports rclpy or zenoh at
+module level, for the same reason.
 """
 
 from __future__ import annotations
@@ -20,9 +23,10 @@ from typing import TYPE_CHECKING
 
 from orchestrator.lockstep.supervisor import NodeProcess, Supervisor, fork_is_safe, node_argv
 from plan.options import RunOptions
-from plan.packing import process_label
+from plan.packing import Process, ProcessLayout
+from plan.roles import NodeRole
 from plan.run_paths import RunPaths
-from plan.scenario import NodePlan, Scenario
+from plan.scenario import Scenario
 from runtime.arrivals import Arrivals, Replay
 from runtime.recording import PartWriter
 
@@ -36,12 +40,14 @@ log = logging.getLogger("cosim")
 @dataclass(frozen=True)
 class Site:
     """What every starter needs: the scenario, where the run writes, its options, the
-    supervisor of its processes and what feeds the external node."""
+    supervisor of its processes, the run's process layout and what feeds the external
+    node."""
 
     scenario: Scenario
     paths: RunPaths
     options: RunOptions
     supervisor: Supervisor
+    layout: ProcessLayout
     external: Arrivals | Replay | None = None
 
 
@@ -55,18 +61,18 @@ class Started:
     join: Callable[[Transport], dict[str, Participant]]
 
 
-def start_cosim(site: Site, names: list[str]) -> Started:
+def start_cosim(site: Site, process: Process) -> Started:
     """Cosim nodes sharing one process (one name: a lone node): forked from this process
     when that is safe and no launch prefix wraps them, a fresh interpreter otherwise."""
     from runtime.cosim_node import run_lockstep, run_packed
 
-    scenario, options = site.scenario, site.options
+    scenario, options, layout = site.scenario, site.options, site.layout
+    names, label = list(process.names), process.label
     plan = scenario.nodes[names[0]]
-    label = process_label(names)
     if options.spawn == "fork" and fork_is_safe() and not plan.launch_prefix:
-        target = (partial(run_lockstep, scenario, names[0], site.paths.root, options)
+        target = (partial(run_lockstep, scenario, names[0], site.paths.root, options, layout)
                   if len(names) == 1 else
-                  partial(run_packed, scenario, names, site.paths.root, options))
+                  partial(run_packed, scenario, names, site.paths.root, options, layout))
         proc = site.supervisor.fork(label, target)
     else:
         argv = node_argv(scenario.file, plan.spec.kind or "any", names, site.paths.root,
@@ -77,13 +83,14 @@ def start_cosim(site: Site, names: list[str]) -> Started:
     return Started(proc, partial(_cosim_nodes, site, names))
 
 
-def start_foreign(site: Site, plan: NodePlan) -> Started:
+def start_foreign(site: Site, process: Process) -> Started:
     """A foreign ROS 2 program, started by its command in the scenario's folder; the
     orchestrator counts its outputs (``ForeignProxy``)."""
     from orchestrator.proxies.foreign_launch import foreign_argv, foreign_env, output_readers
 
     scenario = site.scenario
-    readers = output_readers(scenario, site.options.pack, plan)
+    plan = scenario.nodes[process.names[0]]
+    readers = output_readers(scenario, site.layout, plan)
     proc = site.supervisor.spawn(plan.name, foreign_argv(plan, scenario.file.parent),
                                  prefix=plan.launch_prefix,
                                  env=foreign_env(plan, scenario.schedule, readers),
@@ -98,9 +105,10 @@ def start_foreign(site: Site, plan: NodePlan) -> Started:
     return Started(proc, join)
 
 
-def start_user_started(site: Site, plan: NodePlan) -> Started:
+def start_user_started(site: Site, process: Process) -> Started:
     """A cosim node the user starts (``external: true``): announced with its command."""
     scenario = site.scenario
+    plan = scenario.nodes[process.names[0]]
     argv = node_argv(scenario.file, plan.spec.kind or "any", [plan.name], site.paths.root,
                      scenario.overrides, site.options)
     command = " ".join(["cosim-node", *argv[3:]])
@@ -110,9 +118,11 @@ def start_user_started(site: Site, plan: NodePlan) -> Started:
     return Started(None, partial(_cosim_nodes, site, [plan.name]))
 
 
-def start_in_orchestrator(site: Site, plan: NodePlan) -> Started:
+def start_in_orchestrator(site: Site, process: Process) -> Started:
     """The external node, stepped by the orchestrator on what arrives from outside (the
     run's arrivals or replay; fresh arrivals when it was given none)."""
+    plan = site.scenario.nodes[process.names[0]]
+
     def join(transport: Transport) -> dict[str, Participant]:
         from orchestrator.proxies.external import ExternalSource
 
@@ -120,32 +130,41 @@ def start_in_orchestrator(site: Site, plan: NodePlan) -> Started:
         source = site.external if site.external is not None else Arrivals(plan.outputs)
         return {plan.name: ExternalSource(scenario, plan, transport,
                                           PartWriter(site.paths.part(plan.name)), source,
-                                          site.options.pack)}
+                                          site.layout)}
 
     return Started(None, join)
 
 
-def start_all(site: Site) -> list[Started]:
-    """Every participant of the run started: foreign programs first (they take longest to
-    start and join) and user-started nodes announced, in file order; then the cosim node
-    processes (``plan.packing``), shuffled with the run option ``shuffle_start``; then the
-    external node."""
-    from plan.packing import process_groups, process_label
+Starter = Callable[[Site, Process], Started]
 
-    scenario = site.scenario
-    started = []
-    for plan in scenario.nodes.values():
-        if plan.foreign:
-            started.append(start_foreign(site, plan))
-        elif plan.spec.external:
-            started.append(start_user_started(site, plan))
-    groups = process_groups(scenario, site.options.pack)
+STARTERS: dict[NodeRole, Starter] = {
+    NodeRole.STEP: start_cosim,
+    NodeRole.USER_STARTED: start_user_started,
+    NodeRole.ORCHESTRATOR: start_in_orchestrator,
+    NodeRole.PYTHON_GATE: start_foreign,
+    NodeRole.RMW_GATE: start_foreign,
+    NodeRole.UNGATED: start_foreign,
+}
+"""The starter of each role: a new kind of participant is one entry."""
+
+START_LATE = {NodeRole.STEP: 1, NodeRole.ORCHESTRATOR: 2}
+"""When each role starts (0 when not named): foreign programs first (they take longest to
+start and join) with the nodes you start, then the cosim node processes, then the external
+node."""
+
+
+def start_all(site: Site) -> list[Started]:
+    """Every process of the run's layout started by its role's starter, in the order of
+    ``START_LATE`` and file order; the cosim node processes shuffled with the run option
+    ``shuffle_start``."""
+    processes = sorted(site.layout.processes, key=lambda p: START_LATE.get(p.role, 0))
+    steps = site.layout.of_role(NodeRole.STEP)
     if site.options.shuffle_start is not None:
-        random.Random(site.options.shuffle_start).shuffle(groups)
-    started += [start_cosim(site, names) for names in groups]
-    log.info("started %s", ", ".join(process_label(g) for g in groups))
-    started += [start_in_orchestrator(site, plan) for plan in scenario.nodes.values()
-                if plan.in_orchestrator]
+        random.Random(site.options.shuffle_start).shuffle(steps)
+        others = iter(steps)
+        processes = [next(others) if p.role is NodeRole.STEP else p for p in processes]
+    started = [STARTERS[process.role](site, process) for process in processes]
+    log.info("started %s", ", ".join(p.label for p in steps))
     return started
 
 
