@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import yaml
 
+from descriptions.load import load_scenario
 from nodes.contract import NodeConfig
 from nodes.sensors.mirror import WorldMirror
 from nodes.sensors.node import SensorsNode
 from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 SMALL = SCENARIOS / "swarm_small.yaml"

@@ -113,7 +113,8 @@ class ControlNode(StepNode):
     @classmethod
     def world_problems(cls, params: ControlParams, model, goal) -> list[tuple[str, str, str]]:
         """The goal is inside the world, clear of every obstacle by the robot's radius."""
-        from plan.world_geometry import place_problem, static_obstacles
+        from descriptions.world_geometry import static_obstacles
+        from plan.obstacles import place_problem
 
         if goal is None:
             return []

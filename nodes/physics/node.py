@@ -32,6 +32,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
+from descriptions.world_geometry import floor_mask
 from nodes.contract import StepNode, Tick
 from nodes.physics import messages as m
 from nodes.physics.contacts import CollisionCounter
@@ -52,7 +53,6 @@ from plan.interactive import SET_POSE_TOPIC
 from plan.robots import namespaced
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
-from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
 ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
@@ -132,7 +132,8 @@ class PhysicsNode(StepNode):
     def world_problems(cls, params: PhysicsParams, model, goal) -> list[tuple[str, str, str]]:
         """The robot's bodies and joints exist; the start pose is inside the world, clear of
         every obstacle by the robot's footprint radius."""
-        from plan.world_geometry import place_problem, robot_footprint_radius, static_obstacles
+        from descriptions.world_geometry import robot_footprint_radius, static_obstacles
+        from plan.obstacles import place_problem
 
         if params.robots:  # each robot is checked as the first one is, its copy's names
             return cls.world_problems(robot_params(params, params.robots[0]), model, goal)

@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 from tf2_msgs.msg import TFMessage
 
+from descriptions.world_geometry import floor_mask
 from nodes.contract import Tick
 from nodes.physics import messages as m
 from nodes.physics.drive import DiffDrive
@@ -27,7 +28,6 @@ from nodes.physics.frames import CameraFrames, RobotFrames
 from nodes.physics.imu import SimulatedImu
 from nodes.physics.world import named_id, wheel_geometry
 from plan.robots import RobotsLayout, namespaced, prefixed
-from plan.world_geometry import floor_mask
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
 ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR

@@ -7,13 +7,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from plan.robots import swarm_model
+from descriptions.swarm_world import swarm_model
+from descriptions.worldfile import load_world_model
 from plan.timeutil import NS_PER_S
-from plan.worldfile import load_world_model
 
 
 def load_model(world: Path | str, robots=None) -> mujoco.MjModel:
-    """Compile the world file, MJCF or USD, through the one shared loader (plan.worldfile);
+    """Compile the world file, MJCF or USD, through the one shared loader (descriptions.worldfile);
     with a swarm's ``robots`` (plan.robots.RobotsLayout), the arena with every robot."""
     if robots is not None:
         return swarm_model(Path(world), robots)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from descriptions.world_geometry import robot_footprint_radius
 from plan.robots import RobotsLayout, prefixed
-from plan.world_geometry import robot_footprint_radius
 
 
 def robot_sensors(params, robot: str):

@@ -124,8 +124,9 @@ class RobotEntity:
                                   "on the floor.")
 
     def _place_problem(self, x: float, y: float) -> str | None:
-        from plan.world_geometry import place_problem, robot_footprint_radius, static_obstacles
-        from plan.worldfile import load_world_model
+        from descriptions.world_geometry import robot_footprint_radius, static_obstacles
+        from descriptions.worldfile import load_world_model
+        from plan.obstacles import place_problem
 
         if self._obstacles is None:
             model = load_world_model(self._world[0])
