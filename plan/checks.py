@@ -133,7 +133,13 @@ class ScenarioChecks:
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
-            problems = list(cls.world_problems(params[i], world_model, goal))
+            robots = self.model.nodes[i].robots
+            if robots and getattr(cls, "every_robot", False):  # each robot is checked as
+                # the first one is, under its names in the swarm world
+                problems = list(cls.world_problems(params[i], world_model, goal,
+                                                   robot=robots[0]))
+            else:
+                problems = list(cls.world_problems(params[i], world_model, goal))
             if hasattr(cls, "period_problems"):
                 problems += cls.period_problems(params[i], world_model,
                                                 self.model.nodes[i].period_ns)

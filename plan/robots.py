@@ -18,7 +18,9 @@ Conventions (the README's "Many robots"): each robot's topics live under its nam
 ``/clock`` and cosim's own ``/cosim/...`` topics are shared. A node with ``for_each: robot``
 becomes one node per robot named ``NAME@ROBOT`` (its own seed stream, as every node's seed
 comes from its name) with every topic namespaced; the world node (physics, one MuJoCo
-world) takes a ``robots`` parameter with every robot's name and one input per robot.
+world: a class with ``every_robot``) declares its topics for one robot and serves every
+robot's under its namespace (``per_robot``; its spec's ``robots`` lists them), one input per
+robot. A scenario without a robots: section is a swarm of one unnamed robot.
 """
 
 from __future__ import annotations
@@ -73,6 +75,19 @@ def namespaced(robot: str, topic: str) -> str:
     if topic in SHARED_TOPICS or topic.startswith("/cosim/"):
         return topic
     return f"/{robot}{topic}"
+
+
+def per_robot(topics, robots: list[str] | None):
+    """A world node's topics (a dict topic -> value or a set) as it serves ``robots``: each
+    robot's own under its namespace, the shared ones once; as they are without robots."""
+    if not robots or topics is None:
+        return topics
+    if isinstance(topics, dict):
+        out = {}
+        for topic, value in topics.items():
+            out.update({namespaced(r, topic): value for r in robots})
+        return out
+    return {namespaced(r, topic) for topic in topics for r in robots}
 
 
 def robot_of(node_name: str) -> str | None:
