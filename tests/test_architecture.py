@@ -80,6 +80,34 @@ def test_the_purity_check_sees_lazy_imports(tmp_path):
     assert external_imports(probe) >= {"mujoco", "pxr"}
 
 
+CONVENTIONS = ("base_link", "laser", "imu", "rgbd")
+"""cosim's naming conventions for a robot description, read once by the description loader
+(descriptions/robot_reader.py) into the robot model the nodes are given."""
+ROBOT_USERS = ("nodes/sensors", "nodes/control", "nodes/arm")
+
+
+def test_nodes_find_the_robot_in_its_model_not_by_naming_convention():
+    found = [f"{path.relative_to(ROOT)}:{node.lineno}: {node.value!r}"
+             for folder in ROBOT_USERS for path in sorted((ROOT / folder).rglob("*.py"))
+             for node in ast.walk(ast.parse(path.read_text()))
+             if isinstance(node, ast.Constant) and node.value in CONVENTIONS]
+    assert not found, ("take the site, camera or base from NodeConfig.robots (the robot "
+                       "model), not by name:\n" + "\n".join(found))
+
+
+def test_the_robot_reaches_a_node_once_as_a_typed_model():
+    # NodeConfig.robots is the robot models; no parameter carries the robots' names again
+    from nodes.contract import NodeConfig
+    from nodes.registry import load_class
+    from plan.kinds import catalogue
+
+    assert NodeConfig.__dataclass_fields__["robots"].type == "tuple[RobotModel, ...]"
+    kinds = catalogue()
+    for kind, ref in sorted(kinds.kinds.items()):
+        fields = getattr(load_class(ref).Params, "model_fields", {})
+        assert "robots" not in fields and "robot" not in fields, kind
+
+
 def string_references(files: dict[str, Path]) -> dict[str, set[str]]:
     """module -> the project modules its string constants name ('pkg.mod' or 'pkg.mod:Class'),
     the way importlib and class references load code by name."""

@@ -1,6 +1,10 @@
-"""The physics node: a MuJoCo world with a robot: a differential-drive base (or a base fixed
-to the world, ``wheel_joints: null``: an arm on the floor) and position-servoed joints (the
-pan-tilt head; the six joints of an arm).
+"""The physics node: a MuJoCo world with its robots (one, unnamed, without a robots:
+section: a swarm of one, stepped by nodes.physics.swarm), each as the one robot model
+describes it (``NodeConfig.robots``, read from the description by descriptions.robot_reader
+with the names these parameters give): a differential-drive base (or a base fixed to the
+world, ``wheel_joints: null``: an arm on the floor) and position-servoed joints (the pan-tilt
+head; the six joints of an arm). In a swarm every topic below is each robot's under its
+namespace (``/ROBOT/odom``), but /tf, /tf_static and /cosim/... (shared).
 
 Inputs: /cmd_vel (geometry_msgs/Twist, or TwistStamped with ``enable_stamped_cmd_vel``;
 normally a delayed edge; absent means stop), /joint_commands (std_msgs/Float64MultiArray of

@@ -12,7 +12,7 @@ from descriptions.robot_reader import RobotNames, world_robots
 from descriptions.swarm_world import swarm_model
 from descriptions.worldfile import load_world_model
 from nodes.contract import NodeConfig
-from plan.robots import RobotsLayout
+from plan.robots import RobotsLayout, robot_of
 from plan.timeutil import NS_PER_S
 
 
@@ -27,12 +27,15 @@ def load_model(world: Path | str, layout: RobotsLayout | None = None) -> mujoco.
 def robots_of(config: NodeConfig, names: dict[str, Any]) -> tuple[RobotModel, ...]:
     """The robots a node serves: its config's, read once by the description loader for the
     scenario; for a node made outside a scenario (a test, a benchmark) with none given, the
-    world's robot read by cosim's conventions and the node's own ``names``."""
+    world's robots read by cosim's conventions and the node's own ``names`` (a robot's node,
+    NAME@ROBOT: its own)."""
     if config.robots:
         return config.robots
     if config.world is None:
         return ()
-    return world_robots(Path(config.world), config.layout, RobotNames.of(names))
+    robots = world_robots(Path(config.world), config.layout, RobotNames.of(names))
+    own = robot_of(config.name)
+    return robots if own is None else tuple(r for r in robots if r.name == own)
 
 
 def timestep_ns(model: mujoco.MjModel, world: Path | str) -> int:
