@@ -59,8 +59,8 @@ def with_client_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, topics: di
     accepted = per_robot(accepted, spec.robots) or set()
     wanted = {own: kind for own, kind in FED_INPUTS.items() if own in accepted}
     listed = {inp.topic for inp in spec.inputs}
-    wanted.update({own: kind for own, kind in cls.client_inputs(
-        where.node_params(i, spec, cls)).items() if own not in listed})
+    wanted.update({own: kind for own, kind in per_robot(cls.client_inputs(
+        where.node_params(i, spec, cls)), spec.robots).items() if own not in listed})
     if cls.runtime_params:
         wanted[params_topic(spec.name)] = PARAMS_TYPE
     listed = {inp.topic for inp in spec.inputs}
