@@ -32,7 +32,7 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
             raise ScenarioError(path, f"{key}.for_each", "the scenario has no robots: section.",
                                 "a robots: section, or leave for_each out.")
         cls = _class_of(spec)
-        if cls is not None and "robots" in getattr(cls.Params, "model_fields", {}):
+        if cls is not None and getattr(cls, "every_robot", False):
             what = f"kind {spec.kind}" if spec.kind else spec.module
             raise ScenarioError(path, f"{key}.for_each", f"{spec.name} ({what}) steps one world "
                                 "for every robot, so it cannot be templated per robot.",
