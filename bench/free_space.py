@@ -1,6 +1,6 @@
 """Where a round robot fits, and how far it must drive: a grid search of its own over the
 true geometry of generated worlds, independent of the controller's planner and of
-``plan.world_geometry`` (so a bug there cannot hide behind a check that shares it).
+``plan.obstacles`` (so a bug there cannot hide behind a check that shares it).
 
 Shapes are upright boxes (rotated about z) and upright cylinders. A cell is free when its
 centre is at least ``radius`` from every shape; the robot moves between the centres of

@@ -28,7 +28,7 @@ CLIENT = ROOT / "tests" / "js" / "foxglove_client.mjs"
 def nav(tmp: Path) -> tuple[Path, list[str]]:
     """nav.yaml as it is (world made absolute), and its topics."""
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
-    from plan.load import load_scenario
+    from descriptions.load import load_scenario
 
     doc = yaml.safe_load(NAV.read_text())
     doc["world"] = str((NAV.parent / doc["world"]).resolve())

@@ -16,9 +16,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported
 
 import nodes  # noqa: E402, F401 - provides the node kinds to the plan (plan.kinds)
 from bench.common import ROOT  # noqa: E402
+from descriptions.load import load_scenario  # noqa: E402
 from nodes.contract import Tick  # noqa: E402
 from orchestrator.lockstep.inprocess import make_node  # noqa: E402
-from plan.load import load_scenario  # noqa: E402
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 

@@ -44,7 +44,7 @@ def robot_radius() -> float:
     """The radius around base_link that holds the whole robot seen from above (robot.xml)."""
     import mujoco
 
-    from plan.world_geometry import robot_footprint_radius
+    from descriptions.world_geometry import robot_footprint_radius
 
     xml = '<mujoco><include file="robot.xml"/><worldbody/></mujoco>'
     model = mujoco.MjModel.from_xml_string(xml, {"robot.xml": (WORLDS / "robot.xml").read_bytes()})

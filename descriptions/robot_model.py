@@ -91,7 +91,9 @@ class Sensor:
 @dataclass(frozen=True)
 class RobotModel:
     """One robot: its name and prefix, base link, drive, commanded joints, sensors, links and
-    joints, and its footprint radius (metres, from its collision geometry)."""
+    joints, and its footprint radius (metres, from its collision geometry). ``base_link`` is
+    the base's TF frame, ``base_body`` the MuJoCo body that carries it (the same name unless
+    a description says otherwise; empty: ``base_link``)."""
 
     name: str
     prefix: str
@@ -104,6 +106,7 @@ class RobotModel:
     links: tuple[Link, ...] = ()
     joints: tuple[Joint, ...] = ()
     source: str = ""  # the description file it came from
+    base_body: str = ""
     notes: tuple[str, ...] = field(default=(), compare=False)  # what the conversion changed
 
     def sensor(self, kind: SensorKind, name: str | None = None) -> Sensor | None:
@@ -113,6 +116,11 @@ class RobotModel:
                 return sensor
         return None
 
+    @property
+    def base(self) -> str:
+        """The MuJoCo body of the base link."""
+        return self.base_body or self.base_link
+
     def scoped(self, robot: str) -> RobotModel:
         """This model as robot ``robot`` of a swarm: every MuJoCo name and frame prefixed
         ``robot/``; the unscoped model (robot '') is returned as it is."""
@@ -121,6 +129,7 @@ class RobotModel:
         p = f"{robot}/"
         return replace(
             self, name=robot, prefix=p, base_link=p + self.base_link,
+            base_body=p + self.base_body if self.base_body else "",
             drive=None if self.drive is None else replace(
                 self.drive, left_joint=p + self.drive.left_joint,
                 right_joint=p + self.drive.right_joint,

@@ -24,8 +24,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+from descriptions.load import load_scenario
 from nodes.contract import Tick
-from plan.load import load_scenario
 from runtime.build import make_node
 
 

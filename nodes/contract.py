@@ -15,6 +15,9 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from descriptions.robot_model import RobotModel
+from plan.robots import RobotsLayout
+
 
 @dataclass(frozen=True)
 class Tick:
@@ -37,8 +40,19 @@ class NodeConfig:
     joint_goal: dict[str, Any] | None = None  # {positions: {joint: rad}, tolerance: rad}
     scenario_dir: Path = field(default_factory=Path.cwd)
     render_warm_up: bool = True  # a camera builds its GL renderer in a thread at set-up
-    robots: Any = None  # plan.robots.RobotsLayout of a swarm scenario: the world is built
-    # from ``world`` (the arena) and it; None: ``world`` is the whole world
+    robots: tuple[RobotModel, ...] = ()  # the robots this node serves, read once from the
+    # description (descriptions.robot_reader): the world node's every robot, a robot's
+    # node (NAME@ROBOT) its own, a scenario of one robot its one (unnamed) robot
+    layout: RobotsLayout | None = None  # a swarm: how its world is built from ``world`` (the
+    # arena) and where each robot goes; None: ``world`` is the whole world
+
+    @property
+    def robot(self) -> RobotModel:
+        """The one robot this node serves; a ValueError when it serves none or several."""
+        if len(self.robots) != 1:
+            raise ValueError(f"node {self.name} serves {len(self.robots)} robots, not one "
+                             "(a world without the robot, or the world node of a swarm)")
+        return self.robots[0]
 
 
 class NoParams(BaseModel):
@@ -69,6 +83,18 @@ class StepNode:
     """Top-level keys of ``Params`` that may change while the run goes (the node reads them
     from ``self.params`` at every step); the others are fixed once the node is set up."""
     type_keys: ClassVar[dict[str, str]] = {}  # topic -> the parameter that sets its type
+    every_robot: ClassVar[bool] = False
+    """The world node: one instance steps every robot of a swarm. It declares its topics for
+    one robot; the plan publishes and feeds each robot's under the robot's namespace
+    (``plan.robots.per_robot``), the shared ones (``/tf``, ``/cosim/...``) once."""
+
+    @classmethod
+    def description_names(cls, params: BaseModel) -> dict[str, Any]:
+        """The names of the robot description this node's parameters give (field of
+        ``descriptions.robot_reader.RobotNames`` -> name: ``base_body``, ``wheel_joints``,
+        ``laser_site``, ...), which the description loader reads the robot model by instead
+        of cosim's conventions. Nothing by default."""
+        return {}
 
     @classmethod
     def outputs(cls, params: BaseModel) -> dict[str, type]:

@@ -23,9 +23,9 @@ from pathlib import Path
 from typing import Any
 
 import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+from descriptions.load import load_scenario
 from orchestrator.execute import RunOutcome, execute
 from plan.errors import ScenarioError, ScenarioWarning, SimulationError
-from plan.load import load_scenario
 from plan.options import RunOptions
 from plan.scenario import Scenario
 from runtime.arrivals import Arrivals, Replay

@@ -193,6 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         ensure_own_libraries()
     args = build_parser().parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+    from descriptions.load import load_scenario
     from orchestrator.outputs.diff import (
         digest_mismatch,
         expected_digest,
@@ -201,7 +202,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
-    from plan.load import load_scenario
 
     recorded = None
     try:

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from descriptions.load import load_scenario
 from orchestrator.proxies.arrivals_record import external_topic
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from plan.roles import NodeRole
 from plan.run_paths import RunPaths
 from plan.scenario import Scenario

@@ -10,7 +10,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from plan.errors import ScenarioError, ScenarioNotice
+from plan.errors import ScenarioError, ScenarioNotice, WorldError
 from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
 from plan.roles import NodeRole
@@ -19,15 +19,18 @@ from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
 from plan.twin import twin_problems
 from plan.validation import describe_validation_error
+from plan.world_reader import WorldReader
 
 
 class ScenarioChecks:
     """The semantic checks of one scenario model that follow schema validation, each raising
     a precise ScenarioError naming the file and key."""
-    def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None):
+    def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None,
+                 worlds: WorldReader | None = None):
         self.path = path
         self.model = model
         self.origins = origins or {}  # node name -> its entry's index in the file (templates)
+        self.worlds = worlds  # the world loader's side (descriptions), for check_world
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""
@@ -131,7 +134,13 @@ class ScenarioChecks:
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
-            problems = list(cls.world_problems(params[i], world_model, goal))
+            robots = self.model.nodes[i].robots
+            if robots and getattr(cls, "every_robot", False):  # each robot is checked as
+                # the first one is, under its names in the swarm world
+                problems = list(cls.world_problems(params[i], world_model, goal,
+                                                   robot=robots[0]))
+            else:
+                problems = list(cls.world_problems(params[i], world_model, goal))
             if hasattr(cls, "period_problems"):
                 problems += cls.period_problems(params[i], world_model,
                                                 self.model.nodes[i].period_ns)
@@ -167,10 +176,8 @@ class ScenarioChecks:
 
     def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
-        from plan.worldfile import WorldError, check_world
-
         try:
-            return check_world(world)
+            return self.worlds.world_model(world)
         except WorldError as exc:
             raise self.fail("world", f"{exc}", "an MJCF (.xml) or USD (.usda, .usdc, .usd) "
                             "world that MuJoCo loads; USD colliders must be Cube, Sphere, "

@@ -1,5 +1,9 @@
 """The two ways a run can fail, after mosaik: before anything starts, or during the run."""
 
+from __future__ import annotations
+
+from pathlib import Path
+
 
 class ScenarioError(Exception):
     """The scenario is invalid; raised before any process starts (CLI exit code 2).
@@ -49,3 +53,13 @@ class SimulationError(Exception):
 
 class ScenarioWarning(UserWarning):
     """Something in a scenario that runs but deserves a word (e.g. an output nobody reads)."""
+
+
+class WorldError(ValueError):
+    """A world file that cannot be loaded: the file, the prim (USD) and the reason (raised by
+    the world loader, ``descriptions.worldfile``; here so that plan/ can report it)."""
+
+    def __init__(self, file: Path | str, reason: str, prim: str | None = None):
+        self.file, self.prim, self.reason = str(file), prim, reason
+        where = f"{self.file}, prim {prim}" if prim else self.file
+        super().__init__(f"world {where}: {reason}")

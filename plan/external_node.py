@@ -10,6 +10,7 @@ from plan.checks import ScenarioChecks
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
 from plan.kinds import catalogue
 from plan.model import InputSpec, NodeSpec, ScenarioModel
+from plan.robots import per_robot
 from plan.scenario import EXTERNAL_NAME
 
 
@@ -54,11 +55,12 @@ def with_client_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, topics: di
     if spec.command is not None:
         return spec
     cls = where.node_class(i, spec)[1]
-    accepted = cls.accepted_inputs(where.node_params(i, spec, cls)) or set()
+    accepted = cls.accepted_inputs(where.node_params(i, spec, cls))
+    accepted = per_robot(accepted, spec.robots) or set()
     wanted = {own: kind for own, kind in FED_INPUTS.items() if own in accepted}
     listed = {inp.topic for inp in spec.inputs}
-    wanted.update({own: kind for own, kind in cls.client_inputs(
-        where.node_params(i, spec, cls)).items() if own not in listed})
+    wanted.update({own: kind for own, kind in per_robot(cls.client_inputs(
+        where.node_params(i, spec, cls)), spec.robots).items() if own not in listed})
     if cls.runtime_params:
         wanted[params_topic(spec.name)] = PARAMS_TYPE
     listed = {inp.topic for inp in spec.inputs}

@@ -1,5 +1,6 @@
-"""Load a scenario file: read its YAML strictly, apply overrides, validate the schema, and
-hand the model to ``plan.resolve`` for the semantic checks.
+"""Read a scenario file: read its YAML strictly, apply overrides, validate the schema, and
+hand the model to ``plan.resolve`` for the semantic checks, its world files read through
+the world loader given (``descriptions.load.load_scenario`` gives MuJoCo's and USD's).
 
 Everything that can be wrong with a scenario is found before any process starts, and
 reported as a ``ScenarioError`` naming the file, the key path and what is accepted.
@@ -21,10 +22,13 @@ from plan.overrides import apply_override, blame_override
 from plan.resolve import resolve
 from plan.scenario import Scenario
 from plan.validation import describe_validation_error
+from plan.world_reader import WorldReader
 
 
-def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
-    """Read, check and resolve a scenario file; raise ScenarioError on anything wrong.
+def read_scenario(path: str | Path, worlds: WorldReader,
+                  overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read, check and resolve a scenario file, its world files read through ``worlds``;
+    raise ScenarioError on anything wrong.
 
     ``overrides`` maps dotted keys ('seed', 'nodes.<node name>.rate') to values that replace
     the file's before anything is checked; an error in an overridden value says so.
@@ -40,7 +44,7 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
         except ValidationError as exc:
             key, problem, accepted = describe_validation_error(exc, raw)
             raise ScenarioError(path, key, problem, accepted) from None
-        return resolve(path, model, hashlib.sha256(text).hexdigest(), overrides)
+        return resolve(path, model, hashlib.sha256(text).hexdigest(), overrides, worlds)
     except ScenarioError as exc:
         raise blame_override(exc, raw, overridden, overrides) from None
 

@@ -10,24 +10,25 @@ from plan.errors import ScenarioNotice
 from plan.external_node import complete_model
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
-from plan.robot_placement import robots_layout
-from plan.robots import namespaced, robot_of, swarm_model
+from plan.robots import namespaced, robot_of
 from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import Edge, Schedule
 from plan.templates import expand_nodes
 from plan.topics import node_inputs, node_outputs, producers
+from plan.world_reader import WorldReader
 
 
-def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scenario:
-    """The runnable scenario of a schema-valid model read from ``path``; ScenarioError on
-    the first thing wrong."""
+def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds: WorldReader
+            ) -> Scenario:
+    """The runnable scenario of a schema-valid model read from ``path``, its world files
+    read through ``worlds``; ScenarioError on the first thing wrong."""
     ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
                                                                   exclude={"nodes"}))
-    layout = robots_layout(path, model)  # many robots: placed, and templates expanded
+    layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
-    where = ScenarioChecks(path, model, origins)
+    where = ScenarioChecks(path, model, origins, worlds)
     classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
     params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
     for i in range(len(model.nodes)):
@@ -35,7 +36,7 @@ def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict) -> Scen
     needs_world = any(cls.needs_world for _, cls in classes.values())
     world, world_model = where.world_path(needs_world and layout is None)
     if needs_world and layout is not None:  # the arena was checked by robots_layout
-        world_model = swarm_model(world, layout)
+        world_model = worlds.swarm_model(world, layout)
     world_warnings = []
     if world_model is not None:
         world_warnings = where.check_world_fit(classes, params, world_model)

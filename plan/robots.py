@@ -9,19 +9,22 @@ with one copy of the description per robot attached at its start, every name (bo
 joints, sites, actuators, sensors) prefixed ``ROBOT/`` (``robot_3/base_link``), so the TF
 frames read from the bodies carry the REP-105 multi-robot prefix as they are.
 
-Checking and placing: plan/robot_placement.py; node templates: plan/templates.py.
+Placing: plan/robot_placement.py (checked against the world by
+descriptions/robot_layout.py); the swarm world: descriptions/swarm_world.py; node templates:
+plan/templates.py.
 
 Conventions (the README's "Many robots"): each robot's topics live under its namespace
 (``/robot_3/odom``, ``/robot_3/scan``, ``/robot_3/cmd_vel``); ``/tf``, ``/tf_static``,
 ``/clock`` and cosim's own ``/cosim/...`` topics are shared. A node with ``for_each: robot``
 becomes one node per robot named ``NAME@ROBOT`` (its own seed stream, as every node's seed
 comes from its name) with every topic namespaced; the world node (physics, one MuJoCo
-world) takes a ``robots`` parameter with every robot's name and one input per robot.
+world: a class with ``every_robot``) declares its topics for one robot and serves every
+robot's under its namespace (``per_robot``; its spec's ``robots`` lists them), one input per
+robot. A scenario without a robots: section is a swarm of one unnamed robot.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,6 +77,19 @@ def namespaced(robot: str, topic: str) -> str:
     return f"/{robot}{topic}"
 
 
+def per_robot(topics, robots: list[str] | None):
+    """A world node's topics (a dict topic -> value or a set) as it serves ``robots``: each
+    robot's own under its namespace, the shared ones once; as they are without robots."""
+    if not robots or topics is None:
+        return topics
+    if isinstance(topics, dict):
+        out = {}
+        for topic, value in topics.items():
+            out.update({namespaced(r, topic): value for r in robots})
+        return out
+    return {namespaced(r, topic) for topic in topics for r in robots}
+
+
 def robot_of(node_name: str) -> str | None:
     """The robot of a node instance ('control@robot_3' -> 'robot_3'), None for others."""
     return node_name.partition("@")[2] or None
@@ -88,30 +104,3 @@ def topic_token(node_name: str) -> str:
 def prefixed(robot: str, name: str) -> str:
     """A name of the description as it is in the swarm world: 'robot_3/base_link'."""
     return f"{robot}/{name}"
-
-
-# -- the world ------------------------------------------------------------------------------
-
-@functools.lru_cache(maxsize=4)
-def swarm_model(world: Path, layout: RobotsLayout):
-    """The compiled swarm world (cached per process: nodes only read the model)."""
-    from plan.worldfile import compile_world
-
-    return compile_world(swarm_spec(world, layout), world)
-
-
-def swarm_spec(world: Path, layout: RobotsLayout):
-    """The arena with one prefixed copy of the description per robot, at its start."""
-    import mujoco
-
-    from plan.worldfile import load_world_spec
-
-    spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
-    robot = mujoco.MjSpec.from_file(str(layout.description))
-    spec.copy_during_attach = True
-    for r in layout.robots:
-        x, y, yaw = r.start
-        frame = spec.worldbody.add_frame(pos=[x, y, 0.0],
-                                         quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
-        spec.attach(robot, frame=frame, prefix=f"{r.name}/")
-    return spec

@@ -1,6 +1,6 @@
 """The checked scenario and its resolved nodes: what every later layer reads.
 
-``plan.load.load_scenario`` reads a file into a ``Scenario``; this module only defines
+``descriptions.load.load_scenario`` reads a file into a ``Scenario``; this module only defines
 what it returns.
 """
 

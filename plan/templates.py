@@ -1,5 +1,6 @@
 """Node templates: a node with ``for_each: robot`` becomes one node per robot, and the world
-node (physics) gets every robot's name and one input per robot (plan/robots.py)."""
+node (physics) gets every robot's name (its spec's ``robots``) and one input per robot
+(plan/robots.py)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,8 @@ from plan.robots import RobotsLayout, namespaced
 def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
                  ) -> tuple[ScenarioModel, dict[str, int]]:
     """The model with every ``for_each: robot`` node replaced by one instance per robot
-    (``NAME@ROBOT``, parameter ``robot`` set where its class takes one, every topic under
-    the robot's namespace) and every other node whose class takes a ``robots`` parameter
-    (the world node) given every robot's name and one input per robot. Also returns each
+    (``NAME@ROBOT``, every topic under the robot's namespace) and the world node (a class
+    with ``every_robot``) given every robot's name and one input per robot. Also returns each
     node's index in the file, by name (an instance's is its template's)."""
     nodes: list[NodeSpec] = []
     origins: dict[str, int] = {}
@@ -32,7 +32,7 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
             raise ScenarioError(path, f"{key}.for_each", "the scenario has no robots: section.",
                                 "a robots: section, or leave for_each out.")
         cls = _class_of(spec)
-        if cls is not None and "robots" in getattr(cls.Params, "model_fields", {}):
+        if cls is not None and getattr(cls, "every_robot", False):
             what = f"kind {spec.kind}" if spec.kind else spec.module
             raise ScenarioError(path, f"{key}.for_each", f"{spec.name} ({what}) steps one world "
                                 "for every robot, so it cannot be templated per robot.",
@@ -63,8 +63,6 @@ def _class_of(spec: NodeSpec) -> type | None:
 def _instance(spec: NodeSpec, robot: str) -> NodeSpec:
     cls = _class_of(spec)
     params = dict(spec.params)
-    if cls is not None and "robot" in getattr(cls.Params, "model_fields", {}):
-        params["robot"] = robot
     own = {inp.topic for inp in spec.inputs}
     if cls is not None:
         try:
@@ -85,7 +83,7 @@ def _instance(spec: NodeSpec, robot: str) -> NodeSpec:
 
 def _world_node(spec: NodeSpec, layout: RobotsLayout) -> NodeSpec:
     cls = _class_of(spec)
-    if cls is None or "robots" not in getattr(cls.Params, "model_fields", {}):
+    if cls is None or not getattr(cls, "every_robot", False):
         return spec
     inputs: list[InputSpec] = []
     for inp in spec.inputs:
@@ -94,5 +92,4 @@ def _world_node(spec: NodeSpec, layout: RobotsLayout) -> NodeSpec:
             inputs.append(inp)
         else:
             inputs += [InputSpec(topic=namespaced(r, graph), mode=inp.mode) for r in layout.names]
-    return spec.model_copy(update={"params": {**spec.params, "robots": layout.names},
-                                   "inputs": inputs, "remap": {}})
+    return spec.model_copy(update={"robots": layout.names, "inputs": inputs, "remap": {}})

@@ -10,6 +10,7 @@ from pydantic import BaseModel
 from plan.checks import ScenarioChecks
 from plan.interactive import params_topic
 from plan.model import NodeSpec
+from plan.robots import per_robot
 from plan.ros_types import ros_type
 from plan.scenario import InputPlan
 
@@ -32,8 +33,8 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
     """The node's outputs under graph names (after remap), own -> graph names, and the
     own names of its latched outputs (published once, at the first activation)."""
     try:
-        own = cls.outputs(params)
-        latched = cls.latched_outputs(params)
+        own = per_robot(cls.outputs(params), spec.robots)
+        latched = per_robot(cls.latched_outputs(params), spec.robots)
     except Exception as exc:  # noqa: BLE001 - the node class's code: the user's to fix
         key = "module" if spec.module else "kind"
         what = ("does not implement outputs(params)" if isinstance(exc, NotImplementedError)
@@ -52,7 +53,7 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
                          "of every activation and as a latched one.",
                          "each topic in one of outputs() and latched_outputs().")
     own = {**own, **latched}
-    accepted = cls.accepted_inputs(params)
+    accepted = per_robot(cls.accepted_inputs(params), spec.robots)
     known = set(own) | {inp.topic for inp in spec.inputs} | (accepted or set())
     for source in spec.remap:
         if source not in known:
@@ -90,7 +91,7 @@ def producers(where: ScenarioChecks, outputs: dict[int, tuple[dict[str, type], d
 def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params: BaseModel,
                 publishers: dict[str, Producer]) -> list[InputPlan]:
     """The node's inputs resolved to producers; every input needs a publisher."""
-    accepted = cls.accepted_inputs(params)
+    accepted = per_robot(cls.accepted_inputs(params), spec.robots)
     plans, seen = [], set()
     for j, inp in enumerate(spec.inputs):
         key = where.node_key(i, f"inputs[{j}].topic")
@@ -112,16 +113,16 @@ def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params
                              "of it can be scheduled.", "a topic published at every "
                              "activation (ROS tools and foreign programs read a latched "
                              "topic with transient-local durability).")
-        check_input_type(where, i, inp.topic, cls, params, graph, source)
+        check_input_type(where, i, inp.topic, cls, params, graph, source, spec.robots)
         plans.append(InputPlan(inp.topic, graph, source.name, inp.mode, source.msg))
     return plans
 
 
 def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, params: BaseModel,
-                     graph: str, source: Producer) -> None:
+                     graph: str, source: Producer, robots: list[str] | None = None) -> None:
     """The producer publishes the message type this node takes on ``topic`` (when it
     says which), or the error names the parameter that sets this node's type."""
-    wanted = cls.input_types(params).get(topic)
+    wanted = per_robot(cls.input_types(params), robots).get(topic)
     if wanted is None or source.msg is wanted:
         return
     own_key = cls.type_keys.get(topic)

@@ -3,6 +3,10 @@ process, realtime node, in-process reference, benchmarks) makes and resets a nod
 
 from __future__ import annotations
 
+from typing import Any
+
+from descriptions.robot_model import RobotModel
+from descriptions.robot_reader import RobotNames, world_robots
 from nodes.contract import NodeConfig, StepNode
 from nodes.registry import load_class
 from plan.options import RunOptions
@@ -20,10 +24,36 @@ def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
         goal = scenario.robots.goal_of(robot)
     joint_goal = scenario.model.joint_goal.model_dump() if scenario.model.joint_goal else None
     warm_up = (options or RunOptions()).camera_warm_up
+    robots = scenario_robots(scenario) if load_class(plan.class_ref).needs_world else ()
+    if robot is not None:
+        robots = tuple(r for r in robots if r.name == robot)
     return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
                       period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
                       joint_goal=joint_goal, scenario_dir=scenario.file.parent.resolve(),
-                      render_warm_up=warm_up, robots=scenario.robots)
+                      render_warm_up=warm_up, robots=robots, layout=scenario.robots)
+
+
+def scenario_robots(scenario: Scenario) -> tuple[RobotModel, ...]:
+    """Every robot of the scenario's world, read once per process by the names its nodes'
+    parameters give (``StepNode.description_names``) or else cosim's conventions; none
+    without a world, or in a world without the robot's base body."""
+    if scenario.world is None:
+        return ()
+    return world_robots(scenario.world, scenario.robots, description_names(scenario))
+
+
+def description_names(scenario: Scenario) -> RobotNames:
+    """The description's names as the scenario's nodes give them; two nodes that name one
+    thing differently are a ValueError naming both."""
+    given: dict[str, tuple[str, Any]] = {}
+    for plan in scenario.nodes.values():
+        for key, value in load_class(plan.class_ref).description_names(plan.params).items():
+            value = tuple(value) if isinstance(value, list) else value
+            if key in given and given[key][1] != value:
+                raise ValueError(f"nodes {given[key][0]!r} and {plan.name!r} name the "
+                                 f"robot's {key} differently: {given[key][1]!r} and {value!r}")
+            given.setdefault(key, (plan.name, value))
+    return RobotNames.of({key: value for key, (_, value) in given.items()})
 
 
 def make_node(scenario: Scenario, name: str, options: RunOptions | None = None) -> StepNode:

@@ -95,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         die_with_parent()
     args = parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+    from descriptions.load import load_scenario
     from plan.errors import ScenarioError
-    from plan.load import load_scenario
     from plan.options import RunOptions
     from plan.overrides import parse_overrides
 

@@ -1,8 +1,9 @@
 """The shape of the shipped code: which package may import which, and no import cycles.
 
 Every import counts, at module level or inside a function: a lazy import is still a
-dependency of the design. Four packages, one direction: ``plan`` (the checked scenario) ->
-``nodes`` (the pure step kinds) -> ``runtime`` (what runs a step node for a transport) ->
+dependency of the design. Five packages, one direction: ``plan`` (the checked scenario, pure
+Python) -> ``descriptions`` (world and robot descriptions, loaded into MuJoCo) -> ``nodes``
+(the pure step kinds) -> ``runtime`` (what runs a step node for a transport) ->
 ``orchestrator`` (the run); each imports only those before it.
 """
 
@@ -50,6 +51,63 @@ def test_nothing_imports_a_package_above_it():
     assert not wrong, "\n".join(wrong)
 
 
+FORMAT_LIBRARIES = ("mujoco", "pxr")
+"""The libraries that load world and robot descriptions: only descriptions/ and above."""
+
+
+def external_imports(path: Path) -> set[str]:
+    """The top-level names of every module ``path`` imports (anywhere in its code)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module.split(".")[0])
+        elif isinstance(node, ast.Import):
+            found.update(alias.name.split(".")[0] for alias in node.names)
+    return found
+
+
+def test_plan_is_pure_python():
+    # plan/ is the checked scenario: world and robot descriptions are loaded one floor up
+    wrong = sorted(f"{path.relative_to(ROOT)} imports {lib}"
+                   for path in sorted((ROOT / "plan").rglob("*.py"))
+                   for lib in sorted(external_imports(path) & set(FORMAT_LIBRARIES)))
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_purity_check_sees_lazy_imports(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("def f():\n    import mujoco\n    from pxr import Usd\n")
+    assert external_imports(probe) >= {"mujoco", "pxr"}
+
+
+CONVENTIONS = ("base_link", "laser", "imu", "rgbd")
+"""cosim's naming conventions for a robot description, read once by the description loader
+(descriptions/robot_reader.py) into the robot model the nodes are given."""
+ROBOT_USERS = ("nodes/sensors", "nodes/control", "nodes/arm")
+
+
+def test_nodes_find_the_robot_in_its_model_not_by_naming_convention():
+    found = [f"{path.relative_to(ROOT)}:{node.lineno}: {node.value!r}"
+             for folder in ROBOT_USERS for path in sorted((ROOT / folder).rglob("*.py"))
+             for node in ast.walk(ast.parse(path.read_text()))
+             if isinstance(node, ast.Constant) and node.value in CONVENTIONS]
+    assert not found, ("take the site, camera or base from NodeConfig.robots (the robot "
+                       "model), not by name:\n" + "\n".join(found))
+
+
+def test_the_robot_reaches_a_node_once_as_a_typed_model():
+    # NodeConfig.robots is the robot models; no parameter carries the robots' names again
+    from nodes.contract import NodeConfig
+    from nodes.registry import load_class
+    from plan.kinds import catalogue
+
+    assert NodeConfig.__dataclass_fields__["robots"].type == "tuple[RobotModel, ...]"
+    kinds = catalogue()
+    for kind, ref in sorted(kinds.kinds.items()):
+        fields = getattr(load_class(ref).Params, "model_fields", {})
+        assert "robots" not in fields and "robot" not in fields, kind
+
+
 def string_references(files: dict[str, Path]) -> dict[str, set[str]]:
     """module -> the project modules its string constants name ('pkg.mod' or 'pkg.mod:Class'),
     the way importlib and class references load code by name."""
@@ -67,7 +125,7 @@ MODULE_REF = re.compile(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?::[A-Za-z_]\w*)?")
 
 
 def project_files() -> dict[str, Path]:
-    """module name -> file, for every module of the four packages."""
+    """module name -> file, for every module of the five packages."""
     return {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
 
 

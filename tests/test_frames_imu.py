@@ -12,10 +12,10 @@ import yaml
 from geometry_msgs.msg import Twist, TwistStamped
 from std_msgs.msg import Float64MultiArray
 
+from descriptions.load import load_scenario
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from runtime.exchange import StepContractError, prepare_outputs
 from tests.helpers import ROOT
 from tests.worlds import write_world

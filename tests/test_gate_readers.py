@@ -9,8 +9,8 @@ from types import SimpleNamespace
 
 import pytest
 
+from descriptions.load import load_scenario
 from orchestrator.proxies.foreign_launch import gate_config, output_readers
-from plan.load import load_scenario
 from plan.packing import layout_of
 from runtime.foreign_gate.cosim_gate import Gate, GateConfig
 from tests.test_foreign_nav import nav_with_foreign_control

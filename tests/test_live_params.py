@@ -8,11 +8,11 @@ import pytest
 import yaml
 from rclpy.parameter import Parameter
 
+from descriptions.load import load_scenario
 from nodes.control.node import ControlParams
 from nodes.live_params import ParamsInput, change_message, changes_in, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from runtime.arrivals import Arrivals
 from tests.helpers import ROOT, SCENARIOS
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 import yaml
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

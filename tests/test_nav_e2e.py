@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 
 SCENARIOS = ROOT / "scenarios"

@@ -11,8 +11,8 @@ import pytest
 import yaml
 from rclpy.serialization import deserialize_message
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

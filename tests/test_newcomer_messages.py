@@ -10,9 +10,9 @@ import textwrap
 
 import pytest
 
+from descriptions.load import load_scenario
 from orchestrator import cosim_orchestrate
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from tests.helpers import NAV, ROOT
 
 README = (ROOT / "README.md").read_text()

@@ -11,12 +11,12 @@ import mujoco
 import numpy as np
 import pytest
 
+from descriptions.load import load_scenario
 from nodes.contract import NodeConfig, Tick
 from nodes.control.diagnose import explain_no_path
 from nodes.control.global_planner import Planner
 from nodes.control.node import ControlNode
 from orchestrator.api import RunOptions, ScenarioError, ScenarioWarning, run
-from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 from tests.test_control import empty_scan, odom
 from tests.worlds import write_world

@@ -15,10 +15,10 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
+from descriptions.load import load_scenario
 from orchestrator.outputs.picture import write_report_png
 from orchestrator.outputs.report import print_outcome
 from orchestrator.progress import REDRAW_S, Progress
-from plan.load import load_scenario
 from runtime.timing import PARTS
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 

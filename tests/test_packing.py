@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 import yaml
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from plan.packing import layout_of, process_label
 from plan.roles import NodeRole
 from tests.helpers import ROOT, SCENARIOS, orchestrate

@@ -19,13 +19,13 @@ from controller_manager_msgs.srv import ListControllers, SwitchController
 from simulation_interfaces.msg import SimulationState
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from descriptions.load import load_scenario
 from nodes.ros2_control.config import ControllersFileError, read_controllers_file
 from nodes.ros2_control.controllers import DiffDriveOdometry
 from nodes.ros2_control.trajectory import Point, Trajectory, interpolate
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from plan.ros_types import message_class
 from tests.helpers import ORCHESTRATE, ROOT
 from tests.sim_client import OK, SimClient, orchestrate

@@ -20,9 +20,9 @@ from simulation_interfaces.srv import (
     SetEntityState,
 )
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
-from plan.load import load_scenario
 from plan.ros_types import message_class
 from tests.helpers import ORCHESTRATE, ROOT
 from tests.sim_client import OK, SimClient, orchestrate

@@ -14,8 +14,8 @@ import yaml
 from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from tests.helpers import COSIM_NODE, ORCHESTRATE, ROOT, SCENARIOS, orchestrate
 from tests.test_supervision import bag_counts
 

@@ -8,8 +8,8 @@ import os
 import sys
 from pathlib import Path
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from runtime.ros_libraries import BOOTSTRAP_FLAG, fixed_library_path, own_library_dirs
 from tests.helpers import ROOT, orchestrate
 

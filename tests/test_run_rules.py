@@ -118,7 +118,7 @@ def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
     program that is not Python is gated by the RMW gate where it is built; without it, it is
     ungated, and with two inputs refused before anything starts."""
     import plan.gates
-    from plan.load import load_scenario
+    from descriptions.load import load_scenario
     from plan.roles import NodeRole
 
     doc = yaml.safe_load((SCENARIOS / "foreign_fusion.yaml").read_text())

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from descriptions.load import load_scenario
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 
 VALID = """
 name: pair

@@ -7,8 +7,8 @@ import time
 
 from std_srvs.srv import SetBool, Trigger
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS
 
 PROTOCOL = SCENARIOS / "protocol.yaml"

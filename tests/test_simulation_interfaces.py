@@ -17,8 +17,8 @@ from simulation_interfaces.srv import (
     SetSimulationState,
 )
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from tests.helpers import SCENARIOS
 from tests.sim_client import OK, SimClient, orchestrate
 

@@ -16,7 +16,7 @@ import pytest
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Int64
 
-from plan.load import load_scenario
+from descriptions.load import load_scenario
 from plan.options import RunOptions
 from runtime import cosim_node
 from runtime.build import make_node

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import yaml
 
+from descriptions.load import load_scenario
 from nodes.contract import NodeConfig
 from nodes.sensors.mirror import WorldMirror
 from nodes.sensors.node import SensorsNode
 from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from tests.helpers import ROOT, SCENARIOS, orchestrate
 
 SMALL = SCENARIOS / "swarm_small.yaml"
@@ -130,7 +130,7 @@ def test_the_lidar_sees_another_robot_in_front_of_it(tmp_path):
     plan = s.nodes["lidar@a"]
     node.reset(0, NodeConfig(name="lidar@a", params=plan.params.model_copy(update={
         "lidar": plan.params.lidar.model_copy(update={"noise_stddev": 0.0, "beams": 360})}),
-        tick_ns=s.tick_ns, period_ns=plan.spec.period_ns, world=s.world, robots=s.robots))
+        tick_ns=s.tick_ns, period_ns=plan.spec.period_ns, world=s.world, layout=s.robots))
     mirror = WorldMirror(s.world, s.robots)
     data = mirror.data
     from nodes.physics.messages import world_state

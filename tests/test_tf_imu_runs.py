@@ -19,8 +19,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.typesys import Stores, get_typestore
 
+from descriptions.load import load_scenario
 from orchestrator.api import run
-from plan.load import load_scenario
 from tests.helpers import ORCHESTRATE, ROOT, orchestrate
 from tests.test_sim_control import call, wait_paused_at
 

@@ -1,4 +1,4 @@
-"""USD worlds in (MuJoCo's importer via plan.worldfile), runs out as USD (--export-usd)."""
+"""USD worlds in (MuJoCo's importer via descriptions.worldfile), runs out as USD (--export-usd)."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray
 
+from descriptions.load import load_scenario
+from descriptions.worldfile import WorldError, load_world_model
 from nodes.contract import NodeConfig, Tick
 from nodes.physics.node import PhysicsNode
 from nodes.sensors.node import SensorsNode
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.usd_export import world_states
 from plan.errors import ScenarioError
-from plan.load import load_scenario
-from plan.worldfile import WorldError, load_world_model
 from tests.helpers import ROOT, orchestrate
 
 pxr = pytest.importorskip("pxr")

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
+from descriptions.load import load_scenario
 from plan.errors import ScenarioError
-from plan.load import load_scenario
 from tests.helpers import ROOT, orchestrate
 from tests.worlds import write_world
 

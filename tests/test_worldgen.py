@@ -11,10 +11,10 @@ import pytest
 
 from bench.free_space import FreeSpace, Shape
 from bench.worldgen import CLEARANCE, DOOR, FAMILIES, generate, robot_radius
+from descriptions.load import load_scenario
+from descriptions.world_geometry import static_obstacles
+from descriptions.worldfile import load_world_model
 from orchestrator.api import run
-from plan.load import load_scenario
-from plan.world_geometry import static_obstacles
-from plan.worldfile import load_world_model
 
 
 @pytest.mark.parametrize("seed", range(len(FAMILIES)))  # one world of each family

@@ -14,8 +14,8 @@ import psutil
 import pytest
 import yaml
 
+from descriptions.load import load_scenario
 from orchestrator.lockstep.inprocess import run_in_process
-from plan.load import load_scenario
 from runtime.transport.zenoh import liveliness_key, topic_key, type_hash
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 

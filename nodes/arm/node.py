@@ -2,8 +2,9 @@
 
 Input: /joint_states (sensor_msgs/JointState, same_tick; the joints are found by name).
 Output: /joint_commands (std_msgs/Float64MultiArray), one position per ``joints`` entry in
-that order, as the physics node's ``position_joints`` take them. Each target is published
-for at least ``hold``, then until every joint is within ``tolerance`` of it; then the next
+that order, as the physics node's ``position_joints`` take them; without ``joints``, the
+robot model's position-commanded joints (``NodeConfig.robots``), in its order. Each target is
+published for at least ``hold``, then until every joint is within ``tolerance`` of it; then the next
 one. The last one stays. A /joint_states without one of the joints is noted (once) and the
 target held.
 """
@@ -18,19 +19,20 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from nodes.contract import StepNode, Tick
+from nodes.physics.world import robots_of
 from plan.model import DURATION_HELP, DurationNs
 from plan.topic_names import JOINT_COMMANDS, JOINT_STATES
 
 ONE_POSITION = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-ARM_JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
 
 
 class JointTargetsParams(BaseModel):
     """The joints commanded, the targets in order and how long each is held."""
 
     model_config = ConfigDict(extra="forbid")
-    joints: list[str] = Field(ARM_JOINTS, min_length=1,
-                              description="joint names in the world, in command order")
+    joints: list[str] | None = Field(None, min_length=1, description="joint names in the "
+                                     "world, in command order; default: the robot model's "
+                                     "position-commanded joints")
     targets: list[list[float]] = Field(min_length=1, description="positions (rad), one "
                                        "list per target with one entry per joint")
     hold: DurationNs = Field(1_000_000_000, gt=0, description=DURATION_HELP + "; the "
@@ -64,7 +66,10 @@ class JointTargetsNode(StepNode):
     def world_problems(cls, params: JointTargetsParams, model, goal
                        ) -> list[tuple[str, str, str]]:
         """Every joint is a hinge or slide joint of the world; every target has one position
-        per joint, inside that joint's range."""
+        per joint, inside that joint's range (the joints given; without them, checked when
+        the node is set up, against the robot model's)."""
+        if params.joints is None:
+            return []
         joints = {model.joint(j).name: j for j in range(model.njnt)
                   if int(model.jnt_type[j]) in ONE_POSITION}
         for n, name in enumerate(params.joints):
@@ -87,7 +92,17 @@ class JointTargetsNode(StepNode):
         return []
 
     def setup(self) -> None:
-        """The commands, built once; the first target from time 0."""
+        """The joints (given, or the robot model's), the commands, built once; the first
+        target from time 0."""
+        if self.params.joints is None:
+            robots = robots_of(self.config, {})
+            joints = [a.joint for a in robots[0].actuated if a.interface == "position"
+                      ] if len(robots) == 1 else []
+            for n, target in enumerate(self.params.targets):
+                if len(target) != len(joints):
+                    raise ValueError(f"target {n} has {len(target)} positions; the robot "
+                                     f"commands {len(joints)} joints {joints}")
+            self.params = self.params.model_copy(update={"joints": joints})
         self.commands = [Float64MultiArray(data=[float(v) for v in t])
                          for t in self.params.targets]
         self.index = 0

@@ -1,7 +1,7 @@
 """An occupancy grid of the world's static geometry, its obstacle distance field, and A*.
 
 The grid is built once from the world (the same file physics loads): every static
-obstacle (``plan.world_geometry``) that overlaps the robot's height band is rasterised by
+obstacle (``plan.obstacles``) that overlaps the robot's height band is rasterised by
 its footprint: the true circle of an upright cylinder, capsule or sphere, the rectangle of
 a box, the convex hull of anything else.
 The distance field holds, per cell, the distance to the nearest occupied cell up to a cap.
@@ -16,7 +16,8 @@ from collections import deque
 import mujoco
 import numpy as np
 
-from plan.world_geometry import Obstacle, polygon_edge_distances, static_obstacles
+from descriptions.world_geometry import static_obstacles
+from plan.obstacles import Obstacle, polygon_edge_distances
 
 SQRT2 = math.sqrt(2.0)
 NEIGHBOURS = [(-1, -1, SQRT2), (-1, 0, 1.0), (-1, 1, SQRT2), (0, -1, 1.0),

@@ -41,13 +41,13 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Path
 from pydantic import BaseModel, ConfigDict, Field
 
+from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
 from nodes.control import follow as f
 from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.global_planner import Planner, path_message
-from nodes.physics.world import body_id, load_model, named_id
+from nodes.physics.world import body_id, load_model, named_id, robots_of
 from plan.poses import pose_of
-from plan.robots import prefixed
 from plan.rot3 import mat_t_mul, mat_t_vec
 from plan.timeutil import NS_PER_S
 
@@ -61,10 +61,13 @@ class ControlParams(BaseModel):
     """Navigator settings; one block for every world (nothing here is tuned per world)."""
 
     model_config = ConfigDict(extra="forbid")
-    base_body: str = "base_link"
-    laser_site: str = "laser"
-    frame_id: str = "odom"
-    base_frame: str = Field("base_link", description="frame of a stamped /cmd_vel")
+    base_body: str | None = Field(None, description="the robot's base body; default: the "
+                                  "robot model's (descriptions.robot_reader)")
+    laser_site: str | None = Field(None, description="the lidar's site; default: the robot "
+                                   "model's")
+    frame_id: str = Field("odom", description="the odometry frame (a swarm robot's prefixed)")
+    base_frame: str | None = Field(None, description="frame of a stamped /cmd_vel; default: "
+                                   "the robot model's base link")
     enable_stamped_cmd_vel: bool = Field(False, description="publish /cmd_vel as TwistStamped")
     robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
     safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
@@ -88,8 +91,6 @@ class ControlParams(BaseModel):
     progress_distance: float = Field(0.2, gt=0, description="m")
     backup_distance: float = Field(0.3, ge=0, description="m")
     backup_speed: float = Field(0.15, gt=0, description="m/s")
-    robot: str | None = Field(None, description="set by for_each: robot: the robot this node "
-                              "drives; its body, laser and frames are prefixed ROBOT/")
 
 
 class ControlNode(StepNode):
@@ -113,7 +114,8 @@ class ControlNode(StepNode):
     @classmethod
     def world_problems(cls, params: ControlParams, model, goal) -> list[tuple[str, str, str]]:
         """The goal is inside the world, clear of every obstacle by the robot's radius."""
-        from plan.world_geometry import place_problem, static_obstacles
+        from descriptions.world_geometry import static_obstacles
+        from plan.obstacles import place_problem
 
         if goal is None:
             return []
@@ -134,8 +136,8 @@ class ControlNode(StepNode):
         if start is None:
             data = mujoco.MjData(model)
             mujoco.mj_kinematics(model, data)
-            start = dict(zip("xy", data.xpos[body_id(model, params.base_body), :2].tolist(),
-                             strict=True))
+            base = params.base_body or RobotNames().base_body
+            start = dict(zip("xy", data.xpos[body_id(model, base), :2].tolist(), strict=True))
         planner = Planner(model, params)
         here, there = (start["x"], start["y"]), (goal["x"], goal["y"])
         if connected(planner, here, there):
@@ -148,14 +150,17 @@ class ControlNode(StepNode):
         """Odometry, the scan and an optional goal."""
         return {"/odom", "/scan", "/goal_pose"}
 
+    @classmethod
+    def description_names(cls, params: ControlParams) -> dict[str, Any]:
+        """The base body and the lidar's site, where the parameters name them."""
+        names = {"base_body": params.base_body, "laser_site": params.laser_site}
+        return {key: value for key, value in names.items() if value is not None}
+
     def setup(self) -> None:
         """Build the map, read the laser mount from the world and take the scenario goal."""
-        if self.params.robot is not None:
-            self.params = self.params.model_copy(update={
-                key: prefixed(self.params.robot, getattr(self.params, key))
-                for key in ("base_body", "laser_site", "frame_id", "base_frame")})
+        self.params = self._with_robot(self.params)
         p = self.params
-        model = load_model(self.config.world, self.config.robots)
+        model = load_model(self.config.world, self.config.layout)
         self.laser = _laser_mount(model, p.base_body, p.laser_site)
         self.planner = Planner(model, p)
         g = self.config.goal
@@ -186,13 +191,29 @@ class ControlNode(StepNode):
         self.pose: tuple[float, float, float] | None = None
         self.tail = np.zeros(0)  # path length from each plan point to its end
 
+    def _with_robot(self, params: ControlParams) -> ControlParams:
+        """The parameters with the robot's names as its model gives them: its base body,
+        lidar site and base frame, the odometry frame under its prefix."""
+        robots = robots_of(self.config, self.description_names(params))
+        if len(robots) != 1:
+            raise ValueError(f"the control node drives one robot; world {self.config.world} "
+                             f"has {len(robots)}")
+        robot = robots[0]
+        lidar = robot.sensor("lidar")
+        if lidar is None:
+            raise ValueError(f"the robot of world {self.config.world} has no lidar site "
+                             f"{params.laser_site or RobotNames().laser_site!r}")
+        return params.model_copy(update={
+            "base_body": robot.base, "laser_site": lidar.mujoco_name,
+            "frame_id": robot.prefix + params.frame_id,
+            "base_frame": robot.base_link if params.base_frame is None
+            else robot.prefix + params.base_frame})
+
     def set_params(self, params: ControlParams) -> None:
-        """Take changed parameters; a swarm robot's names stay prefixed."""
-        if params.robot is not None:
-            params = params.model_copy(update={key: getattr(self.params, key) for key in
-                                               ("base_body", "laser_site", "frame_id",
-                                                "base_frame")})
-        self.params = params
+        """Take changed parameters; the robot's names stay as its model gives them."""
+        self.params = params.model_copy(update={key: getattr(self.params, key) for key in
+                                                ("base_body", "laser_site", "frame_id",
+                                                 "base_frame")})
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One control cycle: read odom and scan, then decide the velocity command."""

@@ -1,4 +1,6 @@
-"""The physics node's swarm mode: one MuJoCo world with every robot of a robots: section.
+"""The physics node's robots: one MuJoCo world with every robot of the scenario, each read
+from the one robot model (``NodeConfig.robots``). A scenario without a robots: section is a
+swarm of one unnamed robot, stepped by the same code, its topics and frames unprefixed.
 
 One node steps the whole world (robots collide with each other, and the step is one
 ``mj_step`` for all of them), publishing each robot's topics under its namespace:
@@ -20,23 +22,31 @@ import mujoco
 import numpy as np
 from tf2_msgs.msg import TFMessage
 
+from descriptions.robot_model import RobotModel
+from descriptions.world_geometry import floor_mask
 from nodes.contract import Tick
 from nodes.physics import messages as m
 from nodes.physics.drive import DiffDrive
 from nodes.physics.frames import CameraFrames, RobotFrames
 from nodes.physics.imu import SimulatedImu
-from nodes.physics.world import named_id, wheel_geometry
-from plan.robots import RobotsLayout, namespaced, prefixed
-from plan.world_geometry import floor_mask
+from nodes.physics.world import named_id
+from plan.interactive import SET_POSE_TOPIC
+from plan.robots import namespaced, prefixed
+from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
+from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
 ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
 BODY = mujoco.mjtObj.mjOBJ_BODY
+IMU = "/imu"
 
 
 def robot_params(params, robot: str):
     """The physics parameters with every name of the description as robot ``robot``'s
-    copy has it in the swarm world (``robot_3/base_link``), frames likewise."""
+    copy has it in the swarm world (``robot_3/base_link``), frames likewise; as they are
+    for the unnamed robot."""
+    if not robot:
+        return params
     p = lambda name: prefixed(robot, name)  # noqa: E731 - one short rename, used a lot
     tf = params.tf
     if tf is not None:
@@ -53,63 +63,176 @@ def robot_params(params, robot: str):
                                       "orientation")})
     return params.model_copy(update={
         "base_body": p(params.base_body), "odom_frame": p(params.odom_frame),
-        "base_frame": p(params.base_frame), "wheel_joints": tuple(map(p, params.wheel_joints)),
+        "base_frame": p(params.base_frame),
+        "wheel_joints": None if params.wheel_joints is None else tuple(map(p, params.wheel_joints)),
         "wheel_actuators": tuple(map(p, params.wheel_actuators)),
         "position_joints": tuple(map(p, params.position_joints)),
         "position_actuators": tuple(map(p, params.position_actuators)),
-        "tf": tf, "imu": imu, "start": None, "robots": []})
-
-
-def swarm_outputs(params) -> dict[str, type]:
-    """Every robot's namespaced outputs, the shared /tf and the world state."""
-    from nav_msgs.msg import Odometry
-    from sensor_msgs.msg import Imu, JointState
-    from std_msgs.msg import Float64MultiArray
-
-    out: dict[str, type] = {"/cosim/world_state": Float64MultiArray}
-    for robot in params.robots:
-        out[namespaced(robot, "/odom")] = Odometry
-        out[namespaced(robot, "/joint_states")] = JointState
-        if params.imu is not None:
-            out[namespaced(robot, "/imu")] = Imu
-    if params.tf is not None:
-        out["/tf"] = TFMessage
-    return out
+        "tf": tf, "imu": imu, "start": None})
 
 
 class Rig:
-    """One robot of the world: its joints, actuators, drive, frames, IMU and goal."""
+    """One robot of the world, as its model describes it: its base (free, or fixed to the
+    world), drive, commanded joints, frames, IMU and goal."""
 
-    def __init__(self, model: mujoco.MjModel, params, rng: np.random.Generator,
-                 goal: dict[str, float]):
-        self.params = params
-        base = named_id(model, BODY, params.base_body)
-        free = model.body_jntadr[base]
-        self.qadr = int(model.jnt_qposadr[free])
-        self.vadr = int(model.jnt_dofadr[free])
-        self.root = int(model.body_rootid[base])
-        radius, separation = wheel_geometry(model, *params.wheel_joints)
-        self.drive = DiffDrive(radius, separation, params.max_linear_speed,
-                               params.max_angular_speed, params.max_linear_accel,
-                               params.max_angular_accel)
-        self.wheel_act = [named_id(model, ACTUATOR, a) for a in params.wheel_actuators]
-        self.head_act = [named_id(model, ACTUATOR, a) for a in params.position_actuators]
-        self.joint_names = list(params.wheel_joints) + list(params.position_joints)
+    def __init__(self, model: mujoco.MjModel, robot: RobotModel, params, rng: np.random.Generator,
+                 goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
+        self.name = robot.name
+        self.params = params = robot_params(params, robot.name)
+        self.base = named_id(model, BODY, robot.base)
+        free = model.body_jntadr[self.base]
+        self.mobile = free >= 0 and model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
+        self.qadr = int(model.jnt_qposadr[free]) if self.mobile else None
+        self.vadr = int(model.jnt_dofadr[free]) if self.mobile else None
+        self.root = int(model.body_rootid[self.base])
+        self.drive = None
+        wheels: list[str] = []
+        if robot.drive is not None:
+            d = robot.drive
+            if not self.mobile:
+                raise ValueError(f"body {robot.base!r} has no free joint")
+            self.drive = DiffDrive(d.wheel_radius, d.wheel_separation, params.max_linear_speed,
+                                   params.max_angular_speed, params.max_linear_accel,
+                                   params.max_angular_accel)
+            self.wheel_act = [named_id(model, ACTUATOR, a)
+                              for a in (d.left_actuator, d.right_actuator)]
+            wheels = [d.left_joint, d.right_joint]
+        self.head_act = [named_id(model, ACTUATOR, a.actuator) for a in robot.actuated]
+        self.position_joints = [a.joint for a in robot.actuated]
+        self.joint_names = wheels + self.position_joints
         joints = [named_id(model, JOINT, j) for j in self.joint_names]
         self.joint_q = model.jnt_qposadr[joints]
         self.joint_v = model.jnt_dofadr[joints]
+        self.odom_frame = params.odom_frame
+        self.base_frame = robot.base_link
+        self.topics = {t: robot_topic(robot.name, t) for t in
+                       (CMD_VEL, JOINT_COMMANDS, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC, ODOM,
+                        JOINT_STATES, IMU)}
         self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
         self.frames = None
         if params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
-            self.frames = RobotFrames(model, params.tf, params.base_body, params.base_frame,
-                                      params.odom_frame, imu_site, params.position_joints)
+            self.frames = RobotFrames(model, params.tf, robot.base, self.base_frame,
+                                      self.odom_frame, imu_site, self.position_joints)
         self.goal = goal
+        goal_joints = [] if joint_goal is None else [named_id(model, JOINT, j)
+                                                     for j in joint_goal["positions"]]
+        self.joint_goal = joint_goal
+        self.goal_q = model.jnt_qposadr[goal_joints]
+        self.goal_v = model.jnt_dofadr[goal_joints]
         self.goal_time_ns: int | None = None
         self.path_length = 0.0
         self.last_xy: tuple[float, float] | None = None
         self.hits_obstacles = 0
         self.hits_robots = 0
+        self.refused_command = None  # the last wrong-length /joint_commands noted
+        self.teleported = None  # the last /cosim/set_pose applied
+
+    def place(self, data: mujoco.MjData, x: float, y: float, yaw: float) -> None:
+        """Put the base at (x, y) facing ``yaw`` (z, roll and pitch stay on the floor)."""
+        base = data.qpos[self.qadr:self.qadr + 7]
+        base[:2] = x, y
+        base[3:] = np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)
+
+    def base_pose(self, data: mujoco.MjData) -> np.ndarray:
+        """The base's (x, y, z, qw, qx, qy, qz): its free joint, or its fixed world pose."""
+        if self.mobile:
+            return data.qpos[self.qadr:self.qadr + 7]
+        return np.concatenate([data.xpos[self.base], data.xquat[self.base]])
+
+    def position_command(self, data: mujoco.MjData, msg, note) -> None:
+        """Set the position servos' targets; a command of the wrong length is refused with a
+        note (once for each new such command: the input repeats at every activation)."""
+        if msg is None:
+            return
+        if len(msg.data) != len(self.head_act):
+            if msg != self.refused_command:
+                self.refused_command = msg
+                note(f"{self.topics[JOINT_COMMANDS]} refused: it carries {len(msg.data)} "
+                     f"positions, this robot takes {len(self.head_act)} "
+                     f"{self.position_joints}; the joints keep their targets")
+            return
+        data.ctrl[self.head_act] = np.asarray(msg.data, dtype=np.float64)
+
+    def mirror(self, data: mujoco.MjData, odom, joints) -> None:
+        """Place the base at the real robot's planar pose with its velocities (z, roll and
+        pitch stay on the floor), and the joints /real/joint_states names."""
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        yaw = m.yaw_of(np.array([q.w, q.x, q.y, q.z]))
+        self.place(data, p.x, p.y, yaw)
+        v, w = odom.twist.twist.linear, odom.twist.twist.angular  # in the base frame
+        vel = data.qvel[self.vadr:self.vadr + 6]
+        vel[:] = (v.x * np.cos(yaw) - v.y * np.sin(yaw), v.x * np.sin(yaw) + v.y * np.cos(yaw),
+                  0.0, 0.0, 0.0, w.z)
+        self.drive.v, self.drive.w = v.x, w.z
+        if joints is not None:
+            index = {name: i for i, name in enumerate(self.joint_names)}
+            for j, name in enumerate(joints.name):
+                i = index.get(name)
+                if i is None:
+                    continue
+                if j < len(joints.position):
+                    data.qpos[self.joint_q[i]] = joints.position[j]
+                if j < len(joints.velocity):
+                    data.qvel[self.joint_v[i]] = joints.velocity[j]
+
+    def teleport(self, model: mujoco.MjModel, data: mujoco.MjData, msg) -> None:
+        """Put the base at rest at the request's x, y and yaw, so this tick publishes it. The
+        external node publishes its latest message at every activation: each request (its
+        description says which) applies once; in a swarm, to the robot it names."""
+        if (msg is None or not msg.name or msg == self.teleported or not self.mobile
+                or self.name not in ("", msg.name)):
+            return
+        self.teleported = msg
+        p, q = msg.pose.position, msg.pose.orientation
+        self.place(data, p.x, p.y, m.yaw_of(np.array([q.w, q.x, q.y, q.z])))
+        data.qvel[:] = 0.0
+        self.drive.v = self.drive.w = 0.0
+        mujoco.mj_forward(model, data)
+
+    def account(self, data: mujoco.MjData, tick: Tick) -> None:
+        """The path driven, and the goal in ground truth: the pose within the goal's
+        tolerances, or the joints within the joint goal's of their positions and of rest
+        (sticky)."""
+        if self.mobile:
+            q = data.qpos[self.qadr:self.qadr + 7]
+            x, y = float(q[0]), float(q[1])
+            if self.last_xy is not None:
+                self.path_length += float(np.hypot(x - self.last_xy[0], y - self.last_xy[1]))
+            self.last_xy = (x, y)
+        if self.goal_time_ns is not None:
+            return
+        g = self.joint_goal
+        if g is not None:
+            target = np.fromiter(g["positions"].values(), dtype=np.float64)
+            if (np.all(np.abs(data.qpos[self.goal_q] - target) <= g["tolerance"])
+                    and np.all(np.abs(data.qvel[self.goal_v]) <= g["speed_tolerance"])):
+                self.goal_time_ns = tick.time_ns
+            return
+        g = self.goal
+        if g is None or not self.mobile:
+            return
+        yaw_error = (m.yaw_of(q[3:7]) - g["yaw"] + np.pi) % (2 * np.pi) - np.pi
+        if (np.hypot(x - g["x"], y - g["y"]) <= g["position_tolerance"]
+                and abs(yaw_error) <= g["yaw_tolerance"]):
+            self.goal_time_ns = tick.time_ns
+
+    def publish(self, data: mujoco.MjData, out: dict[str, Any]) -> list:
+        """This robot's odometry, joint states and IMU into ``out``; its moving frames."""
+        base_q = self.base_pose(data)
+        base_v = data.qvel[self.vadr:self.vadr + 6] if self.mobile else np.zeros(6)
+        out[self.topics[ODOM]] = m.odometry(base_q, base_v, self.odom_frame, self.base_frame)
+        out[self.topics[JOINT_STATES]] = m.joint_state(
+            self.joint_names, data.qpos[self.joint_q], data.qvel[self.joint_v],
+            data.qfrc_actuator[self.joint_v])
+        if self.imu is not None:
+            out[self.topics[IMU]] = self.imu.measure(data)
+        return [] if self.frames is None else self.frames.dynamic(data, base_q)
+
+
+def robot_topic(robot: str, topic: str) -> str:
+    """A robot's topic: under its namespace in a swarm, as it is for the unnamed robot."""
+    return namespaced(robot, topic) if robot else topic
 
 
 class SwarmContacts:
@@ -157,102 +280,105 @@ class SwarmContacts:
 
 
 class SwarmPhysics:
-    """Steps the one world with every robot; what PhysicsNode does for one, for all."""
+    """Steps the one world with every robot (one, unnamed, without a robots: section)."""
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, params, layout: RobotsLayout,
-                 rng: np.random.Generator, substeps: int, dt: float):
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, params, config,
+                 rng: np.random.Generator, substeps: int, dt: float, note):
         self.model, self.data, self.params = model, data, params
-        self.substeps, self.dt = substeps, dt
-        self.rigs = [Rig(model, robot_params(params, r), rng, layout.goal_of(r))
-                     for r in params.robots]
-        self.names = list(params.robots)
-        self.needed = layout.needed
+        self.substeps, self.dt, self.note = substeps, dt, note
+        layout = config.layout
+        self.rigs = [Rig(model, robot, params, rng,
+                         layout.goal_of(robot.name) if robot.name else config.goal,
+                         None if robot.name else config.joint_goal)
+                     for robot in config.robots]
+        self.names = [rig.name for rig in self.rigs]
+        self.needed = layout.needed if layout is not None else 1
+        self.goals = config.goal is not None or config.joint_goal is not None
+        start = params.start
+        for rig in self.rigs:
+            if start is not None and not rig.name and rig.mobile:
+                rig.place(data, start.x, start.y, start.yaw)
         self.contacts = SwarmContacts(model, self.rigs)
         mujoco.mj_forward(model, data)
         self.contacts.update(data)
         self.contacts.obstacle_events = self.contacts.robot_events = 0
         for rig in self.rigs:
             rig.hits_obstacles = rig.hits_robots = 0
-        self.cmd_topics = [namespaced(r, "/cmd_vel") for r in self.names]
-        self.head_topics = [namespaced(r, "/joint_commands") for r in self.names]
+        self.driven = [rig for rig in self.rigs if rig.drive is not None]
         self.started = False
+        self.any_imu = any(rig.imu is not None for rig in self.rigs)
         self.needs_kinematics = any(r.frames is not None and r.frames.needs_kinematics
                                     for r in self.rigs)
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
-        """Integrate one period for every robot (except at the first activation), publish."""
-        ctrl = self.data.ctrl
-        for rig, topic in zip(self.rigs, self.head_topics, strict=True):
-            msg = inputs.get(topic)
-            if msg is not None:
-                if len(msg.data) != len(rig.head_act):
-                    raise ValueError(f"{topic} must carry {len(rig.head_act)} positions, "
-                                     f"got {len(msg.data)}")
-                ctrl[rig.head_act] = np.asarray(msg.data, dtype=np.float64)
+        """Integrate one period for every robot (except at the first activation; not while a
+        twin's real robot places it), publish."""
+        model, data = self.model, self.data
+        for rig in self.rigs:
+            rig.position_command(data, inputs.get(rig.topics[JOINT_COMMANDS]), self.note)
         first = not self.started
-        if self.started:
-            commands = [m.twist_of(inputs.get(t)) for t in self.cmd_topics]
+        mirrored = False
+        for rig in self.rigs:
+            real = inputs.get(rig.topics[MIRROR_TOPIC])
+            if real is not None and real.header.frame_id:  # a twin: the real robot, as is
+                rig.mirror(data, real, inputs.get(rig.topics[MIRROR_JOINTS_TOPIC]))
+                mirrored = True
+        if mirrored:
+            mujoco.mj_forward(model, data)
+            self.contacts.update(data)
+        elif self.started:
+            commands = [m.twist_of(inputs.get(rig.topics[CMD_VEL])) for rig in self.driven]
+            ctrl = data.ctrl
             for _ in range(self.substeps):
-                for rig, (v, w) in zip(self.rigs, commands, strict=True):
+                for rig, (v, w) in zip(self.driven, commands, strict=True):
                     left, right = rig.wheel_act
                     ctrl[left], ctrl[right] = rig.drive.update(v, w, self.dt)
-                mujoco.mj_step(self.model, self.data)
-                self.contacts.update(self.data)
-            if any(rig.imu is not None for rig in self.rigs):
-                mujoco.mj_forward(self.model, self.data)
+                mujoco.mj_step(model, data)
+                self.contacts.update(data)
+            # bring what mj_step leaves one substep behind (it computes sensors and body
+            # poses before integrating) up to the state published; neither call changes
+            # what the next mj_step computes
+            if self.any_imu:
+                mujoco.mj_forward(model, data)
             elif self.needs_kinematics:
-                mujoco.mj_kinematics(self.model, self.data)
+                mujoco.mj_kinematics(model, data)
         self.started = True
-        self._account(tick)
+        teleport = inputs.get(SET_POSE_TOPIC)
+        for rig in self.rigs:
+            rig.teleport(model, data, teleport)
+            rig.account(data, tick)
         out = self._publish()
         if first and self.params.tf is not None:
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
                                                       for t in rig.frames.static])
         return out
 
-    def _account(self, tick: Tick) -> None:
-        qpos = self.data.qpos
-        for rig in self.rigs:
-            q = qpos[rig.qadr:rig.qadr + 7]
-            x, y = float(q[0]), float(q[1])
-            if rig.last_xy is not None:
-                rig.path_length += float(np.hypot(x - rig.last_xy[0], y - rig.last_xy[1]))
-            rig.last_xy = (x, y)
-            if rig.goal_time_ns is None:
-                g = rig.goal
-                yaw_error = (m.yaw_of(q[3:7]) - g["yaw"] + np.pi) % (2 * np.pi) - np.pi
-                if (np.hypot(x - g["x"], y - g["y"]) <= g["position_tolerance"]
-                        and abs(yaw_error) <= g["yaw_tolerance"]):
-                    rig.goal_time_ns = tick.time_ns
-
     def _publish(self) -> dict[str, Any]:
         d = self.data
         out: dict[str, Any] = {"/cosim/world_state": m.world_state(d.qpos, d.qvel)}
         transforms = []
-        for rig, robot in zip(self.rigs, self.names, strict=True):
-            p = rig.params
-            base_q = d.qpos[rig.qadr:rig.qadr + 7]
-            base_v = d.qvel[rig.vadr:rig.vadr + 6]
-            out[namespaced(robot, "/odom")] = m.odometry(base_q, base_v, p.odom_frame,
-                                                         p.base_frame)
-            out[namespaced(robot, "/joint_states")] = m.joint_state(
-                rig.joint_names, d.qpos[rig.joint_q], d.qvel[rig.joint_v],
-                d.qfrc_actuator[rig.joint_v])
-            if rig.imu is not None:
-                out[namespaced(robot, "/imu")] = rig.imu.measure(d)
-            if rig.frames is not None:
-                transforms += rig.frames.dynamic(d, base_q)
+        for rig in self.rigs:
+            transforms += rig.publish(d, out)
         if self.params.tf is not None:
             out["/tf"] = TFMessage(transforms=transforms)
         return out
 
     def metrics(self) -> dict[str, float]:
-        """Per robot (ROBOT/...): arrived, time_to_goal (s), path_length (m), collisions
-        with obstacles and with robots, x, y; the swarm's totals; ``swarm_goal``."""
+        """The unnamed robot: collisions, its ground-truth planar pose and whether it reached
+        its goal. A swarm: per robot (ROBOT/...): arrived, time_to_goal (s), path_length (m),
+        collisions with obstacles and with robots, x, y; the swarm's totals; ``swarm_goal``."""
+        if self.names == [""]:
+            rig = self.rigs[0]
+            q = rig.base_pose(self.data)
+            out = {"collisions": float(self.contacts.obstacle_events), "x": float(q[0]),
+                   "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
+            if self.goals:
+                out["arrived"] = float(rig.goal_time_ns is not None)  # ground truth, sticky
+            return out
         out: dict[str, float] = {}
         arrived = 0
         for rig, robot in zip(self.rigs, self.names, strict=True):
-            q = self.data.qpos[rig.qadr:rig.qadr + 7]
+            q = rig.base_pose(self.data)
             done = rig.goal_time_ns is not None
             arrived += done
             out[f"{robot}/arrived"] = float(done)

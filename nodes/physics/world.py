@@ -1,23 +1,41 @@
-"""Loading a world (MJCF or USD) and reading the robot out of it (physics, sensors, control)."""
+"""Loading a world (MJCF or USD) and the robots a node serves (physics, sensors, control)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import mujoco
-import numpy as np
 
-from plan.robots import swarm_model
+from descriptions.robot_model import RobotModel
+from descriptions.robot_reader import RobotNames, world_robots
+from descriptions.swarm_world import swarm_model
+from descriptions.worldfile import load_world_model
+from nodes.contract import NodeConfig
+from plan.robots import RobotsLayout, robot_of
 from plan.timeutil import NS_PER_S
-from plan.worldfile import load_world_model
 
 
-def load_model(world: Path | str, robots=None) -> mujoco.MjModel:
-    """Compile the world file, MJCF or USD, through the one shared loader (plan.worldfile);
-    with a swarm's ``robots`` (plan.robots.RobotsLayout), the arena with every robot."""
-    if robots is not None:
-        return swarm_model(Path(world), robots)
+def load_model(world: Path | str, layout: RobotsLayout | None = None) -> mujoco.MjModel:
+    """Compile the world file, MJCF or USD, through the one shared loader
+    (descriptions.worldfile); with a swarm's ``layout``, the arena with every robot."""
+    if layout is not None:
+        return swarm_model(Path(world), layout)
     return load_world_model(world)
+
+
+def robots_of(config: NodeConfig, names: dict[str, Any]) -> tuple[RobotModel, ...]:
+    """The robots a node serves: its config's, read once by the description loader for the
+    scenario; for a node made outside a scenario (a test, a benchmark) with none given, the
+    world's robots read by cosim's conventions and the node's own ``names`` (a robot's node,
+    NAME@ROBOT: its own)."""
+    if config.robots:
+        return config.robots
+    if config.world is None:
+        return ()
+    robots = world_robots(Path(config.world), config.layout, RobotNames.of(names))
+    own = robot_of(config.name)
+    return robots if own is None else tuple(r for r in robots if r.name == own)
 
 
 def timestep_ns(model: mujoco.MjModel, world: Path | str) -> int:
@@ -54,23 +72,3 @@ def named_id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
     if i < 0:
         raise ValueError(f"the world has no {kind.name[6:].lower()} named {name!r}")
     return i
-
-
-def robot_geoms(model: mujoco.MjModel, base: str) -> np.ndarray:
-    """Boolean mask over geoms: those on the robot (any body under ``base``)."""
-    root = model.body_rootid[body_id(model, base)]
-    return model.body_rootid[model.geom_bodyid] == root
-
-
-def wheel_geometry(model: mujoco.MjModel, left_joint: str, right_joint: str) -> tuple[float, float]:
-    """(wheel radius, wheel separation) read from the wheel joints' bodies and their geoms."""
-    radii, ys = [], []
-    for name in (left_joint, right_joint):
-        j = named_id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        body = model.jnt_bodyid[j]
-        geoms = np.flatnonzero(model.geom_bodyid == body)
-        if geoms.size == 0:
-            raise ValueError(f"wheel joint {name!r} moves a body without a geom")
-        radii.append(float(model.geom_size[geoms[0], 0]))
-        ys.append(float(model.body_pos[body, 1]))
-    return 0.5 * (radii[0] + radii[1]), abs(ys[0] - ys[1])

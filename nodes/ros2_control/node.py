@@ -220,10 +220,11 @@ class ControllerManagerNode(StepNode):
 
     def setup(self) -> None:
         """Read the file, build the controllers, find the world's joints."""
-        from nodes.physics.world import load_model, wheel_geometry
+        from descriptions.robot_reader import wheel_geometry
+        from nodes.physics.world import load_model
 
         self.file = read(self.params)
-        model = load_model(self.config.world, self.config.robots)
+        model = load_model(self.config.world, self.config.layout)
         self.command_joints = (list(self.params.command_joints)
                                if self.params.command_joints is not None
                                else position_joints(model))

@@ -34,8 +34,10 @@ class CameraParams(BaseModel):
     """Which MJCF camera to render, the image size, depth range and visible geom groups."""
 
     model_config = ConfigDict(extra="forbid")
-    camera: str = "rgbd"
-    frame_id: str = "camera_color_optical_frame"
+    camera: str | None = Field(None, description="the MJCF camera; default: the robot "
+                               "model's (descriptions.robot_reader)")
+    frame_id: str | None = Field(None, description="its optical frame; default: the robot "
+                                 "model's")
     width: int = Field(160, ge=8, le=640)
     height: int = Field(120, ge=8, le=480)
     depth: bool = True

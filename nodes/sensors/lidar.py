@@ -25,8 +25,9 @@ class LidarParams(BaseModel):
     """A planar scanner: beams over a field of view (radians), range limits, noise (m)."""
 
     model_config = ConfigDict(extra="forbid")
-    site: str = "laser"
-    frame_id: str = "laser"
+    site: str | None = Field(None, description="the site it casts from; default: the robot "
+                             "model's lidar (descriptions.robot_reader)")
+    frame_id: str | None = Field(None, description="its frame; default: the robot model's")
     beams: int = Field(360, ge=1)
     fov: float = Field(2 * math.pi, gt=0, le=2 * math.pi)
     range_min: float = Field(0.12, ge=0)

@@ -9,14 +9,15 @@ import numpy as np
 from std_msgs.msg import Float64MultiArray
 
 from nodes.physics.world import load_model
+from plan.robots import RobotsLayout
 
 
 class WorldMirror:
     """Loads the world and poses it from the physics node's qpos (no dynamics run here)."""
 
-    def __init__(self, world: Path | str, robots=None):
+    def __init__(self, world: Path | str, layout: RobotsLayout | None = None):
         self.world = world
-        self.model = load_model(world, robots)
+        self.model = load_model(world, layout)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)
 

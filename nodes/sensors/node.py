@@ -9,14 +9,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, model_validator
 from sensor_msgs.msg import CameraInfo, Image, LaserScan, PointCloud2
 
+from descriptions.robot_model import RobotModel
+from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
+from nodes.physics.world import robots_of
 from nodes.sensors.camera import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, CameraParams, RgbdCamera
 from nodes.sensors.lidar import Lidar2D, Lidar3D, LidarParams, PointCloudParams
 from nodes.sensors.mirror import WorldMirror
-from nodes.sensors.others import OtherRobots, robot_sensors
+from nodes.sensors.others import OtherRobots
 
 WORLD_STATE = "/cosim/world_state"
 
@@ -28,9 +31,6 @@ class SensorsParams(BaseModel):
     lidar: LidarParams | None = None
     point_cloud: PointCloudParams | None = None
     camera: CameraParams | None = None
-    robot: str | None = Field(None, description="set by for_each: robot: the robot whose "
-                              "sensors these are (names prefixed ROBOT/); the lidar sees "
-                              "the other robots")
 
     @model_validator(mode="after")
     def _one_sensor(self) -> SensorsParams:
@@ -72,14 +72,26 @@ class SensorsNode(StepNode):
         """Only the world state."""
         return {WORLD_STATE}
 
+    @classmethod
+    def description_names(cls, params: SensorsParams) -> dict[str, Any]:
+        """The lidar's site and frame and the camera, where the parameters name them."""
+        lidar = params.lidar or params.point_cloud
+        names = {}
+        if lidar is not None:
+            names.update(laser_site=lidar.site, laser_frame=lidar.frame_id)
+        if params.camera is not None:
+            names.update(camera=params.camera.camera, camera_frame=params.camera.frame_id)
+        return {key: value for key, value in names.items() if value is not None}
+
     def setup(self) -> None:
-        """Load the mirror and build the configured sensors."""
-        p = self.params
-        self.mirror = WorldMirror(self.config.world, self.config.robots)
+        """Load the mirror and build the configured sensors, each at the robot model's site or
+        camera; a robot of a swarm sees the other robots."""
+        robots = robots_of(self.config, self.description_names(self.params))
+        p = _placed(self.params, robots[0] if len(robots) == 1 else None)
+        self.mirror = WorldMirror(self.config.world, self.config.layout)
         others = None
-        if p.robot is not None:
-            p = robot_sensors(p, p.robot)
-            others = OtherRobots(self.mirror.model, self.config.robots, p.robot)
+        if self.config.layout is not None and len(robots) == 1:
+            others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
         self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others)
                       if p.lidar else None)
         self.cloud = Lidar3D(self.mirror, p.point_cloud, others) if p.point_cloud else None
@@ -111,3 +123,23 @@ class SensorsNode(StepNode):
     def metrics(self) -> dict[str, float]:
         """How many times the sensors measured."""
         return {"measurements": float(self.count)}
+
+
+def _placed(params: SensorsParams, robot: RobotModel | None) -> SensorsParams:
+    """The sensors' parameters with each sensor's site or camera and frame as the robot
+    model has them; as given (or cosim's conventions) in a world without the robot."""
+    names = RobotNames.of(SensorsNode.description_names(params))
+    update: dict[str, Any] = {}
+    lidar = robot.sensor("lidar") if robot is not None else None
+    site = lidar.mujoco_name if lidar else names.laser_site
+    frame = lidar.link if lidar else names.laser_frame
+    for key in ("lidar", "point_cloud"):
+        sensor = getattr(params, key)
+        if sensor is not None:
+            update[key] = sensor.model_copy(update={"site": site, "frame_id": frame})
+    if params.camera is not None:
+        camera = robot.sensor("camera") if robot is not None else None
+        update["camera"] = params.camera.model_copy(update={
+            "camera": camera.mujoco_name if camera else names.camera,
+            "frame_id": camera.link if camera else names.camera_frame})
+    return params.model_copy(update=update)

@@ -13,34 +13,18 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from descriptions.robot_model import RobotModel
 from plan.robots import RobotsLayout, prefixed
-from plan.world_geometry import robot_footprint_radius
-
-
-def robot_sensors(params, robot: str):
-    """The sensors' parameters with the description's names as robot ``robot`` has them."""
-    update = {}
-    for key in ("lidar", "point_cloud"):
-        sensor = getattr(params, key)
-        if sensor is not None:
-            update[key] = sensor.model_copy(update={"site": prefixed(robot, sensor.site),
-                                                    "frame_id": prefixed(robot, sensor.frame_id)})
-    if params.camera is not None:
-        cam = params.camera
-        update["camera"] = cam.model_copy(update={"camera": prefixed(robot, cam.camera),
-                                                  "frame_id": prefixed(robot, cam.frame_id)})
-    return params.model_copy(update=update)
 
 
 class OtherRobots:
     """The other robots' bases and their footprint radius, for ray casting as cylinders."""
 
-    def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: str):
-        bodies = [prefixed(r, layout.base_body) for r in layout.names if r != robot]
+    def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: RobotModel):
+        bodies = [prefixed(r, layout.base_body) for r in layout.names if r != robot.name]
         self.bodies = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b)
                                 for b in bodies], dtype=np.int64)
-        own = prefixed(robot, layout.base_body)
-        self.radius = robot_footprint_radius(model, own)
+        self.radius = robot.footprint_radius
 
     def nearer(self, data: mujoco.MjData, origin: np.ndarray, dirs: np.ndarray,
                dist: np.ndarray, range_max: float) -> np.ndarray:

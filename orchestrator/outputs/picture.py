@@ -159,14 +159,14 @@ class World:
 def load_world(path: Path | None, laser_frame: str = "laser") -> World:
     """Static obstacles of a world (top-down) and the laser site's offset on the robot.
 
-    The obstacles are ``plan.world_geometry``'s (the planner's), drawn when they sit in a
+    The obstacles are ``plan.obstacles``'s (the planner's), drawn when they sit in a
     visible geom group 0-2 (robot geoms live in group 3).
     """
     world = World()
     if path is None or not Path(path).exists():
         return world
-    from plan.world_geometry import site_offset
-    from plan.worldfile import load_world_model
+    from descriptions.world_geometry import site_offset
+    from descriptions.worldfile import load_world_model
 
     model = load_world_model(Path(path))
     add_obstacles(world, model)
@@ -176,7 +176,7 @@ def load_world(path: Path | None, laser_frame: str = "laser") -> World:
 
 def add_obstacles(world: World, model) -> None:
     """Add a compiled world's visible static obstacles to the picture's ``world``."""
-    from plan.world_geometry import static_obstacles
+    from descriptions.world_geometry import static_obstacles
 
     for o in static_obstacles(model):
         if not o.visible:

@@ -36,7 +36,7 @@ def write_swarm_png(scenario, run_dir: Path, bag: Path | None, outcome=None) -> 
 
 def arena(scenario) -> World:
     """The static obstacles of the swarm's world (the robots are not static)."""
-    from plan.robots import swarm_model
+    from descriptions.swarm_world import swarm_model
 
     world = World()
     add_obstacles(world, swarm_model(scenario.world, scenario.robots))

@@ -20,9 +20,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from plan.robots import swarm_spec
+from descriptions.swarm_world import swarm_spec
+from descriptions.worldfile import compile_world, is_usd, load_world_spec, open_stage
 from plan.timeutil import NS_PER_S
-from plan.worldfile import compile_world, is_usd, load_world_spec, open_stage
 
 WORLD_STATE = "/cosim/world_state"
 

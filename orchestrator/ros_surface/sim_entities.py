@@ -50,7 +50,7 @@ class RobotEntity:
                                and teleport in arrivals.topics else None)
         self.arrivals = arrivals
         self.external_period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
-        self._world = (scenario.world, physics.params.base_body)
+        self._scenario = scenario
         self._obstacles = None
         self.requests = 0  # teleports asked for: each message differs, so each applies once
         control.reset_listeners.append(self.forget)
@@ -124,13 +124,15 @@ class RobotEntity:
                                   "on the floor.")
 
     def _place_problem(self, x: float, y: float) -> str | None:
-        from plan.world_geometry import place_problem, robot_footprint_radius, static_obstacles
-        from plan.worldfile import load_world_model
+        from descriptions.world_geometry import static_obstacles
+        from descriptions.worldfile import load_world_model
+        from plan.obstacles import place_problem
+        from runtime.build import scenario_robots
 
         if self._obstacles is None:
-            model = load_world_model(self._world[0])
-            self._obstacles = static_obstacles(model)
-            self._radius = robot_footprint_radius(model, self._world[1])
+            self._obstacles = static_obstacles(load_world_model(self._scenario.world))
+            (robot,) = scenario_robots(self._scenario)  # the robot model's footprint
+            self._radius = robot.footprint_radius
         return place_problem(self._obstacles, x, y, self._radius)
 
 

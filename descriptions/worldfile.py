@@ -33,6 +33,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from plan.errors import WorldError
+
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 ROBOT_ATTR = "cosim:robot:mjcf"
 PREFIX_ATTR = "cosim:robot:prefix"
@@ -40,15 +42,6 @@ SUPPORTED_COLLIDERS = ("Cube", "Sphere", "Cylinder", "Capsule", "Plane", "Mesh")
 SUPPORTED_JOINTS = ("PhysicsRevoluteJoint", "PhysicsPrismaticJoint", "PhysicsFixedJoint")
 # USD carries no MuJoCo <visual>; USD worlds get the settings the MJCF worlds use.
 VISUAL = {"shadowsize": 0, "znear": 0.01, "zfar": 50.0}
-
-
-class WorldError(ValueError):
-    """A world file that cannot be loaded: the file, the prim (USD) and the reason."""
-
-    def __init__(self, file: Path | str, reason: str, prim: str | None = None):
-        self.file, self.prim, self.reason = str(file), prim, reason
-        where = f"{self.file}, prim {prim}" if prim else self.file
-        super().__init__(f"world {where}: {reason}")
 
 
 @dataclass(frozen=True)
@@ -81,7 +74,7 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None,
 
     ``robots`` adds mounts to those the stage names with ``cosim:robot:mjcf`` attributes;
     ``stage_robots_too=False`` leaves the stage's out (a swarm attaches them itself,
-    prefixed: plan.robots).
+    prefixed: descriptions.swarm_world).
     """
     path = Path(path).resolve()
     if not is_usd(path):

@@ -1,0 +1,50 @@
+"""Load a scenario file with its world: ``plan.load.read_scenario`` (pure: YAML, schema,
+checks, schedule) with the world files read by this wing (MJCF and USD through MuJoCo).
+
+Everything that can be wrong with a scenario, its world and robots included, is found
+before any process starts and reported as a ``ScenarioError`` naming the file and key.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import mujoco
+
+from descriptions.robot_layout import robots_layout
+from descriptions.swarm_world import swarm_model
+from descriptions.worldfile import check_world
+from plan.load import read_scenario
+from plan.model import ScenarioModel
+from plan.robots import RobotsLayout
+from plan.scenario import Scenario
+
+
+class MujocoWorlds:
+    """The world loader's side of scenario resolution (``plan.world_reader.WorldReader``)."""
+
+    def world_model(self, world: Path) -> mujoco.MjModel:
+        """The compiled world; WorldError naming what is wrong."""
+        return check_world(world)
+
+    def robots_layout(self, path: Path, model: ScenarioModel) -> RobotsLayout | None:
+        """The robots: section checked against the world and placed."""
+        return robots_layout(path, model)
+
+    def swarm_model(self, world: Path, layout: RobotsLayout) -> mujoco.MjModel:
+        """The arena with every robot of the layout."""
+        return swarm_model(world, layout)
+
+
+WORLDS = MujocoWorlds()
+
+
+def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read, check and resolve a scenario file with its world; raise ScenarioError on
+    anything wrong.
+
+    ``overrides`` maps dotted keys ('seed', 'nodes.<node name>.rate') to values that replace
+    the file's before anything is checked; an error in an overridden value says so.
+    """
+    return read_scenario(path, WORLDS, overrides)

@@ -1,0 +1,32 @@
+"""The swarm world: the arena with one prefixed copy of the robot description per robot
+(plan/robots.py says what a swarm is), compiled the same way in every process."""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+
+import mujoco
+
+from descriptions.worldfile import compile_world, load_world_spec
+from plan.robots import RobotsLayout
+
+
+@functools.lru_cache(maxsize=4)
+def swarm_model(world: Path, layout: RobotsLayout) -> mujoco.MjModel:
+    """The compiled swarm world (cached per process: nodes only read the model)."""
+    return compile_world(swarm_spec(world, layout), world)
+
+
+def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
+    """The arena with one prefixed copy of the description per robot, at its start."""
+    spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
+    robot = mujoco.MjSpec.from_file(str(layout.description))
+    spec.copy_during_attach = True
+    for r in layout.robots:
+        x, y, yaw = r.start
+        frame = spec.worldbody.add_frame(pos=[x, y, 0.0],
+                                         quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+        spec.attach(robot, frame=frame, prefix=f"{r.name}/")
+    return spec

@@ -1,0 +1,29 @@
+"""What resolving a scenario needs to know of its world files, asked of the wing that loads
+them (``descriptions.load.WORLDS``): plan/ itself never loads MuJoCo or USD.
+
+A compiled world is opaque here: plan/ hands it to the node classes' own world checks
+(``world_problems``, ``world_warnings``, ``period_problems``) and reads nothing out of it
+but the names of its joints (``ScenarioChecks.check_joint_goal``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Protocol
+
+from plan.model import ScenarioModel
+from plan.robots import RobotsLayout
+
+
+class WorldReader(Protocol):
+    """The world loader's side of scenario resolution."""
+
+    def world_model(self, world: Path) -> Any:
+        """The compiled world; ``plan.errors.WorldError`` naming what is wrong with it."""
+
+    def robots_layout(self, path: Path, model: ScenarioModel) -> RobotsLayout | None:
+        """The ``robots:`` section checked against the world and placed (None without one);
+        ``ScenarioError`` naming the key."""
+
+    def swarm_model(self, world: Path, layout: RobotsLayout) -> Any:
+        """The compiled swarm world: the arena with every robot of ``layout``."""
