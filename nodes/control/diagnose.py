@@ -21,7 +21,7 @@ def connected(planner, start: tuple[float, float], goal: tuple[float, float]) ->
     cost = planner.narrow_cost
     s = planner.free_near(cost, planner.grid.cell(*start))
     g = planner.free_near(cost, planner.grid.cell(*goal))
-    return s is not None and g is not None and bool(reachable(np.isfinite(cost), s)[g])
+    return s is not None and g is not None and planner.joined(True, s, g)
 
 
 def explain_no_path(planner, start: tuple[float, float], goal: tuple[float, float]) -> str:

@@ -5,11 +5,18 @@ from obstacles; when it has no way, the narrow one lets the plan pass as close a
 robot's radius plus its safety margin (the clearance the local planner drives with), at a
 cost that keeps such stretches short. Distances to the static obstacles are measured to
 their true footprints; scan points marked during recoveries count by their map cell.
+
+The static map (grid, distance field, both costmaps and which cells each costmap joins) is
+built once per process for a world and map parameters and shared, read-only, by every
+planner over it: a swarm's controllers packed in one process build it once, not once each.
+A planner that marks scan points makes its own costmaps from then on.
 """
 
 from __future__ import annotations
 
+import copy
 import math
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -17,7 +24,74 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from pydantic import BaseModel
 
-from nodes.control.grid import astar, cell_distance, reachable, world_grid
+from nodes.control.grid import (
+    Grid,
+    astar,
+    band_obstacles,
+    cell_distance,
+    components,
+    obstacle_grid,
+    padded_list,
+)
+from plan.world_geometry import Obstacle
+
+Z_BAND = (0.02, 0.6)  # m: obstacles in this height band are on the map
+SHARED_MAPS = 4  # static maps a process keeps (one per world and map parameters)
+_shared: dict[tuple, StaticMap] = {}
+
+
+@dataclass
+class StaticMap:
+    """What every planner over one world with the same map parameters shares (read-only)."""
+
+    grid: Grid
+    dist: np.ndarray  # distance from each cell to the nearest obstacle's footprint, capped
+    cost: np.ndarray
+    narrow_cost: np.ndarray
+    derived: dict[tuple[str, bool], object] = field(default_factory=dict)  # see Planner.derived
+
+
+def static_map(model: mujoco.MjModel, params: BaseModel) -> StaticMap:
+    """The shared static map of ``model``'s obstacles for these map parameters, built on first
+    use. The key is the obstacles themselves, not the file, so a world rewritten in place
+    gets its own map."""
+    obstacles = band_obstacles(model, Z_BAND)
+    keys = ("resolution", "lethal_distance", "cost_distance", "cost_weight", "robot_radius",
+            "safety_margin")
+    key = (tuple(getattr(params, k) for k in keys), tuple(_obstacle_key(o) for o in obstacles))
+    found = _shared.get(key)
+    if found is not None:
+        return found
+    grid = obstacle_grid(obstacles, params.resolution)
+    cap = max(params.cost_distance, params.lethal_distance) + params.resolution
+    dist = grid.obstacle_distance(cap)
+    grid.dist = dist
+    cost, narrow = costmaps(dist, params)
+    for a in (grid.occ, dist, cost, narrow):
+        a.flags.writeable = False
+    if len(_shared) >= SHARED_MAPS:
+        _shared.pop(next(iter(_shared)))
+    found = _shared[key] = StaticMap(grid, dist, cost, narrow)
+    return found
+
+
+def _obstacle_key(o: Obstacle) -> tuple:
+    return (o.name, o.geom, o.kind, o.centre, o.z_range, o.radius,
+            None if o.polygon is None else o.polygon.tobytes())
+
+
+def costmaps(d: np.ndarray, p: BaseModel) -> tuple[np.ndarray, np.ndarray]:
+    """(normal, narrow) costmaps over the distance field ``d``: the normal one is lethal
+    within ``lethal_distance``, the narrow one only within the robot's radius plus its
+    safety margin, at a cost that keeps such stretches short."""
+    span = max(p.cost_distance - p.lethal_distance, 1e-9)
+    extra = p.cost_weight * np.clip((p.cost_distance - d) / span, 0.0, 1.0) ** 2
+    cost = np.where(d < p.lethal_distance, np.inf, 1.0 + extra)
+    squeeze = 1.0 + 3.0 * p.cost_weight
+    narrow_distance = min(p.lethal_distance, p.robot_radius + p.safety_margin)
+    narrow = np.where(d < narrow_distance, np.inf,
+                      np.where(d < p.lethal_distance, squeeze, cost))
+    return cost, narrow
 
 
 class Planner:
@@ -25,13 +99,16 @@ class Planner:
 
     def __init__(self, model: mujoco.MjModel, params: BaseModel):
         self.p = params
-        self.grid = world_grid(model, params.resolution, (0.02, 0.6))
-        self.static = self.grid.occ.copy()
+        shared = static_map(model, params)
+        self.grid = copy.copy(shared.grid)  # its own occ and dist once it marks points
+        self.static = shared.grid.occ
         self.cap = max(params.cost_distance, params.lethal_distance) + params.resolution
-        self.static_dist = self.grid.obstacle_distance(self.cap)
+        self.static_dist = shared.dist
         self.marked = np.zeros_like(self.static)
         self.narrow = False  # whether the last plan needed the narrow costmap
-        self._update_cost()
+        self.shared = shared
+        self.cost, self.narrow_cost = shared.cost, shared.narrow_cost
+        self.derived = shared.derived
 
     @property
     def narrow_distance(self) -> float:
@@ -41,25 +118,34 @@ class Planner:
 
     def _update_cost(self) -> None:
         p = self.p
-        d = self.static_dist
-        if self.marked.any():
-            d = np.minimum(d, cell_distance(self.marked, p.resolution, self.cap))
+        if not self.marked.any():  # back to the static map
+            self.grid.dist = self.static_dist
+            self.cost, self.narrow_cost = self.shared.cost, self.shared.narrow_cost
+            self.derived = self.shared.derived
+            return
+        d = np.minimum(self.static_dist, cell_distance(self.marked, p.resolution, self.cap))
         self.grid.dist = d
-        span = max(p.cost_distance - p.lethal_distance, 1e-9)
-        extra = p.cost_weight * np.clip((p.cost_distance - d) / span, 0.0, 1.0) ** 2
-        self.cost = np.where(d < p.lethal_distance, np.inf, 1.0 + extra)
-        self._narrow_cost: np.ndarray | None = None
+        self.cost, self.narrow_cost = costmaps(d, p)
+        self.derived = {}
 
-    @property
-    def narrow_cost(self) -> np.ndarray:
-        """The costmap that lets the plan through passages narrower than the normal one."""
-        if self._narrow_cost is None:
-            d = self.grid.dist
-            squeeze = 1.0 + 3.0 * self.p.cost_weight
-            self._narrow_cost = np.where(d < self.narrow_distance, np.inf,
-                                         np.where(d < self.p.lethal_distance, squeeze,
-                                                  self.cost))
-        return self._narrow_cost
+    def joined(self, narrow: bool, start: tuple[int, int], goal: tuple[int, int]) -> bool:
+        """Whether the (narrow) costmap joins two cells: one flood fill of the whole map per
+        costmap, then a look-up (a flood fill says "no way" in a tenth of the time a failing
+        A* takes; the labels answer every robot's question after the first)."""
+        labels = self.derived_of("labels", narrow)
+        return bool(labels[start] != 0 and labels[start] == labels[goal])
+
+    def derived_of(self, what: str, narrow: bool):
+        """What is computed from a costmap once and kept with it (shared with every planner
+        while it is the static one): ``labels`` (its regions, ``components``) or ``flat``
+        (the list A* reads, ``padded_list``)."""
+        key = (what, narrow)
+        found = self.derived.get(key)
+        if found is None:
+            cost = self.narrow_cost if narrow else self.cost
+            found = self.derived[key] = (components(np.isfinite(cost)) if what == "labels"
+                                         else padded_list(cost))
+        return found
 
     def mark(self, points: np.ndarray) -> None:
         """Add the scan points (odom frame) the static map does not explain (farther than
@@ -81,10 +167,9 @@ class Planner:
         for narrow, cost in ((False, self.cost), (True, self.narrow_cost)):
             s = self.free_near(cost, self.grid.cell(*start))
             g = self.free_near(cost, self.grid.cell(*goal))
-            # A flood fill says "no way" in a tenth of the time a failing A* takes.
-            if s is None or g is None or not reachable(np.isfinite(cost), s)[g]:
+            if s is None or g is None or not self.joined(narrow, s, g):
                 continue
-            cells = astar(cost, s, g)
+            cells = astar(cost, s, g, self.derived_of("flat", narrow))
             if cells is not None:
                 self.narrow = narrow
                 pts = np.array([self.grid.centre(i, j) for i, j in cells[::2]] + [goal],

@@ -92,8 +92,17 @@ def cell_distance(occ: np.ndarray, res: float, cap: float) -> np.ndarray:
 def world_grid(model: mujoco.MjModel, resolution: float, z_band: tuple[float, float],
                margin: float = 0.5) -> Grid:
     """Rasterise the static obstacles of ``model`` (at its default pose) into a grid."""
-    obstacles = [o for o in static_obstacles(model)
-                 if o.z_range[1] >= z_band[0] and o.z_range[0] <= z_band[1]]
+    return obstacle_grid(band_obstacles(model, z_band), resolution, margin)
+
+
+def band_obstacles(model: mujoco.MjModel, z_band: tuple[float, float]) -> list[Obstacle]:
+    """The static obstacles of ``model`` that overlap the height band ``z_band``."""
+    return [o for o in static_obstacles(model)
+            if o.z_range[1] >= z_band[0] and o.z_range[0] <= z_band[1]]
+
+
+def obstacle_grid(obstacles: list[Obstacle], resolution: float, margin: float = 0.5) -> Grid:
+    """A grid over ``obstacles`` (and ``margin`` around them) with their footprints marked."""
     if not obstacles:
         raise ValueError("the world has no static obstacles to build a map from")
     bounds = np.array([o.bounds() for o in obstacles])
@@ -122,49 +131,70 @@ def rasterise(o: Obstacle, grid: Grid, xs: np.ndarray, ys: np.ndarray) -> None:
     grid.occ[i0:i1 + 1, j0:j1 + 1] |= inside
 
 
-def astar(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
-          ) -> list[tuple[int, int]] | None:
+def astar(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
+          flat: list[float] | None = None) -> list[tuple[int, int]] | None:
     """Cheapest 8-connected path over per-cell costs (inf = blocked), or None.
 
     A move costs its length times the mean of the two cells' costs (each >= 1), so the
-    Euclidean heuristic is admissible. Ties break on insertion order: deterministic.
+    octile distance (the 8-connected path length) is an admissible and consistent
+    heuristic; among equal estimates the deeper node goes first, so on even ground the
+    search runs straight at the goal instead of widening. Ties then break on the cell
+    index: deterministic. Cells are flat indices into the grid padded with a blocked
+    border, so no move needs a bounds check; ``flat`` is that padded grid as a list
+    (``padded_list(cost)``), for a caller that plans many times over one costmap.
     """
     nx, ny = cost.shape
-    flat = cost.ravel().tolist()
-    if not (math.isfinite(flat[start[0] * ny + start[1]]) and
-            math.isfinite(flat[goal[0] * ny + goal[1]])):
+    if not (math.isfinite(cost[start]) and math.isfinite(cost[goal])):
         return None
-    gi, gj = goal
-    best = {start: 0.0}
-    parent: dict[tuple[int, int], tuple[int, int]] = {}
-    heap = [(math.hypot(start[0] - gi, start[1] - gj), 0, start)]
-    counter = 0
-    closed = set()
+    wy = ny + 2
+    if flat is None:
+        flat = padded_list(cost)
+    moves = [(di * wy + dj, step) for di, dj, step in NEIGHBOURS]
+    gi, gj = goal[0] + 1, goal[1] + 1
+    s, g = (start[0] + 1) * wy + start[1] + 1, gi * wy + gj
+    inf = math.inf
+    best = [inf] * len(flat)
+    parent = [-1] * len(flat)
+    closed = bytearray(len(flat))
+    best[s] = 0.0
+    heap = [(_octile(start[0] + 1 - gi, start[1] + 1 - gj), -0.0, s)]
+    pop, push = heapq.heappop, heapq.heappush
     while heap:
-        _, _, node = heapq.heappop(heap)
-        if node == goal:
-            return _unwind(parent, node)
-        if node in closed:
+        _, _, k = pop(heap)
+        if k == g:
+            return _unwind(parent, k, wy)
+        if closed[k]:
             continue
-        closed.add(node)
-        i, j = node
-        here = flat[i * ny + j]
-        g0 = best[node]
-        for di, dj, step in NEIGHBOURS:
-            a, b = i + di, j + dj
-            if a < 0 or b < 0 or a >= nx or b >= ny:
+        closed[k] = 1
+        here = flat[k]
+        g0 = best[k]
+        for dk, step in moves:
+            m = k + dk
+            c = flat[m]
+            if c == inf or closed[m]:
                 continue
-            c = flat[a * ny + b]
-            if c == math.inf:
-                continue
-            g = g0 + step * 0.5 * (here + c)
-            nxt = (a, b)
-            if g < best.get(nxt, math.inf):
-                best[nxt] = g
-                parent[nxt] = node
-                counter += 1
-                heapq.heappush(heap, (g + math.hypot(a - gi, b - gj), counter, nxt))
+            gm = g0 + step * 0.5 * (here + c)
+            if gm < best[m]:
+                best[m] = gm
+                parent[m] = k
+                a, b = divmod(m, wy)
+                a, b = abs(a - gi), abs(b - gj)
+                h = (a - b) + SQRT2 * b if a >= b else (b - a) + SQRT2 * a
+                push(heap, (gm + h, -gm, m))
     return None
+
+
+def padded_list(cost: np.ndarray) -> list[float]:
+    """The costmap with a border of blocked cells, flattened to a list (what A* reads)."""
+    padded = np.full((cost.shape[0] + 2, cost.shape[1] + 2), np.inf)
+    padded[1:-1, 1:-1] = cost
+    return padded.ravel().tolist()
+
+
+def _octile(di: int, dj: int) -> float:
+    """The length of the shortest 8-connected path across (di, dj) cells."""
+    a, b = abs(di), abs(dj)
+    return (a - b) + SQRT2 * b if a >= b else (b - a) + SQRT2 * a
 
 
 def reachable(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
@@ -189,10 +219,40 @@ def reachable(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     return np.frombuffer(bytes(seen), dtype=np.uint8).reshape(nx, ny).astype(bool)
 
 
-def _unwind(parent: dict, node: tuple[int, int]) -> list[tuple[int, int]]:
-    path = [node]
-    while node in parent:
-        node = parent[node]
-        path.append(node)
+def components(passable: np.ndarray) -> np.ndarray:
+    """A label per cell: 0 where not passable, else the number (from 1) of its 8-connected
+    region of passable cells, so two cells are joined exactly when their labels are equal
+    and non-zero: one pass over the grid answers every later reachability question."""
+    nx, ny = passable.shape
+    wy = ny + 2  # a border of impassable cells: no bounds checks
+    padded = np.zeros((nx + 2, wy), dtype=bool)
+    padded[1:-1, 1:-1] = passable
+    flat = padded.ravel().tolist()
+    labels = [0] * len(flat)
+    steps = [di * wy + dj for di, dj, _ in NEIGHBOURS]
+    label = 0
+    for first in np.flatnonzero(padded).tolist():
+        if labels[first]:
+            continue
+        label += 1
+        labels[first] = label
+        stack = [first]
+        while stack:
+            k = stack.pop()
+            for dk in steps:
+                m = k + dk
+                if flat[m] and not labels[m]:
+                    labels[m] = label
+                    stack.append(m)
+    out = np.array(labels, dtype=np.int32).reshape(nx + 2, wy)
+    return out[1:-1, 1:-1].copy()
+
+
+def _unwind(parent: list[int], k: int, wy: int) -> list[tuple[int, int]]:
+    path = []
+    while k != -1:
+        i, j = divmod(k, wy)
+        path.append((i - 1, j - 1))
+        k = parent[k]
     path.reverse()
     return path
