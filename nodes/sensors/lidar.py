@@ -52,12 +52,15 @@ def scan_angles(beams: int, fov: float) -> tuple[float, float, np.ndarray]:
 
 
 class RayCaster:
-    """Casts a fixed bundle of rays (in the site frame) from a site of the mirrored world."""
+    """Casts a fixed bundle of rays (in the site frame) from a site of the mirrored world,
+    in one mj_multiRay call; against ``target`` (a model and data: a swarm's arena without
+    its robots, ``nodes.sensors.others.StaticWorld``) when given, else the mirror itself."""
 
     def __init__(self, mirror: WorldMirror, params: LidarParams, local_dirs: np.ndarray,
-                 others=None):
+                 others=None, target=None):
         self.mirror = mirror
         self.others = others  # nodes.sensors.others.OtherRobots: robots seen as discs
+        self.target = target if target is not None else mirror
         self.params = params
         self.site = named_id(mirror.model, mujoco.mjtObj.mjOBJ_SITE, params.site)
         self.local = np.ascontiguousarray(local_dirs, dtype=np.float64)
@@ -73,7 +76,7 @@ class RayCaster:
         vec = rotate_rows(self.local, d.site_xmat[self.site]).ravel()
         p = self.params
         origin = d.site_xpos[self.site].copy()
-        mujoco.mj_multiRay(self.mirror.model, d, origin, vec,
+        mujoco.mj_multiRay(self.target.model, self.target.data, origin, vec,
                            self.groups, 1, -1, self.geomid, self.dist, self.normal, self.n,
                            p.range_max)
         dist = self.dist
@@ -89,11 +92,11 @@ class Lidar2D:
     """The planar scanner publishing sensor_msgs/LaserScan."""
 
     def __init__(self, mirror: WorldMirror, params: LidarParams, period_ns: int,
-                 others=None):
+                 others=None, target=None):
         self.params = params
         self.angle_min, self.inc, angles = scan_angles(params.beams, params.fov)
         dirs = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], axis=1)
-        self.caster = RayCaster(mirror, params, dirs, others)
+        self.caster = RayCaster(mirror, params, dirs, others, target)
         self.scan_time = period_ns / 1e9
 
     def measure(self, rng: np.random.Generator) -> LaserScan:
@@ -122,7 +125,8 @@ class Lidar3D:
     FIELDS = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
               for i, n in enumerate("x y z intensity".split())]
 
-    def __init__(self, mirror: WorldMirror, params: PointCloudParams, others=None):
+    def __init__(self, mirror: WorldMirror, params: PointCloudParams, others=None,
+                 target=None):
         self.params = params
         _, _, az = scan_angles(params.beams, params.fov)
         el = (np.linspace(-params.vertical_fov / 2, params.vertical_fov / 2, params.channels)
@@ -130,7 +134,7 @@ class Lidar3D:
         e, a = np.meshgrid(el, az, indexing="ij")
         self.dirs = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)],
                              axis=-1).reshape(-1, 3)
-        self.caster = RayCaster(mirror, params, self.dirs, others)
+        self.caster = RayCaster(mirror, params, self.dirs, others, target)
 
     def measure(self, rng: np.random.Generator) -> PointCloud2:
         """One sweep of the mirrored world as an unorganised cloud."""

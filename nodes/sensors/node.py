@@ -19,7 +19,7 @@ from nodes.physics.world import robots_of
 from nodes.sensors.camera import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, CameraParams, RgbdCamera
 from nodes.sensors.lidar import Lidar2D, Lidar3D, LidarParams, PointCloudParams
 from nodes.sensors.mirror import WorldMirror
-from nodes.sensors.others import OtherRobots
+from nodes.sensors.others import OtherRobots, StaticWorld
 
 WORLD_STATE = "/cosim/world_state"
 
@@ -89,12 +89,16 @@ class SensorsNode(StepNode):
         robots = robots_of(self.config, self.description_names(self.params))
         p = _placed(self.params, robots[0] if len(robots) == 1 else None)
         self.mirror = WorldMirror(self.config.world, self.config.layout)
-        others = None
+        others = self.arena = None
         if self.config.layout is not None and len(robots) == 1:
             others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
-        self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others)
+            if p.lidar or p.point_cloud:
+                self.arena = StaticWorld(self.config.world, self.config.layout,
+                                         self.mirror.model)
+        self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others, self.arena)
                       if p.lidar else None)
-        self.cloud = Lidar3D(self.mirror, p.point_cloud, others) if p.point_cloud else None
+        self.cloud = (Lidar3D(self.mirror, p.point_cloud, others, self.arena)
+                      if p.point_cloud else None)
         self.camera = (RgbdCamera(self.mirror, p.camera, self.config.render_warm_up)
                        if p.camera else None)
         self.count = 0
@@ -106,6 +110,8 @@ class SensorsNode(StepNode):
             raise ValueError(f"sensors need {WORLD_STATE} at every activation (a same_tick "
                              "input from the physics node)")
         self.mirror.update(state)
+        if self.arena is not None:
+            self.arena.update(self.mirror.data.qpos)
         out: dict[str, Any] = {}
         if self.lidar:
             out["/scan"] = self.lidar.measure(self.rng)

@@ -6,14 +6,24 @@ a swarm the other robots must show in the scan, so the lidar adds them as what t
 and the placement treat them as: an upright cylinder of the robot's footprint radius (every
 colliding geom of it, seen from above) around each other robot's base, from floor to sky.
 A beam returns the nearer of its MuJoCo hit and the first such cylinder it meets.
+
+Since no beam can hit a robot's own geoms, the MuJoCo part of the cast need not look at any
+robot: ``StaticWorld`` is the arena without its robots, so mj_multiRay's cost follows the
+arena and not the swarm (it visits every body and geom of the model it is given, even the
+ones the geom groups leave out: 2.4 ms a 180-beam scan among 64 robots, against a few
+microseconds here). Its hits are the same geoms at the same poses: the same ranges.
 """
 
 from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from descriptions.robot_model import RobotModel
+from nodes.physics.world import load_model
 from plan.robots import RobotsLayout, prefixed
 
 
@@ -50,3 +60,37 @@ class OtherRobots:
         if not hit.any():
             return dist
         return np.where(hit & ((dist < 0) | (t < dist)), t, dist)
+
+
+class StaticWorld:
+    """The swarm's arena without its robots, posed like the swarm's mirror: what a lidar
+    casts its beams against (the other robots come from ``OtherRobots``)."""
+
+    def __init__(self, world: Path | str, layout: RobotsLayout, full: mujoco.MjModel):
+        self.model = load_model(world, dataclasses.replace(layout, robots=()))
+        self.data = mujoco.MjData(self.model)
+        # the arena's own joints (a door, a loose box) by name in the swarm's qpos
+        src, dst = [], []
+        for j in range(self.model.njnt):
+            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_JOINT, j)
+            k = mujoco.mj_name2id(full, mujoco.mjtObj.mjOBJ_JOINT, name or "")
+            if name is None or k < 0:
+                raise ValueError(f"the arena's joint {j} ({name!r}) is not in the swarm world")
+            width = _qpos_width(self.model.jnt_type[j])
+            a, b = int(self.model.jnt_qposadr[j]), int(full.jnt_qposadr[k])
+            dst.extend(range(a, a + width))
+            src.extend(range(b, b + width))
+        self.src = np.array(src, dtype=np.int64)
+        self.dst = np.array(dst, dtype=np.int64)
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def update(self, qpos: np.ndarray) -> None:
+        """Pose the arena's movable parts from the swarm's qpos (nothing to do without)."""
+        if self.src.size:
+            self.data.qpos[self.dst] = qpos[self.src]
+            mujoco.mj_kinematics(self.model, self.data)
+
+
+def _qpos_width(kind: int) -> int:
+    return {int(mujoco.mjtJoint.mjJNT_FREE): 7,
+            int(mujoco.mjtJoint.mjJNT_BALL): 4}.get(int(kind), 1)
