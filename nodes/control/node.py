@@ -8,6 +8,10 @@
   did not know to the map before replanning.
 - Local planner: regulated pure pursuit (rotate in place towards the path when facing
   away; slow down on sharp curvature, near the goal, and before scan points on the arc).
+  When what blocks the arc is something the map does not know (another robot, a person),
+  it steps aside: of a fan of arcs at the same speed, the one whose clear stretch gets
+  nearest the pursuit target, the rightmost among equals (so two robots meeting head-on
+  both keep right and pass); the plan is kept, nothing is replanned.
   Where scan points within the safety margin block the arc (a narrow passage), creep at
   min_speed keeping tight_margin, on the pursuit arc or the clear arc nearest its target.
 - Goal checker: position tolerance, then turn in place to the goal heading; once reached
@@ -55,6 +59,9 @@ IDLE, ACTIVE, REACHED, FAILED = 0.0, 1.0, 2.0, 3.0  # metric nav_state
 RETRY_S = 2.0  # s between plans while none exists (a failed plan searches the whole map)
 ESCAPE_REACH = 0.2  # m of arc a creeping escape must find clear
 ESCAPE_TURN = 0.25  # its sharpest arc turns at this fraction of max_turn at min_speed
+SIDESTEP_ARCS = 11  # arcs in the fan a robot blocked by something unmapped chooses from
+SIDESTEP_CURVATURE = 3.0  # 1/m: the fan's sharpest arc (at most max_turn at the speed)
+SIDESTEP_GAIN = 0.05  # m nearer the target than the blocked arc gets, to step aside
 
 
 class ControlParams(BaseModel):
@@ -329,12 +336,51 @@ class ControlNode(StepNode):
         if abs(curv) > 1.0 / p.min_turn_radius:
             v *= 1.0 / (abs(curv) * p.min_turn_radius)
         v = min(v, max(p.min_speed, p.approach_gain * dist))
-        free = f.arc_clearance(self.points, pose, v, v * curv, p.horizon,
-                               p.robot_radius + p.safety_margin)
+        radius = p.robot_radius + p.safety_margin
+        free = f.arc_clearance(self.points, pose, v, v * curv, p.horizon, radius)
+        if free < p.horizon:
+            curv, free = self._sidestep(pose, target, v, curv, free, radius)
         v = min(v, free / p.stop_time)
         if v < 0.02:
             return self._squeeze(pose, target, curv)
         return v, float(np.clip(v * curv, -p.max_turn, p.max_turn))
+
+    def _sidestep(self, pose: tuple[float, float, float], target: np.ndarray, v: float,
+                  curv: float, free: float, radius: float) -> tuple[float, float]:
+        """(curvature, clear length) to drive: the pursuit arc's, unless only points the
+        map does not explain block it; then the arc of the fan that gets nearest the target
+        (by at least SIDESTEP_GAIN more than the blocked one), the rightmost among equals."""
+        p = self.params
+        unmapped = self._unmapped(self.points)
+        if not unmapped.any():
+            return curv, free
+        if f.arc_clearance(self.points[~unmapped], pose, v, v * curv, p.horizon,
+                           radius) < p.horizon:
+            return curv, free  # the map's own obstacles block it: pursuit handles those
+        here = math.hypot(target[0] - pose[0], target[1] - pose[1])
+
+        def gain(k: float, reach: float) -> float:
+            x, y = f.arc_end(pose, k, reach)
+            return here - math.hypot(target[0] - x, target[1] - y)
+
+        best_k, best_reach = curv, free
+        best = gain(curv, free) + SIDESTEP_GAIN
+        sharpest = min(SIDESTEP_CURVATURE, p.max_turn / v)
+        for k in np.linspace(-sharpest, sharpest, SIDESTEP_ARCS).tolist():
+            reach = f.arc_clearance(self.points, pose, v, v * k, p.horizon, radius)
+            score = gain(k, reach)
+            if score > best:
+                best, best_k, best_reach = score, k, reach
+        return best_k, best_reach
+
+    def _unmapped(self, points: np.ndarray) -> np.ndarray:
+        """Which scan points the static map does not explain (farther than two cells from
+        its obstacles, as a recovery marks them)."""
+        g = self.planner.grid
+        nx, ny = self.planner.static_dist.shape
+        i = np.clip(np.floor((points[:, 0] - g.origin[0]) / g.res).astype(np.int64), 0, nx - 1)
+        j = np.clip(np.floor((points[:, 1] - g.origin[1]) / g.res).astype(np.int64), 0, ny - 1)
+        return self.planner.static_dist[i, j] > 2 * g.res
 
     def _squeeze(self, pose: tuple[float, float, float], target: np.ndarray, curv: float
                  ) -> tuple[float, float]:
