@@ -1,18 +1,22 @@
 """Many robots: real-time factor, cost over in-process and memory per robot, every packing.
 
-    python -m bench.swarm [--robots 1 4 16 64 256] [--seconds 5] [--out swarm.json]
+    python -m bench.swarm [--robots 1 4 16 64 256] [--seconds 5] [--spread N] [--out swarm.json]
 
 For each robot count N: an open arena sized to hold N robots (walls only, so the cost is
 the swarm's own), N robots placed from the seed with goals mirrored through the centre,
 a lidar (180 beams, 10 Hz) and the built-in controller (10 Hz) per robot, one physics node
 (50 Hz) for the world. It runs for a fixed simulated time (no early stop) with every
 packing: one process per node (``none``; skipped above ``--max-processes``), ``--pack
-kind`` (the world node, every lidar, every controller: 3 processes), ``--pack robot``
-(one process per robot plus the world's) and ``--in-process`` (the reference). Per run:
+kind`` (the world node, every lidar, every controller: 3 processes), ``spread`` (``--pack
+kind --spread N``: the lidars over N processes and the controllers over N, N = bench's
+``--spread``, by default half the cores less one), ``--pack robot`` (one process per robot plus the
+world's) and ``--in-process`` (the reference). Per run:
 real-time factor (sim s / wall s of the whole command), wall over the in-process wall,
 peak memory per robot (every process's peak RSS summed, over N), whether the digest equals
-the in-process one, and, from the in-process run, where the step time goes (physics,
-lidars, controllers). The floor is shared/notes/swarm-physics-floor.md (MuJoCo alone).
+the in-process one, where the step time goes (physics, lidars, controllers: summed over
+the nodes of each kind) and the tick loop's wall over the physics node's own step time
+(the one serial part of a tick: what spreading the other nodes over cores can reach). The
+floor is shared/notes/swarm-physics-floor.md (MuJoCo alone).
 
 Figures mean something only on an otherwise idle machine.
 """
@@ -22,12 +26,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import tempfile
 from pathlib import Path
 
 from bench.common import ROOT, run_manifest, write_scenario
 
-PACKINGS = ("none", "kind", "robot", "in-process")
+PACKINGS = ("none", "kind", "spread", "robot", "in-process")
+SPREAD = max(1, ((os.cpu_count() or 2) - 2) // 2)  # lidars and controllers: 2N + physics
 CLEARANCE = 0.8  # m between robot starts (the robots are 0.44 m across)
 
 
@@ -77,9 +83,10 @@ def scenario(n: int, seconds: float, directory: Path) -> Path:
     return write_scenario(doc, directory)
 
 
-def processes(n: int, packing: str) -> int:
+def processes(n: int, packing: str, spread: int = SPREAD) -> int:
     """How many node processes a packing starts."""
-    return {"none": 1 + 2 * n, "kind": 3, "robot": 1 + n, "in-process": 0}[packing]
+    return {"none": 1 + 2 * n, "kind": 3, "spread": 1 + 2 * min(spread, n), "robot": 1 + n,
+            "in-process": 0}[packing]
 
 
 def peak_mb(manifest: dict) -> float:
@@ -99,17 +106,21 @@ def where_time_goes(manifest: dict) -> dict[str, float]:
     return out
 
 
-def run(n: int, packing: str, path: Path, out: Path) -> dict:
+def run(n: int, packing: str, path: Path, out: Path, spread: int = SPREAD) -> dict:
     """One run's figures."""
     args = {"none": ("--pack", "node"), "kind": ("--pack", "kind"),
+            "spread": ("--pack", "kind", "--spread", str(spread)),
             "robot": ("--pack", "robot"), "in-process": ("--in-process",)}[packing]
     m = run_manifest(path, *args, out=out)
+    split = where_time_goes(m)
     return {"robots": n, "packing": packing, "status": m["outcome"]["status"],
             "digest": m["digest"], "wall_s": m["wall_time_s"], "loop_s": m["loop_s"],
             "real_time_factor": m["real_time_factor"],
             "loop_real_time_factor": m["loop_real_time_factor"],
             "peak_mb_per_robot": round(peak_mb(m) / n, 1),
-            "time_s": where_time_goes(m) if packing == "in-process" else None,
+            "time_s": split,
+            "loop_over_physics": (round(m["loop_s"] / split["physics"], 2)
+                                  if split["physics"] > 0 else None),
             "collisions_robots": (m.get("swarm") or {}).get("totals", {}).get(
                 "collisions_robots")}
 
@@ -120,6 +131,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 4, 16, 64, 256])
     parser.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per run")
     parser.add_argument("--packings", nargs="+", default=list(PACKINGS), choices=PACKINGS)
+    parser.add_argument("--spread", type=int, default=SPREAD,
+                        help="spread: the processes for the lidars, and for the controllers")
     parser.add_argument("--max-processes", type=int, default=70,
                         help="skip a packing that would start more node processes")
     parser.add_argument("--out", type=Path, help="write every row as JSON here")
@@ -134,12 +147,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
             for packing in order:
                 if packing not in a.packings and packing != "in-process":
                     continue
-                if processes(n, packing) > a.max_processes:
+                if processes(n, packing, a.spread) > a.max_processes:
                     rows.append({"robots": n, "packing": packing, "status": "skipped",
-                                 "why": f"{processes(n, packing)} processes > "
+                                 "why": f"{processes(n, packing, a.spread)} processes > "
                                         f"--max-processes {a.max_processes}"})
                     continue
-                row = run(n, packing, path, tmp / "runs")
+                row = run(n, packing, path, tmp / "runs", a.spread)
                 if reference is None:
                     reference = row
                 row["wall_over_in_process"] = round(row["wall_s"] / reference["wall_s"], 2)
@@ -165,7 +178,8 @@ def line(row: dict) -> str:
     if row["time_s"]:
         t = row["time_s"]
         text += (f"  steps: physics {t['physics']:.2f} s, lidars {t['lidar']:.2f} s, "
-                 f"controllers {t['control']:.2f} s")
+                 f"controllers {t['control']:.2f} s; loop/physics "
+                 f"{_f(row['loop_over_physics'], '.2f')}")
     return text
 
 

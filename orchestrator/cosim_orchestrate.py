@@ -114,6 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="which nodes share a process: each node alone, a robot's nodes\n"
                           "together, each kind's nodes together (default: the scenario's\n"
                           "process: keys, else each node alone)")
+    how.add_argument("--spread", type=int, metavar="N",
+                     help="with --pack kind: each kind's nodes over at most N processes\n"
+                          "(a swarm's lidars and controllers on N cores)")
     how.add_argument("--profile", choices=PROFILE_MODES,
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
@@ -128,7 +131,8 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
-                      pack=args.pack, shuffle_start=args.shuffle_start, strict=args.strict,
+                      pack=args.pack, spread=args.spread, shuffle_start=args.shuffle_start,
+                      strict=args.strict,
                       live=args.live, rosbridge=args.rosbridge, twin=args.twin)
 
 

@@ -258,7 +258,8 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                    outcome: RunOutcome, started: float, on_tick: OnTick | None,
                    external: Arrivals | Replay | None) -> LoopResult:
     supervisor = Supervisor(paths.logs)
-    layout = layout_of(scenario, options.pack)  # the one place a run decides its processes
+    layout = layout_of(scenario, options.pack, options.spread)  # the one place a run decides
+    # its processes
     site = Site(scenario, paths, options, supervisor, layout, external)
     settings = TransportSettings.of(scenario, options)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes

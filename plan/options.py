@@ -42,6 +42,7 @@ class RunOptions:
     camera_warm_up: bool = True  # build the camera's GL renderer in a thread at set-up
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
     pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
+    spread: int | None = None  # with pack kind: each kind's nodes over at most N processes
     shuffle_start: int | None = None  # tests: start node processes in a seeded order
     strict: bool = False  # refuse a scenario with warnings (ScenarioError: exit 2)
     live: str | None = None  # ADDR:PORT of a Foxglove WebSocket server watching the run
@@ -54,6 +55,9 @@ class RunOptions:
         if self.pack is not None and self.pack not in PACKINGS:
             raise ValueError(f"pack must be one of {', '.join(PACKINGS)} or None, "
                              f"not {self.pack!r}")
+        if self.spread is not None and (self.pack != "kind" or self.spread < 1):
+            raise ValueError(f"spread {self.spread!r} spreads the nodes of a kind over that "
+                             "many processes: a whole number >= 1, with pack kind")
         if self.profile is not None and self.profile not in PROFILE_MODES:
             raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
                              f"not {self.profile!r}")
@@ -107,7 +111,7 @@ class RunOptions:
         return out
 
 
-NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile", "pack")
+NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile", "pack", "spread")
 """The options a node process acts on."""
 
 assert set(NODE_FIELDS) <= {f.name for f in fields(RunOptions)}

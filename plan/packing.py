@@ -2,7 +2,9 @@
 
 Every node is its own process unless the scenario gives nodes the same ``process:`` name,
 or the run asks for a packing (``--pack``): ``node`` (each node alone), ``kind`` (the nodes
-of one kind together, e.g. every sensors node), ``robot`` (every node of a robot together:
+of one kind together, e.g. every sensors node; with ``--spread N`` each kind's nodes over at
+most N processes, in runs of consecutive nodes, so a swarm's lidars and controllers work in
+parallel on N cores without a process per node), ``robot`` (every node of a robot together:
 with one robot, all of the scenario's cosim nodes). Foreign programs, external nodes (that
 you start yourself), the orchestrator's own nodes and nodes with a launch ``prefix`` are
 never packed by ``--pack`` (only the role ``STEP`` packs, ``plan.roles``).
@@ -60,15 +62,19 @@ class ProcessLayout:
         return [p for p in self.processes if p.role.runs_step_runtime]
 
 
-def layout_of(scenario: Scenario, pack: str | None) -> ProcessLayout:
-    """The process layout of a run of ``scenario`` with packing ``pack``: computed once per
-    run (by the orchestrator; by a node process from its command line)."""
+def layout_of(scenario: Scenario, pack: str | None, spread: int | None = None
+              ) -> ProcessLayout:
+    """The process layout of a run of ``scenario`` with packing ``pack`` (and, packed by
+    kind, ``spread`` processes at most a kind): computed once per run (by the orchestrator;
+    by a node process from its command line)."""
     keyed: dict[str, list[str]] = {}
     roles: dict[str, NodeRole] = {}
     for name, plan in scenario.nodes.items():
         key = _group_of(name, plan, pack) if plan.role.packable else f"node:{name}"
         keyed.setdefault(key, []).append(name)
         roles[key] = plan.role
+    if spread is not None:
+        keyed, roles = _spread(keyed, roles, spread)
     processes = tuple(Process(process_label(names) if roles[key].packable else names[0],
                               tuple(names), roles[key]) for key, names in keyed.items())
     where = {name: p.label for p in processes for name in p.names}
@@ -80,6 +86,21 @@ def layout_of(scenario: Scenario, pack: str | None) -> ProcessLayout:
                 seen[edge.topic].add(where[edge.consumer])
         readers[producer] = {topic: len(labels) for topic, labels in seen.items()}
     return ProcessLayout(pack, processes, where, readers)
+
+
+def _spread(keyed: dict[str, list[str]], roles: dict[str, NodeRole], spread: int
+            ) -> tuple[dict[str, list[str]], dict[str, NodeRole]]:
+    """Each packed group split into at most ``spread`` runs of consecutive nodes (of n
+    nodes, node i goes to run i * spread // n), in the order of their first node."""
+    out: dict[str, list[str]] = {}
+    out_roles: dict[str, NodeRole] = {}
+    for key, names in keyed.items():
+        parts = spread if roles[key].packable else 1
+        for i, name in enumerate(names):
+            part = f"{key}/{i * parts // len(names)}"
+            out.setdefault(part, []).append(name)
+            out_roles[part] = roles[key]
+    return out, out_roles
 
 
 def _group_of(name: str, plan: NodePlan, pack: str | None) -> str:

@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
         return run_realtime(scenario, names[0], args.rtf, options, live)
     # a process started from a command line has only the file and the options: it lays the
     # run out as the orchestrator did (the same function of the same two values)
-    layout = layout_of(scenario, options.pack)
+    layout = layout_of(scenario, options.pack, options.spread)
     if len(names) > 1:
         return run_packed(scenario, names, args.run_dir, options, layout)
     if not started_by_orchestrator():
