@@ -117,11 +117,9 @@ def robot_footprint_radius(model, base_body: str) -> float:
     root = model.body_rootid[base]
     centre = data.xpos[base, :2]
     radius = 0.0
-    for g in range(model.ngeom):
-        if model.body_rootid[model.geom_bodyid[g]] != root:
-            continue
-        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
-            continue
+    own = (model.body_rootid[model.geom_bodyid] == root) & (
+        (model.geom_contype != 0) | (model.geom_conaffinity != 0))
+    for g in np.flatnonzero(own).tolist():  # this robot's colliding geoms, not the swarm's
         offset = math.hypot(*(data.geom_xpos[g, :2] - centre))
         radius = max(radius, offset + float(model.geom_rbound[g]))
     return radius

@@ -33,11 +33,12 @@ from nodes.control.grid import (
     obstacle_grid,
     padded_list,
 )
-from plan.world_geometry import Obstacle
+from plan.obstacles import Obstacle
 
 Z_BAND = (0.02, 0.6)  # m: obstacles in this height band are on the map
 SHARED_MAPS = 4  # static maps a process keeps (one per world and map parameters)
 _shared: dict[tuple, StaticMap] = {}
+_by_model: dict[tuple, tuple] = {}  # (id(model), settings) -> (model, its StaticMap)
 
 
 @dataclass
@@ -55,12 +56,17 @@ def static_map(model: mujoco.MjModel, params: BaseModel) -> StaticMap:
     """The shared static map of ``model``'s obstacles for these map parameters, built on first
     use. The key is the obstacles themselves, not the file, so a world rewritten in place
     gets its own map."""
-    obstacles = band_obstacles(model, Z_BAND)
     keys = ("resolution", "lethal_distance", "cost_distance", "cost_weight", "robot_radius",
             "safety_margin")
-    key = (tuple(getattr(params, k) for k in keys), tuple(_obstacle_key(o) for o in obstacles))
+    settings = tuple(getattr(params, k) for k in keys)
+    same = _by_model.get((id(model), settings))  # the swarm's nodes share one model
+    if same is not None and same[0] is model:
+        return same[1]
+    obstacles = band_obstacles(model, Z_BAND)
+    key = (settings, tuple(_obstacle_key(o) for o in obstacles))
     found = _shared.get(key)
     if found is not None:
+        _remember(model, settings, found)
         return found
     grid = obstacle_grid(obstacles, params.resolution)
     cap = max(params.cost_distance, params.lethal_distance) + params.resolution
@@ -72,7 +78,14 @@ def static_map(model: mujoco.MjModel, params: BaseModel) -> StaticMap:
     if len(_shared) >= SHARED_MAPS:
         _shared.pop(next(iter(_shared)))
     found = _shared[key] = StaticMap(grid, dist, cost, narrow)
+    _remember(model, settings, found)
     return found
+
+
+def _remember(model: mujoco.MjModel, settings: tuple, found: StaticMap) -> None:
+    if len(_by_model) >= SHARED_MAPS:
+        _by_model.pop(next(iter(_by_model)))
+    _by_model[(id(model), settings)] = (model, found)
 
 
 def _obstacle_key(o: Obstacle) -> tuple:

@@ -468,10 +468,24 @@ def _pose(odom: Any) -> tuple[float, float, float]:
     return pose_of(odom.pose.pose)
 
 
+_POSED: dict[int, tuple] = {}  # id(model) -> (model, its data at the default pose)
+
+
+def _posed(model: mujoco.MjModel) -> mujoco.MjData:
+    """The model's data at its default pose (kinematics only), one per model: a swarm's
+    controllers share one model, and this is a whole swarm's worth of bodies."""
+    found = _POSED.get(id(model))
+    if found is None or found[0] is not model:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        _POSED.clear()  # keep only the latest model alive
+        found = _POSED[id(model)] = (model, data)
+    return found[1]
+
+
 def _laser_mount(model: mujoco.MjModel, base: str, site: str) -> tuple[float, float, float]:
     """(x, y, yaw) of the laser site in the base body's frame, from the MJCF."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    data = _posed(model)
     b = body_id(model, base)
     s = named_id(model, mujoco.mjtObj.mjOBJ_SITE, site)
     rel = mat_t_vec(data.xmat[b], data.site_xpos[s] - data.xpos[b])
