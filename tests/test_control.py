@@ -14,7 +14,14 @@ from sensor_msgs.msg import LaserScan
 from nodes.contract import NodeConfig, Tick
 from nodes.control.follow import arc_clearance
 from nodes.control.global_planner import Planner
-from nodes.control.grid import astar, world_grid
+from nodes.control.grid import (
+    HEURISTIC_WEIGHT,
+    NEIGHBOURS,
+    astar,
+    components,
+    reachable,
+    world_grid,
+)
 from nodes.control.node import ControlNode
 from tests.worlds import write_world
 
@@ -172,3 +179,84 @@ def test_report_picture_draws_cylinders_as_circles(tmp_path):
     world = load_world(write_world(tmp_path, PILLAR_ROW + WALLS))
     assert sorted(r for _, _, r in world.circles) == [0.29] * 6
     assert len(world.polygons) == 4
+
+
+# -- a robot costs what it must (issue 41) ---------------------------------------------------
+
+
+def test_planners_of_one_world_share_the_static_map_until_one_marks_points(tmp_path):
+    model = mujoco.MjModel.from_xml_path(str(write_world(tmp_path, WALL)))
+    a, b = Planner(model, ControlNode.Params()), Planner(model, ControlNode.Params())
+    assert a.cost is b.cost and a.static_dist is b.static_dist
+    assert a.plan((-2.0, 0.0), (2.0, 0.0)) is not None
+    assert a.derived is b.derived and ("labels", False) in b.derived  # one flood fill for both
+    a.mark(np.array([[-1.0, -3.0], [-1.0, -3.05]]))  # an unmapped thing: a's map only
+    assert a.cost is not b.cost and np.isinf(a.cost[a.grid.cell(-1.0, -3.0)])
+    assert np.isfinite(b.cost[b.grid.cell(-1.0, -3.0)])
+    assert not b.static_dist.flags.writeable  # shared: nobody may write into it
+    wider = Planner(model, ControlNode.Params(lethal_distance=0.4))
+    assert wider.cost is not a.shared.cost  # other map parameters: a map of their own
+
+
+def test_components_join_what_a_flood_fill_joins():
+    passable = np.ones((30, 30), dtype=bool)
+    passable[15, :] = False  # two halves
+    passable[5, 5] = False
+    labels = components(passable)
+    assert labels[0, 0] == labels[14, 29] != labels[16, 0] == labels[29, 29] != 0
+    assert labels[15, 3] == 0 and labels[5, 5] == 0
+    assert (labels == labels[0, 0]).sum() == reachable(passable, (0, 0)).sum()
+
+
+def test_astar_plans_within_the_heuristic_weight_of_the_cheapest():
+    rng = np.random.default_rng(3)
+    cost = 1.0 + rng.uniform(0.0, 3.0, (40, 40))
+    cost[20, 5:40] = np.inf
+
+    def length(path):
+        return sum(math.hypot(a - c, b - d) * 0.5 * (cost[a, b] + cost[c, d])
+                   for (a, b), (c, d) in zip(path, path[1:], strict=False))
+
+    path = astar(cost, (2, 30), (38, 30))
+    dijkstra = _cheapest(cost, (2, 30), (38, 30))
+    assert dijkstra <= length(path) <= HEURISTIC_WEIGHT * dijkstra + 1e-9
+
+
+def _cheapest(cost: np.ndarray, start, goal) -> float:
+    """Dijkstra's cost of the cheapest 8-connected path (the reference for A*)."""
+    import heapq
+
+    best, heap = {start: 0.0}, [(0.0, start)]
+    while heap:
+        g, (i, j) = heapq.heappop(heap)
+        if (i, j) == goal:
+            return g
+        if g > best[(i, j)]:
+            continue
+        for di, dj, step in NEIGHBOURS:
+            a, b = i + di, j + dj
+            if 0 <= a < cost.shape[0] and 0 <= b < cost.shape[1] and np.isfinite(cost[a, b]):
+                ng = g + step * 0.5 * (cost[i, j] + cost[a, b])
+                if ng < best.get((a, b), math.inf):
+                    best[(a, b)] = ng
+                    heapq.heappush(heap, (ng, (a, b)))
+    return math.inf
+
+
+@pytest.mark.parametrize(("centre", "turn"), [(200, -1.0), (160, 1.0)])
+def test_steps_aside_from_an_unmapped_robot_without_replanning(tmp_path, centre, turn):
+    node = ControlNode()
+    node.reset(0, NodeConfig("control", ControlNode.Params(), 1_000_000, 100_000_000,
+                             write_world(tmp_path, WALLS),
+                             goal={"x": -2.0, "y": 3.0, "yaw": 0.0, "position_tolerance": 0.2,
+                                   "yaw_tolerance": 3.0}))
+    here = odom(-2.0, -2.0, math.pi / 2)
+    out = node.step(Tick(0, 0), {"/odom": here, "/scan": empty_scan()})
+    assert out["/cmd_vel"].linear.x > 0.2 and abs(out["/cmd_vel"].angular.z) < 0.2
+    plan = node.path
+    ranges = [math.inf] * 360
+    for k in range(centre - 8, centre + 9):  # a robot-sized thing 0.5 m away, 20 degrees
+        ranges[k] = 0.5  # to one side of straight ahead, not on the map
+    out = node.step(Tick(1, 100_000_000), {"/odom": here, "/scan": empty_scan(ranges)})
+    assert out["/cmd_vel"].linear.x > 0.2 and out["/cmd_vel"].angular.z * turn > 0.3  # away
+    assert node.path is plan and node.recoveries == 0  # the plan is kept

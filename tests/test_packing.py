@@ -97,3 +97,24 @@ def test_a_long_packed_group_gets_a_short_process_label():
     label = process_label(names)
     assert label == "control@robot_0+63_more"
     assert process_label(["physics", "lidar"]) == "physics+lidar"
+
+
+def test_spread_splits_each_kind_over_at_most_n_processes_in_runs():
+    scenario = load_scenario(SCENARIOS / "swarm_small.yaml")  # 4 robots: lidar, control each
+
+    def groups(spread):
+        return [list(p.names) for p in layout_of(scenario, "kind", spread).node_processes]
+
+    assert ["physics"] in groups(2)
+    assert ["lidar@robot_0", "lidar@robot_1"] in groups(2)
+    assert ["control@robot_2", "control@robot_3"] in groups(2) and len(groups(2)) == 5
+    assert len(groups(9)) == 9  # never more processes than nodes
+    assert groups(1) == [list(p.names) for p in layout_of(scenario, "kind").node_processes]
+
+
+@pytest.mark.parametrize("args", [("--pack", "kind", "--spread", "0"), ("--spread", "2"),
+                                  ("--pack", "robot", "--spread", "2")])
+def test_a_bad_spread_is_refused_with_exit_2(tmp_path, args):
+    done = orchestrate(PROTOCOL, tmp_path, *args, "--quiet")
+    assert done.code == 2 and "spread" in done.stderr and "pack kind" in done.stderr
+    assert done.run_dir is None

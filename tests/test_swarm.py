@@ -150,7 +150,7 @@ def test_every_packing_gives_one_digest_and_the_bag_has_every_namespace(tmp_path
     reference = orchestrate(SMALL, tmp_path / "in", "--in-process", "--quiet")
     assert reference.code == 0, reference.stderr
     digest = reference.manifest["digest"]
-    for args in ((), ("--pack", "kind"), ("--pack", "robot")):
+    for args in ((), ("--pack", "kind"), ("--pack", "robot"), ("--pack", "kind", "--spread", "2")):
         done = orchestrate(SMALL, tmp_path / "mp", *args, "--quiet")
         assert done.code == 0, done.stderr
         assert done.manifest["digest"] == digest, args

@@ -10,8 +10,8 @@
   away; slow down on sharp curvature, near the goal, and before scan points on the arc).
   When what blocks the arc is something the map does not know (another robot, a person),
   it steps aside: of a fan of arcs at the same speed, the one whose clear stretch gets
-  nearest the pursuit target, the rightmost among equals (so two robots meeting head-on
-  both keep right and pass); the plan is kept, nothing is replanned.
+  nearest the pursuit target (the rightmost among equals); the plan is kept, nothing is
+  replanned. Head-on, where no arc of the fan gets nearer, it slows and creeps as before.
   Where scan points within the safety margin block the arc (a narrow passage), creep at
   min_speed keeping tight_margin, on the pursuit arc or the clear arc nearest its target.
 - Goal checker: position tolerance, then turn in place to the goal heading; once reached
