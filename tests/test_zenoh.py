@@ -24,11 +24,12 @@ SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison:
 
 
 def all_scenarios() -> list[Path]:
-    """Every scenario of the repository that cosim runs alone (no foreign ROS 2 program)."""
+    """Every scenario of the repository that cosim runs alone (no foreign ROS 2 program, no
+    robot of a digital twin to connect to)."""
     out = []
     for path in sorted([*(ROOT / "scenarios").glob("*.yaml"), *SCENARIOS.glob("*.yaml")]):
         doc = yaml.safe_load(path.read_text())
-        if not any("command" in node for node in doc.get("nodes", [])):
+        if "twin" not in doc and not any("command" in node for node in doc.get("nodes", [])):
             out.append(path)
     return out
 
