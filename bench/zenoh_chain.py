@@ -3,8 +3,9 @@
     python -m bench.zenoh_chain [--repeats 3] [--seconds 3] [--skip-nav] [--skip-payload]
 
 Prints, each measured side by side on this machine:
-- ticks/s of a same-tick chain of 3 trivial counter nodes over zenoh and over ros2 (median
-  of ``--repeats`` interleaved runs, full protocol: clock, status, sequence checks, digest);
+- ticks/s of a same-tick chain of 3 trivial counter nodes over zenoh (batched, the default),
+  zenoh with ``--zenoh-express`` and ros2 (median of ``--repeats`` interleaved runs, full
+  protocol: clock, status, sequence checks, digest), and CPU per tick of each process;
 - nav.yaml without its camera: wall time multi-process (zenoh, ros2) over in-process;
 - round trips/s of one sensor_msgs/Image of 1 KiB, 1 MiB and 4 MiB between two processes
   through the transport seam: ros2, zenoh with its default shared-memory optimisation,
@@ -30,33 +31,42 @@ from bench.lockstep import chain
 SIZES = (1024, 1 << 20, 4 << 20)
 
 
+WAYS = {"zenoh": ("--transport", "zenoh"),
+        "zenoh express": ("--transport", "zenoh", "--zenoh-express"),
+        "ros2": ("--transport", "ros2")}
+"""How the chain is run: zenoh (batched, the default), zenoh writing every message at once,
+ros2."""
+
+
 def chain_rates(repeats: int, seconds: int) -> dict[str, float]:
-    """Median ticks/s of the 3-node chain per transport, runs interleaved."""
-    rates: dict[str, list[float]] = {"zenoh": [], "ros2": []}
+    """Median ticks/s of the 3-node chain per way of running it, runs interleaved."""
+    rates: dict[str, list[float]] = {way: [] for way in WAYS}
     with tempfile.TemporaryDirectory() as tmp:
         path = write_scenario(chain(3, seconds), Path(tmp))
         for _ in range(repeats):
-            for transport in rates:
-                rates[transport].append(run_manifest(path, "--transport", transport)
-                                        ["ticks_per_s"])
+            for way in rates:
+                rates[way].append(run_manifest(path, *WAYS[way])["ticks_per_s"])
     return {t: statistics.median(v) for t, v in rates.items()}
 
 
-def chain_cpu_per_tick(seconds: int) -> dict[str, float]:
-    """CPU microseconds per tick of the 3-node chain, all processes together (orchestrator and
-    nodes), from runs of 1 s and 1 + ``seconds`` s: the difference cancels the start-up cost,
-    and CPU time, unlike ticks/s, hardly depends on what else the machine is doing."""
+def chain_cpu_per_tick(seconds: int) -> dict[str, dict[str, float]]:
+    """CPU microseconds per tick of the 3-node chain per process (orchestrator and nodes),
+    per way of running it, from runs of 1 s and 1 + ``seconds`` s: the difference cancels
+    the start-up cost, and CPU time, unlike ticks/s, depends less on what else the machine is
+    doing (still: take several rounds on a loaded machine)."""
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for transport in ("zenoh", "ros2"):
-            cpu = []
+        for way, args in WAYS.items():
+            cpu, ticks = [], []
             for secs in (1, 1 + seconds):
                 doc = chain(3, secs)
                 doc["name"] = f"chain3_{secs}s"
-                m = run_manifest(write_scenario(doc, Path(tmp)), "--transport", transport)
-                cpu.append(m["orchestrator"]["cpu_s"]
-                           + sum(n["cpu_s"] for n in m["nodes"].values()))
-            out[transport] = (cpu[1] - cpu[0]) / (seconds * 1000) * 1e6
+                m = run_manifest(write_scenario(doc, Path(tmp)), *args)
+                cpu.append({"orchestrator": m["orchestrator"]["cpu_s"],
+                            **{n: v["cpu_s"] for n, v in m["nodes"].items()}})
+                ticks.append(m["ticks"])
+            out[way] = {p: (cpu[1][p] - cpu[0][p]) / (ticks[1] - ticks[0]) * 1e6
+                        for p in cpu[0]}
     return out
 
 
@@ -148,11 +158,14 @@ def main(argv: list[str] | None = None) -> None:
     os.environ.setdefault("ROS_DOMAIN_ID", bench_env()["ROS_DOMAIN_ID"])
     print(f"machine: {os.cpu_count()} CPUs")
     rates = chain_rates(args.repeats, args.seconds)
-    for transport, rate in rates.items():
-        print(f"chain3 over {transport:5s} (ticks/s, median of {args.repeats}) {rate:10.0f}")
-    print(f"chain3 zenoh / ros2 {rates['zenoh'] / rates['ros2']:.2f}")
-    for transport, us in chain_cpu_per_tick(args.seconds).items():
-        print(f"chain3 over {transport:5s} CPU per tick, all processes (us) {us:8.0f}")
+    for way, rate in rates.items():
+        print(f"chain3 over {way:13s} (ticks/s, median of {args.repeats}) {rate:10.0f}")
+    print(f"chain3 zenoh / ros2 {rates['zenoh'] / rates['ros2']:.2f}  "
+          f"(zenoh express / ros2 {rates['zenoh express'] / rates['ros2']:.2f})")
+    for way, per in chain_cpu_per_tick(args.seconds).items():
+        parts = "  ".join(f"{p} {us:.0f}" for p, us in per.items())
+        print(f"chain3 over {way:13s} CPU per tick (us): all {sum(per.values()):6.0f}  "
+              f"({parts})")
     if not args.skip_nav:
         walls = nav_without_camera(args.repeats)
         for way, wall in walls.items():

@@ -108,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "interpreters")
     how.add_argument("--no-zenoh-shm", action="store_true",
                      help="zenoh: no shared memory for large messages")
+    how.add_argument("--zenoh-express", action="store_true",
+                     help="zenoh: write every message at once (no batching of messages\n"
+                          "published back to back; costs more CPU per tick)")
     how.add_argument("--no-camera-warm-up", action="store_true",
                      help="cameras build their GL renderer at the first frame, not at set-up")
     how.add_argument("--pack", choices=PACKINGS,
@@ -130,6 +133,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
     return RunOptions(out=args.out, in_process=args.in_process, paused=args.paused,
                       export_usd=args.export_usd, pipeline=not args.no_pipeline,
                       spawn=args.spawn, zenoh_shm=not args.no_zenoh_shm,
+                      zenoh_express=args.zenoh_express,
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
                       pack=args.pack, spread=args.spread, shuffle_start=args.shuffle_start,
                       strict=args.strict,

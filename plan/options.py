@@ -39,6 +39,7 @@ class RunOptions:
     pipeline: bool = True  # False: every node finishes tick k before /clock says k + 1
     spawn: Literal["fork", "exec"] = "fork"  # exec: fresh interpreters for cosim nodes
     zenoh_shm: bool = True  # zenoh's shared-memory transport for large messages
+    zenoh_express: bool = False  # zenoh: write every message at once instead of batching
     camera_warm_up: bool = True  # build the camera's GL renderer in a thread at set-up
     profile: Literal["wall", "cpu"] | None = None  # a cProfile of each node in its run dir
     pack: Literal["node", "robot", "kind"] | None = None  # None: the scenario's process: keys
@@ -111,7 +112,7 @@ class RunOptions:
         return out
 
 
-NODE_FIELDS = ("zenoh_shm", "camera_warm_up", "profile", "pack", "spread")
+NODE_FIELDS = ("zenoh_shm", "zenoh_express", "camera_warm_up", "profile", "pack", "spread")
 """The options a node process acts on."""
 
 assert set(NODE_FIELDS) <= {f.name for f in fields(RunOptions)}
@@ -130,6 +131,7 @@ class TransportSettings:
     zenoh_listen: tuple[str, ...] = ()
     zenoh_connect: tuple[str, ...] = ()
     zenoh_shm: bool = True
+    zenoh_express: bool = False
     mirror_to_dds: tuple[str, ...] = field(default=())
 
     @classmethod
@@ -139,4 +141,5 @@ class TransportSettings:
         return cls(kind=model.transport, zenoh_listen=tuple(model.zenoh.listen),
                    zenoh_connect=tuple(model.zenoh.connect),
                    zenoh_shm=(options or RunOptions()).zenoh_shm,
+                   zenoh_express=(options or RunOptions()).zenoh_express,
                    mirror_to_dds=tuple(model.zenoh.mirror_to_dds))

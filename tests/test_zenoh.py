@@ -24,11 +24,12 @@ SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison:
 
 
 def all_scenarios() -> list[Path]:
-    """Every scenario of the repository that cosim runs alone (no foreign ROS 2 program)."""
+    """Every scenario of the repository that cosim runs alone (no foreign ROS 2 program, no
+    robot of a digital twin to connect to)."""
     out = []
     for path in sorted([*(ROOT / "scenarios").glob("*.yaml"), *SCENARIOS.glob("*.yaml")]):
         doc = yaml.safe_load(path.read_text())
-        if not any("command" in node for node in doc.get("nodes", [])):
+        if "twin" not in doc and not any("command" in node for node in doc.get("nodes", [])):
             out.append(path)
     return out
 
@@ -161,6 +162,52 @@ def test_nodes_in_another_network_namespace_over_tcp_give_the_same_digest(tmp_pa
     manifest = json.loads(next(tmp_path.glob("*/manifest.json")).read_text())
     assert manifest["digest"] == run_in_process(scenario).digest
     logs = next(tmp_path.glob("*/logs"))
+    assert all((logs / f"{node}.log").exists() for node in instances)
+    assert {(tmp_path / f"{node}.netns").read_text().strip() for node in moved} == {ns_b}
+
+
+def _split_swarm(tmp_path: Path) -> Path:
+    """swarm_small with its per-robot templates split in two: robots 0 and 1 keep 'lidar' and
+    'control', robots 2 and 3 get copies named 'lidar_b' and 'control_b' (the ones to move)."""
+    doc = yaml.safe_load((SCENARIOS / "swarm_small.yaml").read_text())
+    doc["world"] = str((SCENARIOS / doc["world"]).resolve())
+    doc["robots"]["description"] = str((SCENARIOS / doc["robots"]["description"]).resolve())
+    robots = [f"robot_{i}" for i in range(doc["robots"]["count"])]
+    half = len(robots) // 2
+    split = []
+    for node in doc["nodes"]:
+        if node.get("for_each") == "robot":
+            split.append({**node, "robots": robots[:half]})
+            split.append({**node, "name": node["name"] + "_b", "robots": robots[half:]})
+        else:
+            split.append(node)
+    doc["nodes"], doc["name"] = split, "swarm_split"
+    path = tmp_path / "swarm_split.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def test_swarm_split_across_two_hosts_over_zenoh_gives_the_in_process_digest(tmp_path, two_hosts):
+    """The orchestrator, physics and robots 0-1 in namespace A; robots 2-3 (lidar and
+    controller each) in namespace B, linked over TCP on the veth pair only."""
+    ns_a, ns_b, address = two_hosts
+    path = _split_swarm(tmp_path)
+    scenario = load_scenario(path)
+    moved = ["lidar_b", "control_b"]
+    instances = [n for n in scenario.nodes if n.split("@")[0] in moved]
+    assert len(instances) == 4 and len(scenario.nodes) == 9
+    prefixes = [f"nodes.{node}.prefix=ip netns exec {ns_b} sh -c 'ip netns identify "
+                f"> {tmp_path}/{node}.netns; exec \"$@\"' sh" for node in moved]
+    proc = subprocess.run(
+        ["ip", "netns", "exec", ns_a, *ORCHESTRATE, str(path),
+         "--out", str(tmp_path / "out"), "--transport", "zenoh", "--quiet", "--duration", "2s",
+         "--set", f"zenoh.listen={json.dumps([f'tcp/{address}:7447'])}",
+         *[arg for prefix in prefixes for arg in ("--set", prefix)]],
+        cwd=ROOT, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    manifest = json.loads(next(tmp_path.glob("out/*/manifest.json")).read_text())
+    assert manifest["digest"] == run_in_process(load_scenario(path, {"duration": "2s"})).digest
+    logs = next(tmp_path.glob("out/*/logs"))
     assert all((logs / f"{node}.log").exists() for node in instances)
     assert {(tmp_path / f"{node}.netns").read_text().strip() for node in moved} == {ns_b}
 

@@ -39,6 +39,13 @@ Large messages: zenoh's shared-memory transport optimisation (on by default: mes
 the run option ``zenoh_shm=False`` (``--no-zenoh-shm``) turns it off (bench/zenoh_chain.py
 measures both).
 
+Sending: publishers are not express (``express`` off, zenoh's default): a message is queued in
+the link's current batch and zenoh's transmit thread writes the batch, so messages published
+back to back (the orchestrator's /clock for the ticks of its window, a node's outputs) share
+one write and one wake-up of the receiver. Express (every message written at once) cost
+20-35% more CPU per tick in the 3-node chain (bench/README.md, "zenoh"); the run option
+``zenoh_express=True`` (``--zenoh-express``) brings it back, for comparisons.
+
 Receiving: every subscriber is a direct callback (run on zenoh's network thread) that
 appends ``Received`` items to one queue per participant; ``wait()`` blocks on that queue, so
 a node blocks on one thing whatever the number of its inputs. zenoh's threads are not Python
@@ -178,7 +185,8 @@ def session_config(mode: str, listen: list[str], connect: list[str], shm: bool =
 
 
 class ZenohPublisher(Publisher):
-    """A zenoh publisher numbering its messages in the attachment. A latched one is an
+    """A zenoh publisher numbering its messages in the attachment (reliable, blocking, batched
+    unless the transport is express: see the module docstring). A latched one is an
     advanced publisher that caches its last ``depth`` samples for late advanced
     subscriptions, as rmw_zenoh does for transient-local durability."""
 
@@ -187,7 +195,8 @@ class ZenohPublisher(Publisher):
         self.topic = topic
         self._transport = transport
         options = {"reliability": zenoh.Reliability.RELIABLE,
-                   "congestion_control": zenoh.CongestionControl.BLOCK, "express": True}
+                   "congestion_control": zenoh.CongestionControl.BLOCK,
+                   "express": transport.express}
         key = topic_key(topic, msg_type)
         if latched:
             self._pub = zenoh.ext.declare_advanced_publisher(
@@ -226,11 +235,13 @@ class ZenohSubscription(Subscription):
         self._transport = transport
         put = transport._inbox.put
 
-        def deliver(sample: zenoh.Sample, topic: str = topic) -> None:
-            _keep_thread_state()
+        def deliver(sample: zenoh.Sample, topic: str = topic, kept: set = _threads_kept,
+                    ident=threading.get_ident, number=int.from_bytes) -> None:
+            if ident() not in kept:  # (bound defaults: this runs for every message)
+                _keep_thread_state()
             attachment = sample.attachment
             put(Received(topic, sample.payload.to_bytes(),
-                         int.from_bytes(attachment.to_bytes(), "little")
+                         number(attachment.to_bytes(), "little")
                          if attachment is not None else None))
 
         key, handler = topic_key(topic, msg_type), zenoh.handlers.Callback(deliver, indirect=False)
@@ -254,6 +265,7 @@ class ZenohTransport(Transport):
     def __init__(self, participant: str, settings: TransportSettings | None = None):
         settings = settings or TransportSettings(kind="zenoh")
         self.participant = participant
+        self.express = settings.zenoh_express
         self.domain = domain_id()
         connect = _endpoints(os.environ.get(CONNECT_ENV))
         self.root = not connect
