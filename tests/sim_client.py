@@ -157,3 +157,37 @@ def orchestrate(scenario, out, *args: str):
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.communicate()
+
+
+@dataclass
+class LiveRun:
+    """One paused run a client session drove: its directory, digest, the tick it was stopped
+    before, the orchestrator's exit code and standard error."""
+
+    run_dir: object
+    digest: str
+    stopped_at: int
+    returncode: int
+    stderr: str
+
+
+def live_runs(ros, scenario, tmp_path, session: Callable[[SimClient, bool], int],
+              times: int = 2) -> list[LiveRun]:
+    """Run ``scenario`` paused ``times`` times, each driven by ``session(client, checks)``
+    (which returns the tick it stopped the run before; checks only on the first), and
+    check each manifest's tick count."""
+    import json
+
+    runs = []
+    for n in range(times):
+        out = tmp_path / f"live{n}"
+        sim = SimClient(ros)
+        with orchestrate(scenario, out, "--paused") as proc:
+            stopped_at = session(sim, n == 0)
+            _, err = proc.communicate(timeout=120)
+        sim.close()
+        run_dir = next(out.iterdir())
+        manifest = json.loads((run_dir / "manifest.json").read_text())
+        assert manifest["ticks"] == stopped_at, err
+        runs.append(LiveRun(run_dir, manifest["digest"], stopped_at, proc.returncode, err))
+    return runs

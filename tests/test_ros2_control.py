@@ -6,7 +6,6 @@ one digest across repeats and in-process."""
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 
@@ -28,7 +27,7 @@ from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
 from plan.ros_types import message_class
 from tests.helpers import ORCHESTRATE, ROOT
-from tests.sim_client import OK, SimClient, orchestrate
+from tests.sim_client import OK, SimClient, live_runs
 
 ARM = ROOT / "scenarios" / "arm_control.yaml"
 JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
@@ -245,21 +244,10 @@ def session(sim: SimClient, checks: bool) -> tuple[int, list[float]]:
 
 def test_a_moveit_users_client_drives_the_arm_reproducibly(tmp_path, ros_node,
                                                             trajectory_scenario):
-    runs = []
-    for n in range(2):
-        out = tmp_path / f"live{n}"
-        sim = SimClient(ros_node)
-        with orchestrate(trajectory_scenario, out, "--paused") as proc:
-            stopped_at = session(sim, checks=n == 0)
-            _, err = proc.communicate(timeout=120)
-        sim.close()
-        run_dir = next(out.iterdir())
-        manifest = json.loads((run_dir / "manifest.json").read_text())
-        assert manifest["ticks"] == stopped_at, err
-        runs.append((run_dir, manifest["digest"]))
-    assert runs[0][1] == runs[1][1]  # the same requests at the same ticks: the same run
+    runs = live_runs(ros_node, trajectory_scenario, tmp_path, session)
+    assert runs[0].digest == runs[1].digest  # the same requests at the same ticks: one run
 
-    run_dir, digest = runs[0]
+    run_dir, digest, stopped_at = runs[0].run_dir, runs[0].digest, runs[0].stopped_at
     with BagReader(run_dir / "bag") as bag:
         states = {s // TICK_NS: m for s, m in bag.messages(
             "/joint_states", message_class("sensor_msgs/msg/JointState"))}

@@ -25,7 +25,7 @@ from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
 from plan.ros_types import message_class
 from tests.helpers import ORCHESTRATE, ROOT
-from tests.sim_client import OK, SimClient, orchestrate
+from tests.sim_client import OK, SimClient, live_runs
 
 NAV = ROOT / "scenarios" / "nav.yaml"
 TICK_NS = 20_000_000
@@ -163,22 +163,12 @@ def _arrived(msg) -> bool:
 
 
 def test_clients_drive_the_run_reproducibly(tmp_path, ros_node, scenario_file):
-    runs = []
-    for n in range(2):
-        out = tmp_path / f"live{n}"
-        sim = SimClient(ros_node)
-        with orchestrate(scenario_file, out, "--paused") as proc:
-            stopped_at = session(sim, checks=n == 0)
-            _, err = proc.communicate(timeout=120)
-        sim.close()
-        assert proc.returncode == 1, err  # stopped with no goal left: goal not met
-        run_dir = next(out.iterdir())
-        manifest = json.loads((run_dir / "manifest.json").read_text())
-        assert manifest["ticks"] == stopped_at
-        runs.append((run_dir, manifest["digest"]))
-    assert runs[0][1] == runs[1][1]  # the same requests at the same ticks: the same run
+    runs = live_runs(ros_node, scenario_file, tmp_path, session)
+    for run in runs:
+        assert run.returncode == 1, run.stderr  # stopped with no goal left: goal not met
+    assert runs[0].digest == runs[1].digest  # the same requests at the same ticks: one run
 
-    run_dir, digest = runs[0]
+    run_dir, digest, stopped_at = runs[0].run_dir, runs[0].digest, runs[0].stopped_at
     scenario = load_scenario(scenario_file, {"duration": f"{(stopped_at - 1) * 20}ms"})
     inputs = recorded_inputs(run_dir, scenario)
     assert sorted(inputs)[0] == 10  # paused at tick 10: everything entered at tick 10
