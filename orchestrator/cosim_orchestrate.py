@@ -59,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
+    p.add_argument("--domain", metavar="ID",
+                   help="the ROS domain of the run (default: ROS_DOMAIN_ID when set, else a\n"
+                        "free one of its own, printed); discovery stays on this machine\n"
+                        "unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise")
     p.add_argument("--strict", action="store_true",
                    help="refuse a scenario that has warnings (a goal the controller's map\n"
                         "cannot reach, an output nobody reads, ...): exit 2, nothing started")
@@ -184,6 +188,18 @@ def _check_twin_has_robot(scenario, args: argparse.Namespace) -> None:
                         "to feed its external topics yourself instead, --rosbridge.")
 
 
+def _choose_domain(args: argparse.Namespace, scenario, options):
+    """The run's ROS domain (orchestrator.run_domain), set for it and its nodes; None for
+    an in-process run (no transport). DomainInUse when a pinned one has a run already."""
+    from orchestrator.run_domain import choose, parse_domain
+
+    pinned = parse_domain(args.domain, "--domain") if args.domain is not None else None
+    if options.in_process:
+        return None
+    label = args.replay or args.scenario
+    return choose(pinned, f"cosim-orchestrate {label}")
+
+
 def _interrupt(signum, _frame):
     raise KeyboardInterrupt
 
@@ -204,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         left_out_text,
         read_manifest,
     )
+    from orchestrator.run_domain import DomainInUse
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
 
@@ -234,11 +251,15 @@ def main(argv: list[str] | None = None) -> int:
             expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
-    except (ScenarioError, ValueError) as exc:
+        domain = _choose_domain(args, scenario, options)
+    except (ScenarioError, ValueError, DomainInUse) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
+    if domain is not None and not args.quiet:
+        for line in domain.lines(scenario.model.transport):
+            print(f"cosim-orchestrate: {line}", file=sys.stderr)
     if recorded is not None:
         print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
               f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from orchestrator import run_domain
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
@@ -25,7 +26,7 @@ from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
 from orchestrator.starters import Site, join_all, start_all
-from plan.errors import SimulationError
+from plan.errors import ScenarioError, SimulationError
 from plan.options import RunOptions, TransportSettings
 from plan.packing import layout_of
 from plan.roles import NodeRole
@@ -95,8 +96,10 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         external, options, on_tick = twin_run(scenario, options, on_tick, external)
     if external is None and options.rosbridge:
         external = _arrivals_for(scenario)
+    claimed = _claim_domain(scenario, options)
     paths = make_run_dir(options.out, scenario.name)
     run_dir = paths.root
+    run_domain.describe(f"outputs in {run_dir}")
     handler = _log_to(paths.log("orchestrator"))
     for warning in warnings:
         log.warning("%s", warning)
@@ -137,7 +140,26 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             write_manifest(scenario, outcome, options)
             logging.getLogger().removeHandler(handler)
             handler.close()
+            if claimed is not None:
+                run_domain.release(claimed)
     return outcome
+
+
+def _claim_domain(scenario: Scenario, options: RunOptions) -> int | None:
+    """Claim the ROS domain of a multi-process run (orchestrator.run_domain) unless this
+    process already has; the domain claimed here, to give back at the end. A domain another
+    run has is a ScenarioError, raised before anything is written."""
+    if options.in_process:
+        return None
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip() or "0"
+    domain = int(text) if text.isdigit() else 0
+    if run_domain.claimed(domain):
+        return None
+    try:
+        run_domain.claim(domain, f"scenario {scenario.name}")
+    except run_domain.DomainInUse as exc:
+        raise ScenarioError(scenario.file, "", str(exc)) from None
+    return domain
 
 
 def _collect_notes(scenario: Scenario, paths: RunPaths, outcome: RunOutcome) -> list[Note]:
