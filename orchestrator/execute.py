@@ -337,6 +337,7 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
 
             prepare_control(endpoints, services)
         master.wait_ready(started)
+        _refuse_strangers(scenario, transport)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()
         log.info("all nodes ready after %.3f s", outcome.start_s)
@@ -348,6 +349,23 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         result = master.run(control)
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
+
+
+def _refuse_strangers(scenario: Scenario, transport) -> None:
+    """Fail the run before its first tick when a topic it reads (or /clock) has a
+    publisher that is not the scenario's (runtime.intruders): its messages would be taken
+    for the scenario's. Topics of foreign programs are left out (their nodes are named by
+    the programs)."""
+    from runtime.intruders import REMEDY, graph_strangers
+    from runtime.protocol import CLOCK_TOPIC
+
+    topics = [CLOCK_TOPIC] + sorted({inp.graph_topic for plan in scenario.nodes.values()
+                                     for inp in plan.inputs
+                                     if not scenario.nodes[inp.producer].foreign})
+    found = graph_strangers(transport, topics)
+    if found:
+        raise SimulationError(f"{'; '.join(found)}. Nothing was lost: the run stopped before "
+                              f"its first tick. Remedy: {REMEDY}", node="orchestrator")
 
 
 def _keep_node_stats(outcome: RunOutcome, master, supervisor: Supervisor) -> None:

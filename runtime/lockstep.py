@@ -26,6 +26,7 @@ from plan.gates import ack_topic
 from runtime.activation import Activation
 from runtime.exchange import InputHistory, output_digest
 from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
+from runtime.intruders import explain_gap
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,
@@ -224,8 +225,8 @@ class LockstepRuntime:
                 else:
                     channel = self.inputs[rec.topic]
                     resolved = [(channel, channel.accept_ticks(rec))]
-            except SequenceError as exc:
-                raise NodeFailure(str(exc)) from None
+            except (SequenceError, NodeFailure) as exc:
+                raise NodeFailure(explain_gap(self.transport, rec.topic, str(exc))) from None
             for channel, ticks in resolved:
                 if channel.drives:
                     self.clocks.extend(t for t in ticks if t % channel.drives == 0)

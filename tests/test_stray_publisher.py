@@ -1,0 +1,76 @@
+"""A publisher that is not the scenario's on a run's topic is named, with the remedy, and
+nothing is said to be lost: while the run goes, and at its start (issue 40, item 2)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import yaml
+
+from orchestrator.domains import DomainLease
+from tests.helpers import ORCHESTRATE, ROOT, nav_without_camera_doc, orchestrate
+
+TELEOP = [sys.executable, str(ROOT / "tests" / "programs" / "teleop.py"), "teleop_left_running"]
+
+
+def _nav(tmp_path, duration: str):
+    path = tmp_path / "nav.yaml"
+    path.write_text(yaml.safe_dump(nav_without_camera_doc(duration)))
+    return path
+
+
+def _assert_named(stderr: str) -> None:
+    assert "a publisher that is not the scenario's writes to /cmd_vel: " \
+           "node /teleop_left_running" in stderr, stderr[-3000:]
+    assert "Nothing was lost" in stderr
+    assert "a message was lost" not in stderr
+    assert "Remedy: stop that node, or give the run a ROS domain of its own" in stderr
+
+
+def test_a_teleop_appearing_mid_run_is_named_not_called_a_lost_message(tmp_path):
+    scenario = _nav(tmp_path, "60s")
+    with DomainLease(wait_s=30) as domain:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+        run = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(tmp_path / "out")],
+                               cwd=ROOT, env=env, text=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+        teleop = None
+        try:
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline:  # until ticks are being recorded
+                parts = list((tmp_path / "out").glob("*/parts/physics.rec"))
+                if parts and parts[0].stat().st_size > 5000:
+                    break
+                assert run.poll() is None, run.communicate()
+                time.sleep(0.1)
+            teleop = subprocess.Popen(TELEOP, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                      text=True)
+            _, err = run.communicate(timeout=120)
+        finally:
+            if teleop is not None:
+                teleop.kill()
+                teleop.communicate()
+            if run.poll() is None:
+                run.kill()
+                run.communicate()
+    assert run.returncode == 3, err[-3000:]
+    _assert_named(err)
+
+
+def test_a_teleop_already_there_stops_the_run_before_its_first_tick(tmp_path):
+    scenario = _nav(tmp_path, "2s")
+    with DomainLease(wait_s=30) as domain:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+        teleop = subprocess.Popen(TELEOP, cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+        try:
+            result = orchestrate(scenario, tmp_path / "out", env=env)
+        finally:
+            teleop.kill()
+            teleop.communicate()
+    assert result.code == 3, result.stderr[-3000:]
+    _assert_named(result.stderr)
+    # the node that reads /cmd_vel names it at start, or the orchestrator's graph check does
+    assert ", 0 ticks" in result.stdout
