@@ -203,6 +203,7 @@ class LockstepRuntime:
         while not self.clocks and not self.stop_requested:
             self.report_start(time.monotonic())
             self.receive(int(STATUS_PERIOD_S * 1e9))
+            self.check_parent()  # a parent-death signal missed at start must not keep it
 
     # -- run -------------------------------------------------------------------------------
 

@@ -247,7 +247,7 @@ def _forked_child(name: str, log_fd: int, parent: int, target: Callable[[], int]
 
         logging.getLogger().handlers.clear()  # the orchestrator's log file is not ours
         os.environ["COSIM_PARENT_PID"] = str(parent)
-        die_with_parent()
+        die_with_parent(watchdog=True)
         code = target()
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
