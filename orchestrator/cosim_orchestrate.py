@@ -13,6 +13,7 @@ from runtime.entry import guarded
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
 EXIT_DIGEST_MISMATCH = 4
+EXIT_WRITE_FAILED = 5
 EXIT_INTERNAL_ERROR = 70  # runtime.entry's: what nobody expected, cosim's own fault
 
 EPILOG = """\
@@ -25,6 +26,9 @@ exit codes:
   4    the run finished but its digest is not the one --expect-digest (or --against) names
        (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
        or a rendered frame is below the --rendered-psnr floor
+  5    could not write the run's outputs (a full disk): the run stopped at a tick, named
+       the file and its file system; the bag keeps every tick before it, manifest.json
+       says where it stopped (or how to finish the run directory)
   70   internal error: an exception cosim did not expect (its fault, not the scenario's);
        the traceback is printed and kept in a file the last line names
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
@@ -278,8 +282,11 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         progress.close()
     print_outcome(outcome, quiet=args.quiet)
+    if outcome.unfinished:
+        print(f"cosim-orchestrate: {outcome.unfinished}", file=sys.stderr)
     code = {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
-            "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)
+            "interrupted": EXIT_INTERRUPTED,
+            "write_failed": EXIT_WRITE_FAILED}.get(outcome.status, EXIT_NODE_FAILED)
     if args.ignore_rendered and outcome.digest:
         value = read_manifest(outcome.run_dir).get("digest_without_rendered")
         print(f"cosim-orchestrate: digest {left_out_text(outcome.rendered_topics)}: {value}",

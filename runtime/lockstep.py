@@ -24,6 +24,7 @@ from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from plan.gates import ack_topic
 from runtime.activation import Activation
+from runtime.disk import WriteFailed
 from runtime.exchange import InputHistory, output_digest
 from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
 from runtime.intruders import explain_gap
@@ -349,7 +350,11 @@ class LockstepRuntime:
             self.sent[topic] += 1
         now = self.timing.add("publish", now)
         if self.recorder:
-            self.recorder.write(tick.index, items)
+            try:
+                self.recorder.write(tick.index, items)
+            except WriteFailed as exc:  # a full disk: the run stops at this tick, named
+                self.report_error(tick.index, exc)
+                raise NodeFailure(f"stopped at tick {tick.index}: {exc}") from exc
             now = self.timing.add("record", now)
         digest = output_digest(tick.index, items).hex()
         self.timing.add("digest", now)
