@@ -122,6 +122,11 @@ def claim(domain: int, what: str) -> None:
     _write(handle, what)
 
 
+def leased_here() -> int | None:
+    """The domain this process leased for its run (not pinned), if any."""
+    return next((d for d, held in _claims.items() if isinstance(held, tuple)), None)
+
+
 def claimed(domain: int) -> bool:
     """Whether this process holds ``domain``'s claim."""
     return domain in _claims

@@ -69,10 +69,8 @@ def reserve(run_dir: Path) -> None:
     """Set space aside in the run directory for its manifest (``release`` gives it back
     when a full disk would leave the run without one); nothing when there is no room."""
     try:
-        with open(run_dir / RESERVE_NAME, "wb") as block:
+        with open(run_dir / RESERVE_NAME, "wb") as block:  # the blocks are taken at write
             block.write(b"\0" * RESERVE_BYTES)
-            block.flush()
-            os.fsync(block.fileno())
     except OSError:
         release(run_dir)
 
@@ -93,8 +91,6 @@ def write_atomically(path: Path, text: str, run_dir: Path | None = None) -> None
         try:
             with open(temporary, "w") as out:
                 out.write(text)
-                out.flush()
-                os.fsync(out.fileno())
             os.replace(temporary, path)
             return
         except OSError as exc:
