@@ -106,7 +106,7 @@ def _scenario(fault: Fault, where: Path) -> Path:
     doc = yaml.safe_load(CHAIN.read_text())
     doc["seed"] = fault.seed % 1000
     doc["duration"] = {"orchestrator_kill": "60s", "disk_full": "60s",
-                       "stray_publisher": "60s"}.get(fault.kind, "1s")
+                       "stray_publisher": "60s", "client_disconnect": "5s"}.get(fault.kind, "1s")
     if fault.kind in ("node_kill", "node_exit"):
         doc["nodes"][2].update(kind="faulty", params={
             "output": "/tail", "fail_at": int(fault.at),
@@ -194,10 +194,10 @@ def _inject(fault: Fault, proc: subprocess.Popen, env: dict) -> subprocess.Popen
         return subprocess.Popen([*SELF, "--publish", "/middle"], cwd=ROOT, env=env,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     if fault.kind == "client_disconnect":
-        client = subprocess.Popen([*SELF, "--step-client", "300"], cwd=ROOT, env=env,
+        client = subprocess.Popen([*SELF, "--step-client", "1000"], cwd=ROOT, env=env,
                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        client.stdout.readline()  # 'asked': the request (more steps than the run has) is
-        time.sleep(fault.at)      # in flight; the run steps to its end without the client
+        client.stdout.readline()  # 'stepping': the request (more steps than the run has)
+        time.sleep(fault.at)      # is in flight; the run steps to its end without the client
         client.kill()  # gone mid-request, without a word
         client.communicate()
         return None
@@ -234,8 +234,6 @@ def _check_records(fault: Fault, out: Path, err: str, checked: Checked) -> None:
             return
     if fault.kind == "stray_publisher" and "Nothing was lost" not in err:
         checked.problems.append("the stray publisher was not named")
-    if fault.kind == "client_disconnect":
-        before = 100  # the whole run (1 s): the client's going changes nothing
     ticks = _ticks_by_topic(run_dir, checked)
     for topic, period in PERIODS.items():
         have = ticks.get(topic, set())
@@ -317,29 +315,31 @@ def _publish(topic: str) -> None:
         time.sleep(0.02)
 
 
-def _client(call: str, steps: int = 0) -> None:
-    """A client of the run's simulation services: ask for ``steps`` steps, or to play (and
-    say so once asked), then wait for the answer."""
+def _client(steps: int) -> None:
+    """A client of the run's simulation services: ask for ``steps`` steps, say 'stepping'
+    once the run moves, then wait for the answer (until killed)."""
     import rclpy
-    from simulation_interfaces.msg import SimulationState
-    from simulation_interfaces.srv import SetSimulationState, StepSimulation
+    from simulation_interfaces.srv import StepSimulation
 
     rclpy.init()
     node = rclpy.create_node("fault_client")
-    if call == "step":
-        client = node.create_client(StepSimulation, "/step_simulation")
-        request = StepSimulation.Request(steps=steps)
-    else:
-        client = node.create_client(SetSimulationState, "/set_simulation_state")
-        request = SetSimulationState.Request(
-            state=SimulationState(state=SimulationState.STATE_PLAYING))
+    client = node.create_client(StepSimulation, "/step_simulation")
+    request = StepSimulation.Request(steps=steps)
     if not client.wait_for_service(timeout_sec=60):
         raise SystemExit("the run's services never appeared")
     end = time.monotonic() + 0.5  # discovery of the reply reader, both ways
     while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    clocks = []
+    node.create_subscription(Clock, "/clock", clocks.append,
+                             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     future = client.call_async(request)
-    print("asked", flush=True)
+    while not clocks and not future.done():  # the run moves: the request arrived
+        rclpy.spin_once(node, timeout_sec=0.05)
+    print("stepping", flush=True)
     rclpy.spin_until_future_complete(node, future, timeout_sec=60)
 
 
@@ -353,16 +353,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="keep the run directories here")
     p.add_argument("--publish", help=argparse.SUPPRESS)
     p.add_argument("--step-client", type=int, help=argparse.SUPPRESS)
-    p.add_argument("--play", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.publish:
         _publish(args.publish)
         return 0
     if args.step_client is not None:
-        _client("step", args.step_client)
-        return 0
-    if args.play:
-        _client("play")
+        _client(args.step_client)
         return 0
     kinds = tuple(k for k in args.kinds.split(",") if k)
     unknown = set(kinds) - set(KINDS)
