@@ -85,3 +85,25 @@ def test_a_full_disk_stops_the_run_at_a_tick_and_keeps_every_tick_before(tmp_pat
     counts = bag_counts(run_dir)  # every message read back and deserialised
     assert counts["/clock"] == counts["/odom"] == failure["complete_ticks"]
     assert json.loads((run_dir / "manifest.json").read_text())["outputs"]["bag"] == "bag"
+
+
+def test_a_full_disk_in_process_stops_at_a_tick_and_keeps_every_tick_before(tmp_path):
+    doc = nav_without_camera_doc("120s")
+    doc["success"]["stop_on_goal"] = False
+    scenario = tmp_path / "nav.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    out = tmp_path / "out"
+    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), "--quiet",
+                           "--in-process"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300, preexec_fn=_limit_file_size)
+    assert proc.returncode == 5, proc.stderr[-3000:]
+    (run_dir,) = list(out.iterdir())
+    assert "the run stopped at tick" in proc.stderr and "the orchestrator could not write" \
+        in proc.stderr and "file system at" in proc.stderr
+    failure = json.loads((run_dir / "manifest.json").read_text())["write_failure"]
+    if not (run_dir / "bag").is_dir():
+        finish = subprocess.run([*FINISH, str(run_dir)], cwd=ROOT, capture_output=True,
+                                text=True, timeout=300)
+        assert finish.returncode == 0, finish.stderr
+    counts = bag_counts(run_dir)
+    assert counts["/clock"] == counts["/odom"] == failure["complete_ticks"] == failure["tick"]

@@ -74,3 +74,15 @@ def test_a_teleop_already_there_stops_the_run_before_its_first_tick(tmp_path):
     _assert_named(result.stderr)
     # the node that reads /cmd_vel names it at start, or the orchestrator's graph check does
     assert ", 0 ticks" in result.stdout
+
+
+def test_publishers_not_the_runs_are_told_apart_from_its_own():
+    from runtime.intruders import describe, strangers
+
+    assert strangers(["/cosim_physics"]) == []
+    assert strangers(["/cosim_control", "/teleop"]) == ["/teleop"]
+    # the same cosim node twice: another run of a scenario on this domain
+    assert strangers(["/cosim_control", "/cosim_control"]) == ["/cosim_control"]
+    text = describe("/cmd_vel", ["/teleop", "/cosim_control"])
+    assert text.startswith("publishers that are not the scenario's write to /cmd_vel: ")
+    assert "node /cosim_control (a node of another cosim run?)" in text
