@@ -233,7 +233,7 @@ def _check_records(fault: Fault, out: Path, err: str, checked: Checked) -> None:
             checked.problems.append("the manifest does not say where the run stopped")
             return
     if fault.kind == "stray_publisher" and "Nothing was lost" not in err:
-        checked.problems.append("the stray publisher was not named")
+        checked.problems.append(f"the stray publisher was not named: {err[-1500:]}")
     ticks = _ticks_by_topic(run_dir, checked)
     for topic, period in PERIODS.items():
         have = ticks.get(topic, set())

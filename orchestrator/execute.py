@@ -422,7 +422,11 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             from orchestrator.live.view import prepare_control
 
             prepare_control(endpoints, services)
-        master.wait_ready(started)
+        try:
+            master.wait_ready(started)
+        except SimulationError as exc:  # a stray publisher can drive a node before tick 0
+            _refuse_strangers(scenario, transport, cause=exc)
+            raise
         _refuse_strangers(scenario, transport)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()
@@ -437,11 +441,11 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         return result
 
 
-def _refuse_strangers(scenario: Scenario, transport) -> None:
+def _refuse_strangers(scenario: Scenario, transport, cause: Exception | None = None) -> None:
     """Fail the run before its first tick when a topic it reads (or /clock) has a
     publisher that is not the scenario's (runtime.intruders): its messages would be taken
-    for the scenario's. Topics of foreign programs are left out (their nodes are named by
-    the programs)."""
+    for the scenario's (``cause``: the start's own failure, which they explain). Topics of
+    foreign programs are left out (their nodes are named by the programs)."""
     from runtime.intruders import REMEDY, graph_strangers
     from runtime.protocol import CLOCK_TOPIC
 
@@ -450,8 +454,10 @@ def _refuse_strangers(scenario: Scenario, transport) -> None:
                                      if not scenario.nodes[inp.producer].foreign})
     found = graph_strangers(transport, topics)
     if found:
+        why = f" ({cause})" if cause is not None else ""
         raise SimulationError(f"{'; '.join(found)}. Nothing was lost: the run stopped before "
-                              f"its first tick. Remedy: {REMEDY}", node="orchestrator")
+                              f"its first tick{why}. Remedy: {REMEDY}", node="orchestrator"
+                              ) from cause
 
 
 def _keep_node_stats(outcome: RunOutcome, master, supervisor: Supervisor) -> None:

@@ -86,3 +86,25 @@ def test_publishers_not_the_runs_are_told_apart_from_its_own():
     text = describe("/cmd_vel", ["/teleop", "/cosim_control"])
     assert text.startswith("publishers that are not the scenario's write to /cmd_vel: ")
     assert "node /cosim_control (a node of another cosim run?)" in text
+
+
+def test_a_stray_publisher_on_a_topic_that_drives_a_node_is_named_at_start(tmp_path):
+    # /middle drives tail (same_tick): the stray's messages, numbered from 1 like the
+    # scenario's, would start tail ticking on its own before the run's first tick
+    doc = yaml.safe_load((ROOT / "tests" / "scenarios" / "long_chain.yaml").read_text())
+    doc["duration"], doc["deadlines"] = "2s", {"start": "8s", "tick": "2s"}
+    scenario = tmp_path / "chain.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    with DomainLease(wait_s=30) as domain:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+        stray = subprocess.Popen([sys.executable, "-m", "bench.faults", "--publish", "/middle"],
+                                 cwd=ROOT, env=env)
+        try:
+            time.sleep(1.0)
+            result = orchestrate(scenario, tmp_path / "out", env=env)
+        finally:
+            stray.kill()
+            stray.communicate()
+    assert result.code == 3, result.stderr[-3000:]
+    assert "writes to /middle: node /stray_publisher" in result.stderr, result.stderr[-3000:]
+    assert "Nothing was lost" in result.stderr
