@@ -105,8 +105,10 @@ def plan(seed: int, runs: int, kinds: tuple[str, ...] = KINDS) -> list[Fault]:
 def _scenario(fault: Fault, where: Path) -> Path:
     doc = yaml.safe_load(CHAIN.read_text())
     doc["seed"] = fault.seed % 1000
-    doc["duration"] = {"orchestrator_kill": "60s", "disk_full": "60s",
-                       "stray_publisher": "60s", "client_disconnect": "5s"}.get(fault.kind, "1s")
+    # the faults that end a run must find it going: a long run (long_chain runs thousands
+    # of ticks a second), which the fault stops
+    doc["duration"] = {"orchestrator_kill": "600s", "disk_full": "600s",
+                       "stray_publisher": "600s", "client_disconnect": "5s"}.get(fault.kind, "1s")
     if fault.kind in ("node_kill", "node_exit"):
         doc["nodes"][2].update(kind="faulty", params={
             "output": "/tail", "fail_at": int(fault.at),
