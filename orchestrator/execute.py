@@ -205,7 +205,7 @@ def complete_ticks(scenario: Scenario, paths: RunPaths, stop: int | None) -> int
     complete = stop if stop is not None else scenario.schedule.n_ticks
     for name, plan in scenario.nodes.items():
         path = paths.part(name)
-        if plan.foreign or plan.in_orchestrator or not path.exists():
+        if plan.role.is_foreign or plan.role is NodeRole.ORCHESTRATOR or not path.exists():
             continue
         last = -1
         for tick, _, _ in read_part(path):
@@ -451,7 +451,7 @@ def _refuse_strangers(scenario: Scenario, transport, cause: Exception | None = N
 
     topics = [CLOCK_TOPIC] + sorted({inp.graph_topic for plan in scenario.nodes.values()
                                      for inp in plan.inputs
-                                     if not scenario.nodes[inp.producer].foreign})
+                                     if not scenario.nodes[inp.producer].role.is_foreign})
     found = graph_strangers(transport, topics)
     if found:
         why = f" ({cause})" if cause is not None else ""
