@@ -16,8 +16,8 @@ def finish(run_dir: Path) -> Path:
     """Write ``run_dir``'s bag (the ticks its manifest says were recorded whole) and update
     its manifest; the bag's path. ValueError when the directory cannot be finished."""
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
+    from descriptions.load import load_scenario
     from orchestrator.outputs.bag import write_bag
-    from plan.load import load_scenario
     from plan.run_paths import RunPaths
     from runtime.disk import write_atomically
 
