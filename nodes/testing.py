@@ -94,7 +94,7 @@ class FaultyParams(CounterParams):
     """A counter that fails on purpose at a given tick, in a given way."""
 
     fail_at: int = -1
-    mode: str = "raise"  # raise | exit | hang | kill | setup
+    mode: str = "raise"  # raise | exit | hang | kill | setup | deaf (hangs, signals ignored)
 
 
 class FaultyNode(CounterNode):
@@ -117,7 +117,10 @@ class FaultyNode(CounterNode):
                 os._exit(7)
             if self.params.mode == "kill":
                 os.kill(os.getpid(), signal.SIGKILL)
-            if self.params.mode == "hang":
+            if self.params.mode == "deaf":  # a step stuck where no signal handler runs
+                for sig in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(sig, signal.SIG_IGN)
+            if self.params.mode in ("hang", "deaf"):
                 while True:
                     time.sleep(1)
         return super().step(tick, inputs)

@@ -35,7 +35,8 @@ __all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "NodeCheckError", "NodeCheck
            "RunOptions", "ScenarioError", "ScenarioWarning", "SimulationError", "check_node",
            "load", "overrides_for", "replay", "run"]
 
-EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "interrupted": 130}
+EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "write_failed": 5,
+              "interrupted": 130}
 """Run status -> the exit code cosim-orchestrate gives it (2 is bad input: ScenarioError)."""
 
 
@@ -128,12 +129,12 @@ class FinishedRun:
 
     @property
     def status(self) -> str:
-        """success | goal_not_met | failed | interrupted."""
+        """success | goal_not_met | failed | write_failed | interrupted."""
         return self.outcome.status
 
     @property
     def exit_code(self) -> int:
-        """The exit code cosim-orchestrate gives this run (0, 1, 3 or 130)."""
+        """The exit code cosim-orchestrate gives this run (0, 1, 3, 5 or 130)."""
         return EXIT_CODES.get(self.status, 3)
 
     @property
@@ -188,8 +189,9 @@ class FinishedRun:
         return json.loads(self.outcome.paths.manifest.read_text())
 
     def raise_for_failure(self) -> None:
-        """Raise SimulationError when a node failed (what cosim-orchestrate exits 3 for)."""
-        if self.status == "failed":
+        """Raise SimulationError when a node failed or the outputs could not be written
+        (what cosim-orchestrate exits 3 and 5 for)."""
+        if self.status in ("failed", "write_failed"):
             raise SimulationError(f"{self.error} (outputs in {self.run_dir})")
 
     def topics(self) -> dict[str, type]:

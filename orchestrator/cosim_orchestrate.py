@@ -13,6 +13,7 @@ from runtime.entry import guarded
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
 EXIT_DIGEST_MISMATCH = 4
+EXIT_WRITE_FAILED = 5
 EXIT_INTERNAL_ERROR = 70  # runtime.entry's: what nobody expected, cosim's own fault
 
 EPILOG = """\
@@ -25,6 +26,9 @@ exit codes:
   4    the run finished but its digest is not the one --expect-digest (or --against) names
        (with --ignore-rendered: its digest without the rendered topics, in manifest.json),
        or a rendered frame is below the --rendered-psnr floor
+  5    could not write the run's outputs (a full disk): the run stopped at a tick, named
+       the file and its file system; the bag keeps every tick before it, manifest.json
+       says where it stopped (or how to finish the run directory)
   70   internal error: an exception cosim did not expect (its fault, not the scenario's);
        the traceback is printed and kept in a file the last line names
   130  interrupted (SIGINT or SIGTERM); every node was stopped, outputs were kept
@@ -59,6 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scenario key, e.g. nodes.control.params.max_speed=0.4")
     p.add_argument("--quiet", action="store_true", help="print only the final line")
+    p.add_argument("--domain", metavar="ID",
+                   help="the ROS domain of the run (default: ROS_DOMAIN_ID when set, else a\n"
+                        "free one of its own, printed); discovery stays on this machine\n"
+                        "unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise")
     p.add_argument("--strict", action="store_true",
                    help="refuse a scenario that has warnings (a goal the controller's map\n"
                         "cannot reach, an output nobody reads, ...): exit 2, nothing started")
@@ -188,6 +196,18 @@ def _check_twin_has_robot(scenario, args: argparse.Namespace) -> None:
                         "to feed its external topics yourself instead, --rosbridge.")
 
 
+def _choose_domain(args: argparse.Namespace, scenario, options):
+    """The run's ROS domain (orchestrator.run_domain), set for it and its nodes; None for
+    an in-process run (no transport). DomainInUse when a pinned one has a run already."""
+    from orchestrator.run_domain import choose, parse_domain
+
+    pinned = parse_domain(args.domain, "--domain") if args.domain is not None else None
+    if options.in_process:
+        return None
+    label = args.replay or args.scenario
+    return choose(pinned, f"cosim-orchestrate {label}")
+
+
 def _interrupt(signum, _frame):
     raise KeyboardInterrupt
 
@@ -208,6 +228,7 @@ def main(argv: list[str] | None = None) -> int:
         left_out_text,
         read_manifest,
     )
+    from orchestrator.run_domain import DomainInUse
     from orchestrator.run_rules import check_run
     from plan.errors import ScenarioError
 
@@ -238,11 +259,15 @@ def main(argv: list[str] | None = None) -> int:
             expected = recorded.digest  # a twin's too: its inputs entered at recorded ticks
         options = options_from(args)
         warnings = check_run(scenario, options)  # execute applies it too; here: before output
-    except (ScenarioError, ValueError) as exc:
+        domain = _choose_domain(args, scenario, options)
+    except (ScenarioError, ValueError, DomainInUse) as exc:
         print(f"cosim-orchestrate: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
+    if domain is not None and not args.quiet:
+        for line in domain.lines(scenario.model.transport):
+            print(f"cosim-orchestrate: {line}", file=sys.stderr)
     if recorded is not None:
         print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
               f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)
@@ -261,8 +286,11 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         progress.close()
     print_outcome(outcome, quiet=args.quiet)
+    if outcome.unfinished:
+        print(f"cosim-orchestrate: {outcome.unfinished}", file=sys.stderr)
     code = {"success": EXIT_SUCCESS, "goal_not_met": EXIT_GOAL_NOT_MET,
-            "interrupted": EXIT_INTERRUPTED}.get(outcome.status, EXIT_NODE_FAILED)
+            "interrupted": EXIT_INTERRUPTED,
+            "write_failed": EXIT_WRITE_FAILED}.get(outcome.status, EXIT_NODE_FAILED)
     if args.ignore_rendered and outcome.digest:
         value = read_manifest(outcome.run_dir).get("digest_without_rendered")
         print(f"cosim-orchestrate: digest {left_out_text(outcome.rendered_topics)}: {value}",

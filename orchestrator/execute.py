@@ -12,12 +12,14 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from orchestrator import run_domain
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
 from orchestrator.outputs.manifest import write_manifest
@@ -25,25 +27,28 @@ from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
 from orchestrator.starters import Site, join_all, start_all
-from plan.errors import SimulationError
+from plan.errors import ScenarioError, SimulationError
 from plan.options import RunOptions, TransportSettings
 from plan.packing import layout_of
 from plan.roles import NodeRole
 from plan.run_paths import RunPaths, make_run_dir
 from plan.scenario import Scenario
+from runtime import disk
 from runtime.arrivals import Arrivals, Replay
+from runtime.disk import WriteFailed
 from runtime.notes import Note, read_notes
 from runtime.recording import PartWriter
 from runtime.transport.factory import create_transport
 
 log = logging.getLogger("cosim")
+WRITE_FAILED = "WriteFailed: "  # in a node's error: its recording could not be written
 
 
 @dataclass
 class RunOutcome:
     """What a run left: status, the tick loop's result, timings and where the outputs are."""
 
-    status: str  # success | goal_not_met | failed | interrupted
+    status: str  # success | goal_not_met | failed | interrupted | write_failed
     run_dir: Path
     result: LoopResult | None = None
     error: str | None = None
@@ -63,6 +68,8 @@ class RunOutcome:
     live: dict = field(default_factory=dict)  # what the live endpoints did (--live, --rosbridge)
     rendered_topics: list[str] = field(default_factory=list)  # drawn by a GL renderer
     renderer: RendererProbe | None = None  # which GL draws them (for the manifest)
+    write_failure: dict | None = None  # a write that failed: where the run stopped, why
+    unfinished: str | None = None  # why the run directory could not be finished, and the fix
 
     @property
     def digest(self) -> str | None:
@@ -95,8 +102,11 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
         external, options, on_tick = twin_run(scenario, options, on_tick, external)
     if external is None and options.rosbridge:
         external = _arrivals_for(scenario)
+    claimed = _claim_domain(scenario, options)
     paths = make_run_dir(options.out, scenario.name)
     run_dir = paths.root
+    run_domain.describe(f"outputs in {run_dir}")
+    disk.reserve(run_dir)  # room for the manifest, should the disk fill up
     handler = _log_to(paths.log("orchestrator"))
     for warning in warnings:
         log.warning("%s", warning)
@@ -121,6 +131,11 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     except SimulationError as exc:
         outcome.status, outcome.error = "failed", str(exc)
         log.error("%s", exc)
+        if WRITE_FAILED in str(exc):  # a node's recording hit a full disk
+            _stopped_by_write(scenario, outcome, str(exc), exc.tick)
+    except WriteFailed as exc:  # the orchestrator's own recording
+        _stopped_by_write(scenario, outcome, str(exc), exc.tick)
+        log.error("%s", exc)
     except KeyboardInterrupt:
         outcome.status, outcome.error = "interrupted", "interrupted by signal"
         log.warning("interrupted")
@@ -129,15 +144,98 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             outcome.wall_s = time.monotonic() - started
             outcome.notes = _collect_notes(scenario, paths, outcome)
             outcome.bag = _write_bag_safely(scenario, outcome)
-            outcome.report = _write_picture_safely(scenario, outcome)
-            if options.export_usd:
+            full = outcome.status == "write_failed"  # no picture or stage on a full disk
+            if not full:
+                outcome.report = _write_picture_safely(scenario, outcome)
+            if options.export_usd and not full:
                 outcome.usd = _export_usd_safely(scenario, outcome)
             if outcome.bag is not None:
                 shutil.rmtree(paths.parts, ignore_errors=True)  # the bag holds it all
-            write_manifest(scenario, outcome, options)
+            elif paths.parts.is_dir() and any(paths.parts.iterdir()):
+                outcome.unfinished = recovery_text(run_dir, "its bag could not be written")
+            _write_manifest_safely(scenario, outcome, options)
+            disk.release(run_dir)
             logging.getLogger().removeHandler(handler)
             handler.close()
+            if claimed is not None:
+                run_domain.release(claimed)
     return outcome
+
+
+def _claim_domain(scenario: Scenario, options: RunOptions) -> int | None:
+    """Claim the ROS domain of a multi-process run (orchestrator.run_domain) unless this
+    process already has; the domain claimed here, to give back at the end. A domain another
+    run has is a ScenarioError, raised before anything is written."""
+    if options.in_process:
+        return None
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip() or "0"
+    domain = int(text) if text.isdigit() else 0
+    if run_domain.claimed(domain):
+        return None
+    try:
+        run_domain.claim(domain, f"scenario {scenario.name}")
+    except run_domain.DomainInUse as exc:
+        raise ScenarioError(scenario.file, "", str(exc)) from None
+    return domain
+
+
+def _stopped_by_write(scenario: Scenario, outcome: RunOutcome, text: str, tick: int | None
+                      ) -> None:
+    """A write of the run's outputs failed: the run stopped at ``tick``, the status and the
+    exit code say so, the bag keeps the ticks every node recorded whole."""
+    found = re.search(r"WriteFailed: (.*)", text)
+    what = found.group(1).strip() if found else text
+    node = re.match(r"node (\S+) failed", text)
+    tick = tick if tick is not None and tick >= 0 else None
+    at = f" at tick {tick}" if tick is not None else ""
+    who = f"node {node.group(1)}" if node else "the orchestrator"
+    outcome.status = "write_failed"
+    outcome.error = f"the run stopped{at}: {who} {what}"
+    paths = RunPaths(outcome.run_dir)
+    complete = complete_ticks(scenario, paths, tick)
+    outcome.ticks_done = complete
+    outcome.write_failure = {"tick": tick, "by": who, "error": what, "complete_ticks": complete}
+
+
+def complete_ticks(scenario: Scenario, paths: RunPaths, stop: int | None) -> int:
+    """How many ticks, from 0, every cosim node recorded whole (each node's last recorded
+    activation covers its period), and none at or after ``stop``."""
+    from runtime.recording import read_part
+
+    complete = stop if stop is not None else scenario.schedule.n_ticks
+    for name, plan in scenario.nodes.items():
+        path = paths.part(name)
+        if plan.role.is_foreign or plan.role is NodeRole.ORCHESTRATOR or not path.exists():
+            continue
+        last = -1
+        for tick, _, _ in read_part(path):
+            last = max(last, tick)
+        if last < 0:
+            return 0
+        complete = min(complete, last + scenario.schedule.periods[name])
+    return max(complete, 0)
+
+
+def recovery_text(run_dir: Path, why: str) -> str:
+    """What to do with a run directory the run could not finish."""
+    return (f"the run directory {run_dir} is not finished ({why}); parts/ keeps everything "
+            f"recorded. To finish it, free space on {disk.file_system(run_dir)}, then run: "
+            f"python -m orchestrator.outputs.finish {run_dir}")
+
+
+def _write_manifest_safely(scenario: Scenario, outcome: RunOutcome, options: RunOptions
+                           ) -> None:
+    """The manifest, written whole or not at all (runtime.disk.write_atomically, with the
+    run's reserve of space); when even that fails, say how to recover."""
+    try:
+        write_manifest(scenario, outcome, options)
+    except (WriteFailed, OSError) as exc:
+        log.error("could not write manifest.json: %s", exc)
+        if outcome.status not in ("failed", "interrupted"):
+            outcome.status = "write_failed"
+        outcome.unfinished = (f"the run directory {outcome.run_dir} has no manifest ({exc}); "
+                              "its logs/ and parts/ (or bag/) keep what was recorded. Free "
+                              "space and run the scenario again to have a complete run")
 
 
 def _collect_notes(scenario: Scenario, paths: RunPaths, outcome: RunOutcome) -> list[Note]:
@@ -157,14 +255,24 @@ def _collect_notes(scenario: Scenario, paths: RunPaths, outcome: RunOutcome) -> 
 
 
 def _write_bag_safely(scenario: Scenario, outcome: RunOutcome) -> Path | None:
-    """Write the bag from what was recorded; a failure here must not hide the run's own."""
+    """Write the bag from what was recorded; a failure here must not hide the run's own
+    (a bag cut short is removed: the parts stay, and the run directory says how to finish).
+    A run stopped by a failed write keeps the ticks every node recorded whole."""
     ticks = outcome.result.ticks if outcome.result else outcome.ticks_done
+    finished = outcome.result is not None or outcome.status == "write_failed"
     try:
         from orchestrator.outputs.bag import write_bag
 
-        return write_bag(scenario, outcome.run_dir, ticks, finished=outcome.result is not None)
+        return write_bag(scenario, outcome.run_dir, ticks, finished=finished)
     except Exception as exc:  # noqa: BLE001 - reported, and the parts stay on disk
         log.error("could not write the bag: %s", exc)
+        shutil.rmtree(outcome.paths.bag, ignore_errors=True)
+        if isinstance(exc, OSError) and outcome.status in ("success", "goal_not_met"):
+            outcome.status = "write_failed"
+            failed = WriteFailed(exc.filename or outcome.paths.bag, exc)
+            outcome.error = f"the run finished but its bag could not be written: {failed}"
+            outcome.write_failure = {"tick": None, "by": "the orchestrator",
+                                     "error": str(failed), "complete_ticks": ticks}
         return None
 
 
@@ -314,7 +422,12 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             from orchestrator.live.view import prepare_control
 
             prepare_control(endpoints, services)
-        master.wait_ready(started)
+        try:
+            master.wait_ready(started)
+        except SimulationError as exc:  # a stray publisher can drive a node before tick 0
+            _refuse_strangers(scenario, transport, cause=exc)
+            raise
+        _refuse_strangers(scenario, transport)
         outcome.start_s = time.monotonic() - started
         outcome.command_to_first_tick_s = _since_process_start()
         log.info("all nodes ready after %.3f s", outcome.start_s)
@@ -326,6 +439,25 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
         result = master.run(control)
         outcome.loop_s = time.monotonic() - master.loop_started
         return result
+
+
+def _refuse_strangers(scenario: Scenario, transport, cause: Exception | None = None) -> None:
+    """Fail the run before its first tick when a topic it reads (or /clock) has a
+    publisher that is not the scenario's (runtime.intruders): its messages would be taken
+    for the scenario's (``cause``: the start's own failure, which they explain). Topics of
+    foreign programs are left out (their nodes are named by the programs)."""
+    from runtime.intruders import REMEDY, graph_strangers
+    from runtime.protocol import CLOCK_TOPIC
+
+    topics = [CLOCK_TOPIC] + sorted({inp.graph_topic for plan in scenario.nodes.values()
+                                     for inp in plan.inputs
+                                     if not scenario.nodes[inp.producer].role.is_foreign})
+    found = graph_strangers(transport, topics)
+    if found:
+        why = f" ({cause})" if cause is not None else ""
+        raise SimulationError(f"{'; '.join(found)}. Nothing was lost: the run stopped before "
+                              f"its first tick{why}. Remedy: {REMEDY}", node="orchestrator"
+                              ) from cause
 
 
 def _keep_node_stats(outcome: RunOutcome, master, supervisor: Supervisor) -> None:
@@ -390,9 +522,18 @@ def _judge(scenario: Scenario, outcome: RunOutcome) -> None:
     outcome.status = "success" if ok else "goal_not_met"
 
 
+class _LogFile(logging.FileHandler):
+    """The orchestrator's log file; on a full disk it stops writing, without a traceback
+    per line (the run's own recording says what failed)."""
+
+    def handleError(self, record: logging.LogRecord) -> None:  # noqa: N802 - logging's name
+        """Stop writing after the first failure."""
+        self.setLevel(logging.CRITICAL + 1)
+
+
 def _log_to(path: Path) -> logging.Handler:
     path.parent.mkdir(parents=True, exist_ok=True)
-    handler = logging.FileHandler(path)
+    handler = _LogFile(path)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
     root = logging.getLogger()
     root.addHandler(handler)

@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     from runtime.parent import die_with_parent, started_by_orchestrator
 
     if started_by_orchestrator():  # a node the user starts is the user's: it outlives a shell
-        die_with_parent()
+        die_with_parent(watchdog=True)
     args = parse_args(argv)
     import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
     from descriptions.load import load_scenario

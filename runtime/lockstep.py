@@ -24,8 +24,10 @@ from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from plan.gates import ack_topic
 from runtime.activation import Activation
+from runtime.disk import WriteFailed
 from runtime.exchange import InputHistory, output_digest
 from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
+from runtime.intruders import explain_gap
 from runtime.notes import Note, NoteWriter
 from runtime.protocol import (
     CLOCK_TOPIC,
@@ -202,6 +204,7 @@ class LockstepRuntime:
         while not self.clocks and not self.stop_requested:
             self.report_start(time.monotonic())
             self.receive(int(STATUS_PERIOD_S * 1e9))
+            self.check_parent()  # a parent-death signal missed at start must not keep it
 
     # -- run -------------------------------------------------------------------------------
 
@@ -224,8 +227,8 @@ class LockstepRuntime:
                 else:
                     channel = self.inputs[rec.topic]
                     resolved = [(channel, channel.accept_ticks(rec))]
-            except SequenceError as exc:
-                raise NodeFailure(str(exc)) from None
+            except (SequenceError, NodeFailure) as exc:
+                raise NodeFailure(explain_gap(self.transport, rec.topic, str(exc))) from None
             for channel, ticks in resolved:
                 if channel.drives:
                     self.clocks.extend(t for t in ticks if t % channel.drives == 0)
@@ -347,7 +350,11 @@ class LockstepRuntime:
             self.sent[topic] += 1
         now = self.timing.add("publish", now)
         if self.recorder:
-            self.recorder.write(tick.index, items)
+            try:
+                self.recorder.write(tick.index, items)
+            except WriteFailed as exc:  # a full disk: the run stops at this tick, named
+                self.report_error(tick.index, exc)
+                raise NodeFailure(f"stopped at tick {tick.index}: {exc}") from exc
             now = self.timing.add("record", now)
         digest = output_digest(tick.index, items).hex()
         self.timing.add("digest", now)

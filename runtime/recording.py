@@ -13,24 +13,37 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
+from runtime.disk import WriteFailed
+
 _HEAD = struct.Struct("<qHI")
 
 
 class PartWriter:
-    """Appends (tick, topic, bytes) records to one file."""
+    """Appends (tick, topic, bytes) records to one file. A write that fails (a full disk)
+    raises WriteFailed naming the file and its file system; the file then keeps every
+    complete record before it (a partial last one is ignored by ``read_part``) and takes
+    no more."""
 
     def __init__(self, path: Path):
         path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.failed = False
         self._file = open(path, "ab", buffering=1 << 20)  # noqa: SIM115 - closed in close()
 
     def write(self, tick: int, items: list[tuple[str, bytes]]) -> None:
         """Append one activation's outputs and flush them to the OS."""
-        for topic, data in items:
-            name = topic.encode()
-            self._file.write(_HEAD.pack(tick, len(name), len(data)))
-            self._file.write(name)
-            self._file.write(data)
-        self._file.flush()
+        if self.failed:
+            return
+        try:
+            for topic, data in items:
+                name = topic.encode()
+                self._file.write(_HEAD.pack(tick, len(name), len(data)))
+                self._file.write(name)
+                self._file.write(data)
+            self._file.flush()
+        except OSError as exc:
+            self.failed = True
+            raise WriteFailed(self.path, exc, tick) from exc
 
     def truncate(self) -> None:
         """Forget everything written so far (the run restarted from tick 0)."""
@@ -39,8 +52,13 @@ class PartWriter:
         self._file.truncate()
 
     def close(self) -> None:
-        """Flush and close."""
-        self._file.close()
+        """Flush and close (after a failed write: close, what could not be written is gone)."""
+        try:
+            self._file.close()
+        except OSError as exc:
+            if not self.failed:
+                self.failed = True
+                raise WriteFailed(self.path, exc) from exc
 
 
 def read_part(path: Path) -> Iterator[tuple[int, str, bytes]]:

@@ -70,5 +70,9 @@ class TransportView(Transport):
         taken, self.inbox = self.inbox, []
         return taken
 
+    def publisher_nodes(self, topic: str) -> list[str] | None:
+        """The shared session's view of the ROS graph."""
+        return self.shared.base.publisher_nodes(topic)
+
     def close(self) -> None:
         """The session is closed once, by its owner."""

@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import psutil
@@ -27,10 +28,12 @@ ESCALATION = ((signal.SIGINT, 3.0), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)
 wait for the processes still alive, before the next."""
 
 
-def _arm_parent_death() -> None:  # runs in the child between fork and exec
+def _arm_parent_death(parent: int) -> None:  # runs in the child between fork and exec
     import ctypes
 
     ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the signal was armed: no program
+        os._exit(1)
 
 
 class ForkedChild:
@@ -130,7 +133,8 @@ class Supervisor:
         with open(log_path, "ab") as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, env=full_env, cwd=cwd,
-                                     start_new_session=True, preexec_fn=_arm_parent_death)
+                                     start_new_session=True,
+                                     preexec_fn=partial(_arm_parent_death, os.getpid()))
         return self._register(NodeProcess(name, popen, log_path))
 
     def fork(self, name: str, target: Callable[[], int]) -> NodeProcess:
@@ -247,7 +251,7 @@ def _forked_child(name: str, log_fd: int, parent: int, target: Callable[[], int]
 
         logging.getLogger().handlers.clear()  # the orchestrator's log file is not ours
         os.environ["COSIM_PARENT_PID"] = str(parent)
-        die_with_parent()
+        die_with_parent(watchdog=True)
         code = target()
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)

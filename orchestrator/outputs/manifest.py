@@ -198,10 +198,15 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
         "notes": [note.as_dict() for note in getattr(outcome, "notes", [])],
         "live": getattr(outcome, "live", None) or None,
         "swarm": swarm_entry(scenario, result.metrics if result else {}),
+        "write_failure": getattr(outcome, "write_failure", None),
+        "unfinished": getattr(outcome, "unfinished", None),
     }
 
 
 def write_manifest(scenario: Scenario, outcome, options) -> None:
     """Write manifest.json into the run directory."""
     manifest = build_manifest(scenario, outcome, options)
-    RunPaths(outcome.run_dir).manifest.write_text(json.dumps(manifest, indent=2) + "\n")
+    from runtime.disk import write_atomically
+
+    write_atomically(RunPaths(outcome.run_dir).manifest, json.dumps(manifest, indent=2) + "\n",
+                     outcome.run_dir)

@@ -257,7 +257,11 @@ class TwinLink:
         a stand-in on this machine) publishes the same topic names on its own domain, and
         reaches the twin through rosbridge only."""
         from orchestrator.domains import DomainLease
+        from orchestrator.run_domain import leased_here
 
+        if (own := leased_here()) is not None:  # cosim-orchestrate took one already
+            self.domain = own
+            return
         lease = DomainLease(wait_s=10.0)
         try:
             self.domain = lease.__enter__()  # held until this process ends

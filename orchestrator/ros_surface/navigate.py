@@ -56,7 +56,7 @@ class NavigateServer:
     accepted, so a client that asks while the run is paused knows the tick it enters at."""
 
     def __init__(self, node, group, control: RunControl, arrivals: Arrivals, navigator: str,
-                 goal_topic: str, tick_ns: int):
+                 goal_topic: str, tick_ns: int, counted=None):
         self.control = control
         self.arrivals = arrivals
         self.navigator = navigator
@@ -68,7 +68,9 @@ class NavigateServer:
         self._latest = None  # the request of the newest goal put into the run
         self._put_at: dict[int, int] = {}  # id of a goal request -> _seq when it was put
         self._stopped: dict[int, int] = {}  # id of a cancelled request -> _seq at its stop
-        self.server = ActionServer(node, NavigateToPose, "/navigate_to_pose", self._execute,
+        # ``counted``: the services' wrapper that makes the end of the run wait for a goal
+        execute = counted(self._execute) if counted else self._execute
+        self.server = ActionServer(node, NavigateToPose, "/navigate_to_pose", execute,
                                    callback_group=group, goal_callback=self._on_goal,
                                    cancel_callback=self._on_cancel,
                                    feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))

@@ -47,7 +47,9 @@ from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
 THREADS = 8  # requests served at once (several may wait for the run)
-FLUSH_S = 0.3  # after the last answer, before the services go away (replies in flight)
+FLUSH_S = 0.3  # quiet after the last answer, before the services go away (replies in flight)
+FLUSH_MAX_S = 2.0  # the longest the services stay after the run for late replies
+ANSWER_WAIT_S = 15.0  # how long the end of a run waits for the requests it woke to answer
 BUILD_WAIT_S = 30.0
 RESET_WAIT_S = 120.0
 log = logging.getLogger("cosim")
@@ -66,6 +68,8 @@ class SimServices:
         self.prefix = service_prefix(scenario.model.simulation_interfaces.namespace)
         self.last_answer = 0.0
         self.executor = None
+        self._busy = 0  # requests being served (services, action goals executing)
+        self._idle = threading.Condition()
         self.robot = _robot(scenario, control, arrivals, paths)
         self._built = threading.Event()
         self.thread = threading.Thread(target=self._serve, args=(scenario, arrivals),
@@ -122,9 +126,11 @@ class SimServices:
             self.node.create_service(srv, name, self._answering(handler), callback_group=group)
         self.steps_server = ActionServer(self.node, SimulateSteps,
                                          self.prefix + "simulate_steps",
-                                         self._simulate_steps, callback_group=group,
+                                         self._answering(self._simulate_steps),
+                                         callback_group=group,
                                          cancel_callback=lambda _: CancelResponse.ACCEPT)
-        self.navigate = _navigate(self.node, group, scenario, self.control, arrivals)
+        self.navigate = _navigate(self.node, group, scenario, self.control, arrivals,
+                                  self._answering)
         from orchestrator.ros_surface.controller_manager import controller_managers
 
         self.controller_managers = controller_managers(self.node, group, scenario,
@@ -149,16 +155,24 @@ class SimServices:
         return self.executor is not None
 
     def close(self) -> None:
-        """The run is over: wake every waiting request (it answers), let the answers go
-        out, then remove the servers."""
+        """The run is over: wake every waiting request, wait until each has answered (an
+        active goal ends with a terminal status and why), let the answers and results go
+        out (the executor sends an action's result after its callback returns), then
+        remove the servers."""
         import rclpy
 
         self.control.finished("the orchestrator stopped the run")
         self._built.wait(BUILD_WAIT_S)
         if self.executor is None:
             return
-        if time.monotonic() - self.last_answer < 2.0:
-            time.sleep(FLUSH_S)
+        with self._idle:
+            if not self._idle.wait_for(lambda: self._busy == 0, timeout=ANSWER_WAIT_S):
+                log.warning("%d request(s) of the run's ROS 2 interfaces still unanswered "
+                            "after %g s; closing them", self._busy, ANSWER_WAIT_S)
+        closing = time.monotonic()
+        while (time.monotonic() - self.last_answer < FLUSH_S
+               and time.monotonic() - closing < FLUSH_MAX_S):
+            time.sleep(0.05)
         self.executor.shutdown(timeout_sec=5.0)
         self.thread.join(timeout=5.0)
         for params in self.parameters:
@@ -167,11 +181,17 @@ class SimServices:
         rclpy.shutdown(context=self.context)
 
     def _answering(self, handler):
-        def serve(request, response):
+        """``handler`` counted while it serves (close waits for it) and timed."""
+        def serve(*args):
+            with self._idle:
+                self._busy += 1
             try:
-                return handler(request, response)
+                return handler(*args)
             finally:
-                self.last_answer = time.monotonic()
+                with self._idle:
+                    self._busy -= 1
+                    self.last_answer = time.monotonic()
+                    self._idle.notify_all()
         return serve
 
     # -- simulation state ------------------------------------------------------------------
@@ -360,7 +380,8 @@ def _robot(scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
     return None
 
 
-def _navigate(node, group, scenario: Scenario, control: RunControl, arrivals: Arrivals | None):
+def _navigate(node, group, scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
+              counted=None):
     """The NavigateToPose server, when a node takes /goal_pose from the external node and
     the run's arrivals are live."""
     from orchestrator.ros_surface.navigate import NavigateServer
@@ -372,7 +393,7 @@ def _navigate(node, group, scenario: Scenario, control: RunControl, arrivals: Ar
             if (inp.topic == GOAL_TOPIC and inp.producer == EXTERNAL_NAME
                     and inp.graph_topic in arrivals.topics):
                 return NavigateServer(node, group, control, arrivals, plan.name,
-                                      inp.graph_topic, scenario.tick_ns)
+                                      inp.graph_topic, scenario.tick_ns, counted)
     return None
 
 

@@ -66,3 +66,8 @@ class Transport(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the participant."""
+
+    def publisher_nodes(self, topic: str) -> list[str] | None:
+        """The node names of ``topic``'s publishers in the ROS graph; None where the
+        transport has no graph to ask (runtime.intruders)."""
+        return None

@@ -127,6 +127,11 @@ class Ros2Transport(Transport):
             _take_all(self._by_pointer[pointer], out)
         return out
 
+    def publisher_nodes(self, topic: str) -> list[str]:
+        """The full node names of ``topic``'s publishers, as the graph knows them."""
+        return [f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                for i in self.node.get_publishers_info_by_topic(topic)]
+
     def close(self) -> None:
         """Destroy the node and shut the context down."""
         try:

@@ -1,0 +1,158 @@
+"""The ROS domain of a run: its own unless the user pins one, and never two runs on one.
+
+cosim-orchestrate leases a domain id of this machine (``orchestrator.domains``) unless
+``--domain`` or an explicitly set ``ROS_DOMAIN_ID`` pins one, and keeps discovery on this
+machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless that variable is set. Every
+multi-process run also claims its domain for as long as it goes: a held ``flock`` on
+``$TMPDIR/cosim-ros-domains/<id>.run`` whose text says which run holds it, so that a second
+run pinned to the same domain is refused at start, naming the first (two runs on one domain
+hear each other's topics and both stop).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+VALID = (range(0, 102), range(215, 233))
+"""ROS 2 domain ids usable on Linux (others clash with the port ranges of ephemeral ports)."""
+LEASE_WAIT_S = 30.0  # an unpinned run waits this long for a domain id when all are taken
+RANGE_VAR = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+
+_claims: dict[int, object] = {}  # domain -> the open, locked .run file of this process
+_whats: dict[int, str] = {}  # domain -> how its run is named
+
+
+class DomainInUse(RuntimeError):
+    """Another cosim run is going on the domain this run is pinned to."""
+
+
+@dataclass
+class RunDomain:
+    """The domain a run uses, whether the user pinned it, and what pinned it."""
+
+    domain: int
+    pinned_by: str | None  # '--domain', 'ROS_DOMAIN_ID' or None (leased: the run's own)
+    local_only: bool
+
+    def lines(self, transport: str) -> list[str]:
+        """What the command prints about it."""
+        how = (f"pinned by {self.pinned_by}" if self.pinned_by
+               else "this run's own; pin one with --domain N or ROS_DOMAIN_ID=N")
+        where = ("discovery on this machine only" if self.local_only
+                 else f"discovery range {os.environ.get(RANGE_VAR, 'SUBNET')}")
+        tool = (f": ROS_DOMAIN_ID={self.domain} ros2 topic list" if transport == "ros2"
+                else "")
+        return [f"ROS domain {self.domain} ({how}; {where}){tool}"]
+
+
+def parse_domain(text: str, source: str) -> int:
+    """A domain id from ``--domain`` or ``ROS_DOMAIN_ID``; ValueError naming the fix."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not any(value in r for r in VALID):
+        raise ValueError(f"{source}={text!r}: expected a ROS domain id, 0..101 or 215..232 "
+                         "(or leave it out: the run takes a free one of its own)")
+    return value
+
+
+def choose(pinned: int | None, what: str) -> RunDomain:
+    """Decide the run's domain and set ROS_DOMAIN_ID (and the discovery range) for this
+    process and every node it starts; claim it (DomainInUse if another run has it).
+    ``pinned``: --domain's value; ``what``: how the holder is named to a second run."""
+    pinned_by = "--domain" if pinned is not None else None
+    env = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if pinned is None and env:
+        pinned, pinned_by = parse_domain(env, "ROS_DOMAIN_ID"), "ROS_DOMAIN_ID"
+    local_only = RANGE_VAR not in os.environ and "ROS_LOCALHOST_ONLY" not in os.environ
+    if local_only:
+        os.environ[RANGE_VAR] = "LOCALHOST"
+    if pinned is not None:
+        claim(pinned, what)
+        domain = pinned
+    else:
+        domain = _lease_and_claim(what)
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    return RunDomain(domain, pinned_by, local_only)
+
+
+def _lease_and_claim(what: str) -> int:
+    """A leased domain (held until this process ends) that no run claims."""
+    from orchestrator.domains import DomainLease
+
+    deadline = time.monotonic() + LEASE_WAIT_S
+    while True:
+        lease = DomainLease(wait_s=max(deadline - time.monotonic(), 0.0))
+        domain = lease.__enter__()  # held until this process ends, like the twin's
+        try:
+            claim(domain, what)
+            _claims[domain] = (_claims[domain], lease)
+            return domain
+        except DomainInUse:  # a pinned run without a lease: try the next id
+            lease.__exit__(None, None, None)
+            if time.monotonic() >= deadline:
+                raise
+
+
+def claim(domain: int, what: str) -> None:
+    """Mark ``domain`` as this process's run's (idempotent); DomainInUse naming the run that
+    has it. Held until ``release`` or this process's end, however it ends."""
+    if domain in _claims:
+        return
+    folder = Path(tempfile.gettempdir()) / "cosim-ros-domains"
+    folder.mkdir(exist_ok=True)
+    handle = open(folder / f"{domain}.run", "a+")  # noqa: SIM115 - held while the run goes
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.seek(0)
+        holder = handle.read().strip() or "a cosim run starting"
+        handle.close()
+        raise DomainInUse(f"ROS domain {domain} is in use by another cosim run: {holder}. "
+                          "Two runs on one domain hear each other's topics and both stop: "
+                          "leave ROS_DOMAIN_ID unset and give no --domain (each run takes a "
+                          "free domain of its own), or pin another one") from None
+    _claims[domain], _whats[domain] = handle, what
+    _write(handle, what)
+
+
+def leased_here() -> int | None:
+    """The domain this process leased for its run (not pinned), if any."""
+    return next((d for d, held in _claims.items() if isinstance(held, tuple)), None)
+
+
+def claimed(domain: int) -> bool:
+    """Whether this process holds ``domain``'s claim."""
+    return domain in _claims
+
+
+def describe(more: str) -> None:
+    """Add ``more`` (the run directory) to what this process's claims say of its run."""
+    for domain, held in _claims.items():
+        _write(held[0] if isinstance(held, tuple) else held, f"{_whats[domain]}, {more}")
+
+
+def _write(handle, what: str) -> None:
+    handle.seek(0)
+    handle.truncate()
+    handle.write(f"{what} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n")
+    handle.flush()
+
+
+def release(domain: int) -> None:
+    """Give the claim (and a lease taken with it) back."""
+    held = _claims.pop(domain, None)
+    _whats.pop(domain, None)
+    for item in held if isinstance(held, tuple) else (held,):
+        if item is None:
+            continue
+        if hasattr(item, "__exit__") and not hasattr(item, "read"):
+            item.__exit__(None, None, None)
+        else:
+            item.close()
