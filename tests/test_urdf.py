@@ -275,3 +275,29 @@ def test_describe_exits_2_naming_the_problem(tmp_path):
                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT)})
     assert out.returncode == 2
     assert "$(find mybot_description)" in out.stderr and "packages:" in out.stderr
+
+
+# -- what robot_state_publisher would publish ---------------------------------------------
+
+def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
+    from descriptions.urdf_state import UrdfFrames
+
+    spec = mujoco.MjSpec()
+    spec.copy_during_attach = True
+    frame = spec.worldbody.add_frame(pos=[1.0, 2.0, 0.0])
+    spec.attach(mybot.spec, frame=frame, prefix="robot_1/")
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    frames = UrdfFrames(model, mybot.model.scoped("robot_1"))
+    static = {(t.parent, t.child): t for t in frames.static(data)}
+    scan = static[("robot_1/base_link", "robot_1/base_scan")]
+    assert scan.pos == pytest.approx((0.08, 0, 0.14)) and scan.quat == pytest.approx((1, 0, 0, 0))
+    optical = static[("robot_1/camera_link", "robot_1/camera_optical_frame")]
+    assert optical.quat == pytest.approx((0.5, -0.5, 0.5, -0.5), abs=1e-6)  # rpy -pi/2 0 -pi/2
+    assert len(static) == 7
+    moving = {(t.parent, t.child): t for t in frames.moving(data)}
+    assert moving[("robot_1/odom", "robot_1/base_footprint")].pos == pytest.approx((1, 2, 0))
+    assert ("robot_1/base_link", "robot_1/wheel_left_link") in moving
+    states = frames.joint_states(data)
+    assert states.names == WHEELS and states.position == (0.0, 0.0)
