@@ -102,6 +102,11 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
     urdf = parse_urdf(expanded.urdf, description)
     wheels = _check_wheels(urdf, description, options.wheels)
     free = options.base == "free" or (options.base == "auto" and wheels is not None)
+    if free and urdf.root == "world":
+        raise DescriptionError(description, "the root link is 'world': the description fixes "
+                               "the robot to the world, so it cannot be a mobile robot",
+                               link="world", fix="drop the world link and its joint, or use "
+                               "base: fixed")
     converted = convert(urdf, expanded.urdf, description, resolver, path.parent, free)
     notes = [f"xacro: {w}" for w in expanded.warnings] + converted.notes
     spec = converted.spec
@@ -124,7 +129,8 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         name="", prefix="", base_link=urdf.root, mobile=free,
         footprint_radius=round(geo.footprint_radius(model, data, root_id, collision), 6),
         drive=drive, actuated=tuple(actuated), sensors=tuple(sensors),
-        links=tuple(Link(name, name, name) for name in urdf.links),
+        links=tuple(Link(name, name, None if name == "world" else name)
+                    for name in urdf.links),
         joints=tuple(Joint(j.name, j.kind, j.parent, j.child,
                            JointLimits(j.lower, j.upper, j.effort, j.velocity))
                      for j in urdf.joints.values()),

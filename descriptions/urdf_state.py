@@ -53,7 +53,9 @@ class UrdfFrames:
     compiled world: ids looked up once, values read per state."""
 
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, odom_frame: str = "odom"):
-        body = {k.name: mujoco.mj_name2id(model, BODY, k.body) for k in robot.links}
+        # a URDF link named 'world' is MuJoCo's world body (the robot is fixed to it)
+        body = {k.name: 0 if k.name == robot.prefix + "world" else
+                mujoco.mj_name2id(model, BODY, k.body) for k in robot.links}
         missing = [name for name, bid in body.items() if bid < 0]
         if missing:
             raise KeyError(f"links without a body in the world: {missing}")

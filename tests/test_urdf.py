@@ -301,3 +301,20 @@ def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
     assert ("robot_1/base_link", "robot_1/wheel_left_link") in moving
     states = frames.joint_states(data)
     assert states.names == WHEELS and states.position == (0.0, 0.0)
+
+
+def test_a_world_root_link_is_the_world(tmp_path):
+    from descriptions.urdf_state import UrdfFrames
+
+    path = write_urdf(tmp_path, '<link name="world"/><joint name="fix" type="fixed">'
+                      '<parent link="world"/><child link="base"/><origin xyz="0 0 0.5"/>'
+                      f'</joint><link name="base">{INERTIAL}</link>')
+    loaded = load_urdf(path)
+    assert not loaded.model.mobile and loaded.model.links[0].site is None
+    model = loaded.spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    (fix,) = UrdfFrames(model, loaded.model).static(data)
+    assert (fix.parent, fix.child, fix.pos) == ("world", "base", (0.0, 0.0, 0.5))
+    with pytest.raises(DescriptionError, match="root link is 'world'"):
+        load_urdf(path, UrdfOptions(base="free"))
