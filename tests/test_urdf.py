@@ -318,3 +318,26 @@ def test_a_world_root_link_is_the_world(tmp_path):
     assert (fix.parent, fix.child, fix.pos) == ("world", "base", (0.0, 0.0, 0.5))
     with pytest.raises(DescriptionError, match="root link is 'world'"):
         load_urdf(path, UrdfOptions(base="free"))
+
+
+def test_scenario_urdf_settings_become_options_and_errors_exit_2():
+    from descriptions.urdf_robot import load_robot, scenario_error, urdf_options
+    from plan.description_spec import UrdfSpec
+
+    spec = UrdfSpec.model_validate({
+        "args": {"lidar_samples": "180"}, "packages": {"mybot_description":
+                                                       "robots/mybot_description"},
+        "wheels": ["wheel_left_joint", "wheel_right_joint"], "sensors": {"imu": "imu_link"},
+        "gains": {"wheel": {"kv": 3}}})
+    options = urdf_options(spec, ROOT / "scenarios")
+    assert options.packages["mybot_description"] == str(ROBOTS / "mybot_description")
+    loaded = load_robot(BOT, options)
+    assert load_robot(BOT, options) is loaded  # once per process
+    assert dict(loaded.model.sensor("lidar").params)["samples"] == 180
+    model = loaded.spec.compile()
+    assert model.actuator_gainprm[0][0] == 3.0
+    try:
+        load_robot(BOT, urdf_options(UrdfSpec(), ROOT / "scenarios"))
+    except DescriptionError as exc:
+        err = scenario_error(exc, "nav_urdf.yaml", "robots.description")
+    assert str(err).startswith("nav_urdf.yaml: robots.description: robot description ")
