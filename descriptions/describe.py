@@ -146,8 +146,8 @@ def picture(loaded: LoadedUrdf, out: Path, width: int = 640, height: int = 480) 
     spec.visual.headlight.ambient = [0.4, 0.4, 0.4]
     model = spec.compile()
     model.vis.global_.offwidth, model.vis.global_.offheight = width, height
-    model.vis.scale.framelength = 0.1 / max(model.stat.meansize, 1e-3)
-    model.vis.scale.framewidth = 0.006 / max(model.stat.meansize, 1e-3)
+    model.vis.scale.framelength = 0.15 * extent / max(model.stat.meansize, 1e-3)
+    model.vis.scale.framewidth = 0.01 * extent / max(model.stat.meansize, 1e-3)
     for g in range(model.ngeom):
         if model.geom_group[g] == 3:
             model.geom_rgba[g, 3] = 0.35

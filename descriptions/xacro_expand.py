@@ -38,20 +38,28 @@ def is_xacro(path: Path | str) -> bool:
 
 def expand(path: Path | str, args: Mapping[str, str] | None = None,
            resolver: PackageResolver | None = None) -> Expanded:
-    """The URDF text of ``path``: xacro-expanded with ``args`` (``name:=value``) for a xacro,
-    read as it is for a .urdf. DescriptionError with xacro's own message on a xacro error,
-    naming the package for an unknown ``$(find PKG)``."""
+    """The URDF text of ``path``: xacro-expanded with ``args`` (``name:=value``) for a xacro
+    (or a .urdf that declares the xacro namespace), read as it is for a plain .urdf.
+    DescriptionError with xacro's own message on a xacro error, naming the package for an
+    unknown ``$(find PKG)``."""
     path = Path(path).resolve()
     resolver = resolver or PackageResolver()
     if not path.is_file():
         raise DescriptionError(str(path), "the file does not exist", path=str(path),
                                fix="give the path of a .urdf or .xacro file")
-    if not is_xacro(path):
+    text = path.read_text(encoding="utf-8")
+    if not is_xacro(path) and not _declares_xacro(text):
         if args:
             raise DescriptionError(str(path), "xacro arguments given for a plain .urdf",
                                    fix="drop the arguments, or name the .xacro file")
-        return Expanded(path.read_text(encoding="utf-8"))
+        return Expanded(text)
     return _run_xacro(path, {k: str(v) for k, v in (args or {}).items()}, resolver)
+
+
+def _declares_xacro(text: str) -> bool:
+    """A .urdf that uses xacro (declares its namespace): many launch files run xacro on every
+    description, so such a file is expanded too (TurtleBot3's .urdf files are xacro)."""
+    return "http://www.ros.org/wiki/xacro" in text or "http://ros.org/wiki/xacro" in text
 
 
 def _run_xacro(path: Path, args: dict[str, str], resolver: PackageResolver) -> Expanded:

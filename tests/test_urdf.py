@@ -341,3 +341,15 @@ def test_scenario_urdf_settings_become_options_and_errors_exit_2():
     except DescriptionError as exc:
         err = scenario_error(exc, "nav_urdf.yaml", "robots.description")
     assert str(err).startswith("nav_urdf.yaml: robots.description: robot description ")
+
+
+def test_a_urdf_that_uses_xacro_is_expanded(tmp_path):
+    # TurtleBot3's .urdf files are xacro (a namespace arg), as launch files run xacro on them
+    path = tmp_path / "tb.urdf"
+    path.write_text('<robot name="tb" xmlns:xacro="http://ros.org/wiki/xacro">'
+                    '<xacro:arg name="namespace" default=""/>'
+                    '<link name="$(arg namespace)base"/></robot>')
+    assert '<link name="r1_base"/>' in expand(path, {"namespace": "r1_"}).urdf
+    plain = write_urdf(tmp_path, '<link name="base"/>', "plain.urdf")
+    with pytest.raises(DescriptionError, match="xacro arguments given for a plain .urdf"):
+        expand(plain, {"x": "1"})
