@@ -77,17 +77,23 @@ class UrdfFrames:
         """The fixed joints' transforms (for /tf_static, once)."""
         return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._fixed]
 
+    @property
+    def has_moving(self) -> bool:
+        """Whether any joint moves (its transform changes with the state)."""
+        return bool(self._moving)
+
+    def base(self, data: mujoco.MjData) -> LinkTransform | None:
+        """``odom -> root link`` for a mobile robot (its free joint's pose), else None."""
+        if not self.robot.mobile:
+            return None
+        quat = np.asarray(data.xquat[self.root], dtype=float)
+        return LinkTransform(self.robot.prefix + self.odom_frame, self.robot.base_link,
+                             tuple(float(v) for v in data.xpos[self.root]),
+                             tuple(float(v) for v in (-quat if quat[0] < 0 else quat)))
+
     def moving(self, data: mujoco.MjData) -> list[LinkTransform]:
-        """``odom -> root`` for a mobile robot and the moving joints' transforms (for /tf)."""
-        out = []
-        if self.robot.mobile:
-            quat = np.asarray(data.xquat[self.root], dtype=float)
-            out.append(LinkTransform(
-                self.robot.prefix + self.odom_frame, self.robot.base_link,
-                tuple(float(v) for v in data.xpos[self.root]),
-                tuple(float(v) for v in (-quat if quat[0] < 0 else quat))))
-        out += [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._moving]
-        return out
+        """The moving joints' transforms (for /tf; after mj_kinematics)."""
+        return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._moving]
 
     def joint_states(self, data: mujoco.MjData) -> JointStates:
         """Every movable joint's position, velocity and actuator effort."""

@@ -297,7 +297,9 @@ def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
     assert optical.quat == pytest.approx((0.5, -0.5, 0.5, -0.5), abs=1e-6)  # rpy -pi/2 0 -pi/2
     assert len(static) == 7
     moving = {(t.parent, t.child): t for t in frames.moving(data)}
-    assert moving[("robot_1/odom", "robot_1/base_footprint")].pos == pytest.approx((1, 2, 0))
+    base = frames.base(data)
+    assert (base.parent, base.child) == ("robot_1/odom", "robot_1/base_footprint")
+    assert base.pos == pytest.approx((1, 2, 0)) and frames.has_moving
     assert ("robot_1/base_link", "robot_1/wheel_left_link") in moving
     states = frames.joint_states(data)
     assert states.names == WHEELS and states.position == (0.0, 0.0)
