@@ -5,6 +5,7 @@ frames rendered off screen. What ``check_urdf`` and ``urdf_to_graphviz`` are to 
 
     cosim-describe robot.urdf.xacro [--arg k:=v] [--package name=path] [--wheels L,R]
                    [--base auto|free|fixed] [--sensor kind=link] [--picture out.png]
+    cosim-describe scenario.yaml [--picture out.png]   # robots.description and robots.urdf
 
 Exit 0 when it loads, 2 (with the reason) when it does not.
 """
@@ -38,7 +39,8 @@ def _pairs(values: list[str], sep: str, what: str) -> dict[str, str]:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line."""
     p = argparse.ArgumentParser(prog="cosim-describe", description=__doc__.split("\n\n")[0])
-    p.add_argument("description", type=Path, help=".urdf, .xacro or .urdf.xacro")
+    p.add_argument("description", type=Path, help=".urdf, .xacro or .urdf.xacro, or a "
+                   "scenario .yaml whose robots: names one (read with its robots.urdf)")
     p.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE",
                    help="a xacro argument (repeatable)")
     p.add_argument("--package", action="append", default=[], metavar="NAME=PATH",
@@ -52,6 +54,23 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="a lidar, camera or imu on a link (repeatable)")
     p.add_argument("--picture", type=Path, metavar="PNG", help="render the robot to this PNG")
     return p.parse_args(argv)
+
+
+def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
+    """The description and its settings as a scenario's ``robots:`` section gives them
+    (``robots.description`` and ``robots.urdf``), read as the run reads them."""
+    import yaml
+
+    from descriptions.urdf_robot import urdf_options
+    from plan.description_spec import UrdfSpec
+
+    scenario = ns.description.resolve()
+    robots = (yaml.safe_load(scenario.read_text()) or {}).get("robots") or {}
+    if not robots.get("description"):
+        raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
+    spec = UrdfSpec.model_validate(robots.get("urdf") or {})
+    return (scenario.parent / robots["description"]).resolve(), urdf_options(
+        spec, scenario.parent)
 
 
 def options_of(ns: argparse.Namespace) -> UrdfOptions:
@@ -171,7 +190,10 @@ def main(argv: list[str] | None = None) -> int:
     """Print the account (and write the picture); 2 when the description does not load."""
     ns = parse_args(argv)
     try:
-        options = options_of(ns)
+        if ns.description.suffix.lower() in (".yaml", ".yml"):
+            ns.description, options = from_scenario(ns)
+        else:
+            options = options_of(ns)
         loaded = load_urdf(ns.description, options)
     except DescriptionError as exc:
         print(f"cosim-describe: {exc}", file=sys.stderr)

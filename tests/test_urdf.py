@@ -12,6 +12,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import yaml
 
 from descriptions.description_error import DescriptionError
 from descriptions.packages import PackageNotFound, PackageResolver
@@ -355,3 +356,14 @@ def test_a_urdf_that_uses_xacro_is_expanded(tmp_path):
     plain = write_urdf(tmp_path, '<link name="base"/>', "plain.urdf")
     with pytest.raises(DescriptionError, match="xacro arguments given for a plain .urdf"):
         expand(plain, {"x": "1"})
+
+
+def test_describe_reads_a_scenarios_robot_as_the_run_does(tmp_path):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(yaml.safe_dump({"robots": {
+        "description": str(BOT), "urdf": {"args": {"lidar_samples": "90"},
+                                          "packages": PACKAGES, "wheels": list(WHEELS)}}}))
+    out = subprocess.run([sys.executable, "-m", "descriptions.describe", str(scenario)],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert "samples 90" in out.stdout and "drive: differential" in out.stdout
