@@ -15,6 +15,9 @@ name or by ``wheel``, ``position``, ``velocity``, ``effort``):
   ``JOINT_velocity`` (kv) within ``<limit velocity>``, ``effort`` a motor ``JOINT_effort``
   within ``<limit effort>`` (a ros2_control ``min``/``max`` param narrows the range).
 
+The robot carries a MuJoCo custom text ``cosim_urdf`` (its root link), so a compiled world
+says which of its robots came from a URDF (``urdf_robot_in``).
+
 Sensors: a lidar and an IMU read the site of their link (an IMU gets MuJoCo gyro,
 accelerometer and framequat sensors ``LINK_gyro``, ``LINK_accel``, ``LINK_quat``), a camera
 is a MuJoCo camera named as its link, looking along the link's +x (a Gazebo camera's
@@ -52,6 +55,7 @@ INTERFACES = ("position", "velocity", "effort")
 DEFAULT_GAINS = {"wheel": {"kv": 2.0}, "position": {"kp": 60.0, "kv": 6.0},
                  "velocity": {"kv": 10.0}, "effort": {}}
 SENSOR_KINDS = ("lidar", "camera", "imu")
+MARKER = "cosim_urdf"  # a MuJoCo custom text in the robot (prefixed ROBOT/ in a swarm)
 BODY_CAMERA = (0.5, -0.5, -0.5, 0.5)  # looks along +x, image up +z
 OPTICAL_CAMERA = (0.0, 1.0, 0.0, 0.0)  # looks along +z, image down +y (REP-103)
 
@@ -115,6 +119,7 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         for joint in wheels:
             _add_wheel(spec, urdf, joint, options.gains)
     sensors = _sensors(spec, urdf, description, options.sensors, notes)
+    spec.add_text(name=MARKER, data=urdf.root)  # the world says which robot is a URDF's
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -312,3 +317,9 @@ def _drive(model: mujoco.MjModel, data: mujoco.MjData, wheels: tuple[str, str],
         separation = geo.wheel_separation(model, data, ids[0], ids[1], geoms[0], geoms[1])
     return Drive(wheels[0], wheels[1], f"{wheels[0]}_velocity", f"{wheels[1]}_velocity",
                  round(radius, 6), round(separation, 6))
+
+
+def urdf_robot_in(model: mujoco.MjModel, robot: str = "") -> bool:
+    """Whether robot ``robot`` (the unnamed one: '') of a compiled world is a URDF's."""
+    name = f"{robot}/{MARKER}" if robot else MARKER
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name) >= 0

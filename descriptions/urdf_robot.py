@@ -47,3 +47,18 @@ def _cached(path: str, key: str, options: UrdfOptions) -> LoadedUrdf:
 def scenario_error(exc: DescriptionError, file: Path | str, key: str) -> ScenarioError:
     """The ScenarioError (exit 2) a DescriptionError is in scenario ``file`` at ``key``."""
     return ScenarioError(file, key, str(exc) + ("" if str(exc).endswith(".") else "."))
+
+
+def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
+    """A scenario's ``urdf:`` settings as the swarm layout carries them: JSON, the package
+    folders made absolute (every process reads the same robot wherever it runs from)."""
+    spec = spec or UrdfSpec()
+    packages = {k: str((scenario_dir / v).resolve()) for k, v in spec.packages.items()}
+    return spec.model_copy(update={"packages": packages}).model_dump_json()
+
+
+def layout_robot(description: Path | str, settings: str) -> LoadedUrdf:
+    """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
+    ``layout_settings``'s JSON), loaded once per process."""
+    spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
+    return load_robot(description, urdf_options(spec, Path("/")))

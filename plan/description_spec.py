@@ -7,11 +7,15 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
-
-from plan.model import Strict
+from pydantic import BaseModel, ConfigDict, Field
 
 URDF_SUFFIXES = (".urdf", ".xacro")
+
+
+class Strict(BaseModel):
+    """Unknown keys are errors (as every scenario section; plan.model imports this module)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def is_urdf_description(path: str) -> bool:
