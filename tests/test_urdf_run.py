@@ -1,0 +1,108 @@
+"""A robot described in xacro runs as a cosim robot (scenarios/nav_urdf.yaml): it reaches the
+nav goal with one digest in-process and multi-process, and a plain rclpy subscriber sees
+/robot_description, /joint_states and TF under the URDF's own names. Bad settings are
+scenario errors (exit 2) naming the key."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+import pytest
+import yaml
+
+from descriptions.load import load_scenario
+from plan.errors import ScenarioError
+from tests.helpers import ORCHESTRATE, ROOT, orchestrate
+
+NAV_URDF = ROOT / "scenarios" / "nav_urdf.yaml"
+LINKS = {"base_footprint", "base_link", "wheel_left_link", "wheel_right_link",
+         "caster_front_link", "caster_back_link", "base_scan", "imu_link", "camera_link",
+         "camera_optical_frame"}
+
+
+def test_nav_urdf_reaches_the_goal_with_one_digest(tmp_path):
+    inproc = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet")
+    multi = orchestrate(NAV_URDF, tmp_path, "--quiet")
+    for run in (inproc, multi):
+        assert run.code == 0, run.stderr
+        assert run.manifest["outcome"]["success"]
+        assert run.manifest["outcome"]["metrics"]["mybot/arrived"] == 1.0
+    assert inproc.manifest["digest"] == multi.manifest["digest"]
+
+
+def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
+
+    node, executor = ros_node
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)
+    got: dict[str, list] = {"description": [], "joints": [], "tf": [], "static": []}
+    node.create_subscription(String, "/mybot/robot_description", got["description"].append,
+                             latched)
+    node.create_subscription(TFMessage, "/tf_static", got["static"].append, latched)
+    node.create_subscription(JointState, "/mybot/joint_states", got["joints"].append, 100)
+    node.create_subscription(TFMessage, "/tf", got["tf"].append, 100)
+    # the whole run (a few seconds of wall time): the latched topics are discovered in it
+    proc = subprocess.Popen([*ORCHESTRATE, str(NAV_URDF), "--out", str(tmp_path), "--quiet"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        for _ in range(40):
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    counts = {k: len(v) for k, v in got.items()}
+    assert got["description"], f"no /mybot/robot_description; received {counts}"
+    urdf = got["description"][-1].data
+    assert '<robot name="mybot"' in urdf and "<samples>360</samples>" in urdf  # expanded
+    static = {(t.header.frame_id, t.child_frame_id) for m in got["static"] for t in m.transforms}
+    assert ("mybot/base_link", "mybot/base_scan") in static
+    assert ("mybot/camera_link", "mybot/camera_optical_frame") in static
+    moving = {(t.header.frame_id, t.child_frame_id) for m in got["tf"] for t in m.transforms}
+    assert ("mybot/odom", "mybot/base_footprint") in moving
+    assert ("mybot/base_link", "mybot/wheel_left_link") in moving
+    frames = {c for _, c in static | moving}
+    assert {f"mybot/{link}" for link in LINKS} - {"mybot/base_footprint"} <= frames
+    assert got["joints"] and got["joints"][-1].name == ["wheel_left_joint", "wheel_right_joint"]
+
+
+def write_scenario(tmp_path, change) -> str:
+    doc = yaml.safe_load(NAV_URDF.read_text())
+    doc["world"] = str((NAV_URDF.parent / doc["world"]).resolve())
+    doc["robots"]["description"] = str(NAV_URDF.parent / doc["robots"]["description"])
+    doc["robots"]["urdf"]["packages"] = {
+        k: str((NAV_URDF.parent / v).resolve())
+        for k, v in doc["robots"]["urdf"]["packages"].items()}
+    change(doc)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
+@pytest.mark.parametrize("change,key,words", [
+    (lambda d: d["robots"]["urdf"].pop("packages"), "robots.description",
+     r"\$\(find mybot_description\)"),
+    (lambda d: d["robots"]["urdf"].update(wheels=["wheel_left_joint", "imu_joint"]),
+     "robots.description", "joint 'imu_joint'.*fixed: it does not turn"),
+    (lambda d: d["robots"]["urdf"].update(sensors={"lidar": "laser"}), "robots.description",
+     "link 'laser'.*not in the description"),
+    (lambda d: d["robots"].update(description=str(ROOT / "scenarios/worlds/robot.xml")),
+     "robots.urdf", "not a URDF or xacro"),
+])
+def test_bad_urdf_settings_are_scenario_errors(tmp_path, change, key, words):
+    path = write_scenario(tmp_path, change)
+    with pytest.raises(ScenarioError, match=words) as exc:
+        load_scenario(path)
+    assert exc.value.key == key
+    run = subprocess.run([*ORCHESTRATE, path, "--in-process", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 2 and key in run.stderr
