@@ -19,7 +19,8 @@ def urdf_options(spec: UrdfSpec | None, scenario_dir: Path) -> UrdfOptions:
     the scenario's directory."""
     spec = spec or UrdfSpec()
     return UrdfOptions(
-        args=dict(spec.args),
+        args={k: str(v).lower() if isinstance(v, bool) else str(v)
+              for k, v in spec.args.items()},
         packages={k: str((scenario_dir / v).resolve()) for k, v in spec.packages.items()},
         base=spec.base, wheels=spec.wheels, wheel_radius=spec.wheel_radius,
         wheel_separation=spec.wheel_separation, sensors=dict(spec.sensors),

@@ -33,7 +33,8 @@ class GainsSpec(Strict):
 class UrdfSpec(Strict):
     """A URDF or xacro robot: how cosim reads it (README "Your own robot")."""
 
-    args: dict[str, str] = Field(default_factory=dict, description="xacro arguments, "
+    args: dict[str, str | bool | int | float] = Field(default_factory=dict, description="xacro "
+                                                      "arguments, "
                                  "name -> value (as name:=value on the xacro command line)")
     packages: dict[str, str] = Field(default_factory=dict, description="ROS package name -> "
                                      "its folder (holding package.xml), relative to this file; "

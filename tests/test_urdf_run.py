@@ -106,3 +106,14 @@ def test_bad_urdf_settings_are_scenario_errors(tmp_path, change, key, words):
     run = subprocess.run([*ORCHESTRATE, path, "--in-process", "--out", str(tmp_path)],
                          capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert run.returncode == 2 and key in run.stderr
+
+
+def test_a_xacro_arg_reaches_the_lidar_through_the_gazebo_tag(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet", "--duration", "1s",
+                      "--set", "robots.urdf.args.lidar_samples=180")
+    assert run.code == 1, run.stderr  # 1 s: the goal is not reached yet
+    scan = bag_messages(run.run_dir, "/mybot/scan")[0]
+    assert len(scan.ranges) == 180 and scan.header.frame_id == "mybot/base_scan"
+    assert scan.range_max == pytest.approx(12.0)
