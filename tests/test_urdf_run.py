@@ -117,3 +117,16 @@ def test_a_xacro_arg_reaches_the_lidar_through_the_gazebo_tag(tmp_path):
     scan = bag_messages(run.run_dir, "/mybot/scan")[0]
     assert len(scan.ranges) == 180 and scan.header.frame_id == "mybot/base_scan"
     assert scan.range_max == pytest.approx(12.0)
+
+
+def test_a_swarm_of_urdf_robots_reaches_its_goals(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(ROOT / "scenarios" / "swarm_urdf.yaml", tmp_path, "--in-process",
+                      "--quiet")
+    assert run.code == 0, run.stderr
+    assert run.manifest["outcome"]["metrics"]["robots_arrived"] == 4.0
+    static = bag_messages(run.run_dir, "/tf_static")[0].transforms
+    assert {(t.header.frame_id, t.child_frame_id) for t in static} >= {
+        (f"bot_{i}/base_link", f"bot_{i}/base_scan") for i in range(4)}
+    assert len(bag_messages(run.run_dir, "/bot_3/robot_description")) == 1
