@@ -26,6 +26,7 @@ convention) or, for an optical frame (REP-103, a link named ``*optical*``), alon
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -119,7 +120,8 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         for joint in wheels:
             _add_wheel(spec, urdf, joint, options.gains)
     sensors = _sensors(spec, urdf, description, options.sensors, notes)
-    spec.add_text(name=MARKER, data=urdf.root)  # the world says which robot is a URDF's
+    imu = next((x.link for x in sensors if x.kind == "imu"), "")
+    spec.add_text(name=MARKER, data=json.dumps({"root": urdf.root, "imu": imu}))
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -319,7 +321,12 @@ def _drive(model: mujoco.MjModel, data: mujoco.MjData, wheels: tuple[str, str],
                  round(radius, 6), round(separation, 6))
 
 
-def urdf_robot_in(model: mujoco.MjModel, robot: str = "") -> bool:
-    """Whether robot ``robot`` (the unnamed one: '') of a compiled world is a URDF's."""
+def urdf_robot_in(model: mujoco.MjModel, robot: str = "") -> dict[str, str] | None:
+    """What a compiled world says of its robot ``robot`` (the unnamed one: '') when a URDF
+    described it: its root link and IMU link ('' without one); None for another robot."""
     name = f"{robot}/{MARKER}" if robot else MARKER
-    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name) >= 0
+    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if i < 0:
+        return None
+    adr, size = int(model.text_adr[i]), int(model.text_size[i])
+    return json.loads(bytes(model.text_data[adr:adr + size - 1]).decode())

@@ -88,6 +88,14 @@ def write_scenario(tmp_path, change) -> str:
     return str(path)
 
 
+def test_a_urdf_robot_without_an_imu_is_named_in_the_physics_params(tmp_path):
+    path = write_scenario(tmp_path, lambda d: d["robots"]["urdf"]["args"].update(
+        with_imu="false"))
+    with pytest.raises(ScenarioError, match="the URDF robot has no IMU") as exc:
+        load_scenario(path)
+    assert exc.value.key == "nodes[0] (physics).params.imu"
+
+
 @pytest.mark.parametrize("change,key,words", [
     (lambda d: d["robots"]["urdf"].pop("packages"), "robots.description",
      r"\$\(find mybot_description\)"),

@@ -143,11 +143,14 @@ class PhysicsNode(StepNode):
         every obstacle by the robot's footprint radius. In a swarm, robot ``robot``'s copy
         (each is checked as the first one is)."""
         urdf = urdf_robot_in(model, robot)
-        if params.robot_description and not urdf:
+        if params.robot_description and urdf is None:
             return [("params.robot_description", "the robot is not described by a URDF or "
                      "xacro, so there is no URDF to publish.", "robot_description: true with "
                      "a robots: description that is a .urdf, .xacro or .urdf.xacro.")]
-        if urdf:  # its names are its model's, checked when the description was loaded
+        if urdf is not None:  # its names are its model's, checked when it was loaded
+            if params.imu is not None and not urdf["imu"]:
+                return [("params.imu", "the URDF robot has no IMU.", "imu: null, or an IMU "
+                         "link in robots.urdf.sensors (imu: LINK) or a Gazebo imu sensor tag.")]
             return []
         if robot:
             return cls.world_problems(robot_params(params, robot), model, goal)

@@ -86,7 +86,7 @@ class Rig:
                  goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
         self.name = robot.name
         self.urdf = None  # a URDF robot's frames and joint states (nodes.physics.urdf_rig)
-        if urdf_robot_in(model, robot.name):
+        if urdf_robot_in(model, robot.name) is not None:
             tf, odom = params.tf, params.odom_frame
             self.params = params = urdf_params(params, robot)
             self.urdf = UrdfRobotFrames(model, tf or TfParams(), robot, odom)
