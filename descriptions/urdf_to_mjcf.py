@@ -16,7 +16,8 @@ After it: geoms are named (``LINK_collision_0``, ``LINK_visual_0``), collision g
 geom group 3 and visuals to group 4 (so cosim's lidar and cameras, which see groups 0-2, do
 not see the robot itself, as with cosim's own robot), Gazebo ``<mu1>`` becomes the geom's
 sliding friction, every link gets a site of its own name at its frame (sensor and footprint
-frames never vanish), and a mobile robot's root link a free joint.
+frames never vanish), a mobile robot's root link a free joint, and every two links a joint
+connects a contact exclusion (adjacent links never collide; other pairs do).
 """
 
 from __future__ import annotations
@@ -178,6 +179,11 @@ def convert(urdf: Urdf, text: str, description: str, resolver: PackageResolver,
         site.rgba = [1, 0.5, 0, 1]
     if free_base:
         spec.body(urdf.root).add_freejoint(name=f"{urdf.root}_free")
+    for joint in urdf.joints.values():
+        # adjacent links never collide (as in Gazebo and MoveIt); MuJoCo's own parent filter
+        # lapses where the parent is welded to the world (a fixed arm's base)
+        if "world" not in (joint.parent, joint.child):
+            spec.add_exclude(bodyname1=joint.parent, bodyname2=joint.child)
     for joint in urdf.joints.values():
         if joint.mimic:
             notes.append(f"joint {joint.name!r} mimics {joint.mimic!r}: the mimic is not "

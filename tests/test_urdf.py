@@ -182,6 +182,7 @@ def test_myarm_interfaces_limits_and_meshes(myarm):
     assert model.actuator_ctrlrange[act("wrist_2_velocity")] == pytest.approx([-3, 3])
     assert model.actuator_ctrlrange[act("wrist_3_effort")] == pytest.approx([-2, 2])  # min/max
     assert model.nmesh == 6  # STL base, the scaled link STL four times, the OBJ wrist
+    assert model.nexclude == 7  # adjacent links never collide (the base is welded to the world)
     joint = next(j for j in m.joints if j.name == "shoulder_lift")
     assert (joint.limits.lower, joint.limits.upper, joint.limits.velocity) == (-2.0, 2.0, 2.0)
 

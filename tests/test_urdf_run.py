@@ -138,3 +138,24 @@ def test_a_swarm_of_urdf_robots_reaches_its_goals(tmp_path):
     assert {(t.header.frame_id, t.child_frame_id) for t in static} >= {
         (f"bot_{i}/base_link", f"bot_{i}/base_scan") for i in range(4)}
     assert len(bag_messages(run.run_dir, "/bot_3/robot_description")) == 1
+
+
+def test_a_urdf_arm_follows_joint_commands_to_its_last_target(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(ROOT / "scenarios" / "arm_urdf.yaml", tmp_path, "--in-process",
+                      "--quiet")
+    assert run.code == 0, run.stderr
+    assert run.manifest["outcome"]["metrics"]["target"] == 2.0  # the third of three
+    last = yaml.safe_load((ROOT / "scenarios" / "arm_urdf.yaml").read_text())
+    target = last["nodes"][1]["params"]["targets"][-1]
+    states = bag_messages(run.run_dir, "/myarm/joint_states")[-1]
+    assert states.name == ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2",
+                           "wrist_3"]
+    assert list(states.position) == pytest.approx(target, abs=0.05)
+    moving = {(t.header.frame_id, t.child_frame_id)
+              for t in bag_messages(run.run_dir, "/tf")[-1].transforms}
+    assert ("myarm/wrist_2_link", "myarm/wrist_3_link") in moving
+    static = {(t.header.frame_id, t.child_frame_id)
+              for t in bag_messages(run.run_dir, "/tf_static")[0].transforms}
+    assert ("myarm/wrist_3_link", "myarm/tool0") in static
