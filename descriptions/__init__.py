@@ -1,8 +1,15 @@
-"""World and robot descriptions loaded into MuJoCo: MJCF, USD and (next) URDF or xacro, and the
+"""World and robot descriptions loaded into MuJoCo: MJCF, USD, URDF and xacro, and the
 one robot model every description format produces (``descriptions.robot_model``), read once
 from a world (``descriptions.robot_reader``) and given to every node that needs the robot.
 
 This is the wing of cosim that loads MuJoCo and OpenUSD; ``plan/`` below it stays pure Python
 and reads a world through ``plan.world_reader`` (``descriptions.load.load_scenario`` gives it
 this wing's loader).
+
+A URDF or xacro robot (README "Your own robot"): ``xacro_expand`` (xacro, ``$(find)``),
+``packages`` (``package://``), ``urdf_parse`` (the document as data), ``urdf_to_mjcf`` (the
+faithful MjSpec), ``urdf`` (actuators, sensors and its robot model: ``load_urdf``),
+``urdf_geometry`` (wheel radius, separation, footprint), ``urdf_state`` (TF and joint states
+under its own names), ``urdf_robot`` (a scenario's settings, once per process) and
+``describe`` (``cosim-describe``).
 """

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import mujoco
 
+from descriptions.description_error import DescriptionError
 from descriptions.swarm_world import swarm_model
+from descriptions.urdf_robot import layout_robot, layout_settings, scenario_error
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from descriptions.worldfile import (
     WorldError,
@@ -19,6 +21,7 @@ from descriptions.worldfile import (
     stage_robots,
 )
 from plan import poses
+from plan.description_spec import is_urdf_description
 from plan.errors import ScenarioError
 from plan.model import RobotsSpec, ScenarioModel
 from plan.robot_placement import place_robots
@@ -47,10 +50,23 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     obstacles, world = _arena(where, path, model, spec.base_body)
     mounts = _stage_robots(where, world)
     description = _description(where, path, spec, mounts)
-    footprint = _footprint(where, description, spec.base_body)
+    urdf, base_body = "", spec.base_body
+    if is_urdf_description(str(description)):
+        urdf = layout_settings(spec.urdf, path.parent)
+        try:
+            robot = layout_robot(description, urdf).model
+        except DescriptionError as exc:
+            raise scenario_error(exc, path, "robots.description") from None
+        footprint, base_body = robot.footprint_radius, robot.base_link
+    else:
+        if spec.urdf is not None:
+            raise where.fail("robots.urdf", "urdf: settings for a description that is not a "
+                             "URDF or xacro.", "urdf: only with a .urdf, .xacro or .urdf.xacro "
+                             "description.")
+        footprint = _footprint(where, description, spec.base_body)
     robots = place_robots(path, spec, obstacles, footprint, model.seed, mounts)
-    layout = RobotsLayout(description, spec.base_body, tuple(robots), spec.position_tolerance,
-                          spec.yaw_tolerance, spec.success_fraction)
+    layout = RobotsLayout(description, base_body, tuple(robots), spec.position_tolerance,
+                          spec.yaw_tolerance, spec.success_fraction, urdf)
     try:
         swarm_model(world, layout)
     except WorldError as exc:

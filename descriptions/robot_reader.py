@@ -174,6 +174,11 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
         if mujoco.mj_name2id(model, BODY, names.base_body) < 0:
             return ()
         return (read_robot(model, names, source=str(world)),)
+    if layout.urdf:  # the description's own model: its links, sensors and drive
+        from descriptions.urdf_robot import layout_robot
+
+        robot = layout_robot(layout.description, layout.urdf).model
+        return tuple(robot.scoped(r) for r in layout.names)
     model = swarm_model(Path(world), layout)
     return tuple(read_robot(model, names.scoped(r), r, str(layout.description))
                  for r in layout.names)

@@ -22,7 +22,12 @@ def swarm_model(world: Path, layout: RobotsLayout) -> mujoco.MjModel:
 def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
     """The arena with one prefixed copy of the description per robot, at its start."""
     spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
-    robot = mujoco.MjSpec.from_file(str(layout.description))
+    if layout.urdf:  # a URDF or xacro description: expanded and converted once per process
+        from descriptions.urdf_robot import layout_robot
+
+        robot = layout_robot(layout.description, layout.urdf).spec
+    else:
+        robot = mujoco.MjSpec.from_file(str(layout.description))
     spec.copy_during_attach = True
     for r in layout.robots:
         x, y, yaw = r.start

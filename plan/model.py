@@ -6,6 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
+from plan.description_spec import UrdfSpec
 from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
@@ -120,11 +121,14 @@ class RobotsSpec(Strict):
     start mirrored through the region's centre), or ``named`` robots, each with its start
     and goal."""
 
-    description: str | None = Field(None, description="the MJCF of one robot (like "
-                                    "worlds/robot.xml), relative to this file; its names get "
+    description: str | None = Field(None, description="the MJCF, URDF or xacro of one robot "
+                                    "(like worlds/robot.xml), relative to this file; its names get "
                                     "the prefix ROBOT/; default: the one a USD stage's robot "
                                     "prims name (cosim:robot:mjcf)")
     base_body: str = Field("base_link", description="the robot's root body in the description")
+    urdf: UrdfSpec | None = Field(None, description="how a URDF or xacro description is read "
+                                  "(xacro args, packages, wheels, sensors, ...; README \"Your "
+                                  "own robot\")")
     count: int | None = Field(None, ge=1, le=1024)
     name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")
     region: Region | None = Field(None, description="count: where the robots start")

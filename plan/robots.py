@@ -51,6 +51,8 @@ class RobotsLayout:
     position_tolerance: float
     yaw_tolerance: float
     success_fraction: float
+    urdf: str = ""  # a URDF or xacro description's settings (plan.description_spec.UrdfSpec)
+    # as JSON, its package folders absolute; '' for an MJCF description
 
     @property
     def names(self) -> list[str]:

@@ -20,6 +20,7 @@ from std_msgs.msg import Float64MultiArray
 
 from nodes.contract import StepNode, Tick
 from nodes.physics.world import robots_of
+from plan.description_spec import is_urdf_description
 from plan.model import DURATION_HELP, DurationNs
 from plan.topic_names import JOINT_COMMANDS, JOINT_STATES
 
@@ -98,6 +99,8 @@ class JointTargetsNode(StepNode):
             robots = robots_of(self.config, {})
             joints = [a.joint for a in robots[0].actuated if a.interface == "position"
                       ] if len(robots) == 1 else []
+            if joints and is_urdf_description(robots[0].source):  # its /joint_states carry
+                joints = [j.removeprefix(robots[0].prefix) for j in joints]  # the URDF's names
             for n, target in enumerate(self.params.targets):
                 if len(target) != len(joints):
                     raise ValueError(f"target {n} has {len(target)} positions; the robot "

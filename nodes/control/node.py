@@ -51,6 +51,7 @@ from nodes.control import follow as f
 from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.global_planner import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id, robots_of
+from plan.description_spec import is_urdf_description
 from plan.poses import pose_of
 from plan.rot3 import mat_t_mul, mat_t_vec
 from plan.timeutil import NS_PER_S
@@ -76,7 +77,8 @@ class ControlParams(BaseModel):
     base_frame: str | None = Field(None, description="frame of a stamped /cmd_vel; default: "
                                    "the robot model's base link")
     enable_stamped_cmd_vel: bool = Field(False, description="publish /cmd_vel as TwistStamped")
-    robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint")
+    robot_radius: float = Field(0.23, gt=0, description="m, circumscribed footprint; a URDF "
+                                "robot's default: its footprint from its collision geometry")
     safety_margin: float = Field(0.04, ge=0, description="m added to the radius on the scan")
     tight_margin: float = Field(0.01, ge=0, description="m added to the radius on the scan "
                                 "when creeping at min_speed where safety_margin blocks")
@@ -210,11 +212,14 @@ class ControlNode(StepNode):
         if lidar is None:
             raise ValueError(f"the robot of world {self.config.world} has no lidar site "
                              f"{params.laser_site or RobotNames().laser_site!r}")
-        return params.model_copy(update={
+        update = {
             "base_body": robot.base, "laser_site": lidar.mujoco_name,
             "frame_id": robot.prefix + params.frame_id,
             "base_frame": robot.base_link if params.base_frame is None
-            else robot.prefix + params.base_frame})
+            else robot.prefix + params.base_frame}
+        if is_urdf_description(robot.source) and "robot_radius" not in params.model_fields_set:
+            update["robot_radius"] = robot.footprint_radius  # a URDF's, from its collisions
+        return params.model_copy(update=update)
 
     def set_params(self, params: ControlParams) -> None:
         """Take changed parameters; the robot's names stay as its model gives them."""

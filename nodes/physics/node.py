@@ -33,14 +33,16 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from pydantic import BaseModel, ConfigDict, Field
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
+from descriptions.urdf import urdf_robot_in
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from nodes.contract import StepNode, Tick
 from nodes.physics.frames import TfParams, frame_problems, on_robot
 from nodes.physics.imu import ImuParams, imu_problems
 from nodes.physics.swarm import SwarmPhysics, robot_params
+from nodes.physics.urdf_rig import ROBOT_DESCRIPTION
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
 from plan.interactive import SET_POSE_TOPIC
 from plan.obstacles import place_problem
@@ -83,6 +85,8 @@ class PhysicsParams(BaseModel):
     enable_stamped_cmd_vel: bool = Field(False, description="take /cmd_vel as TwistStamped")
     tf: TfParams | None = Field(TfParams(), description="/tf and /tf_static; null: none")
     imu: ImuParams | None = Field(ImuParams(), description="/imu; null: none")
+    robot_description: bool = Field(False, description="publish a URDF robot's expanded URDF "
+                                     "on /robot_description (std_msgs/String, latched)")
 
 
 class PhysicsNode(StepNode):
@@ -107,8 +111,12 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def latched_outputs(cls, params: PhysicsParams) -> dict[str, type]:
-        """/tf_static: the robot's fixed frames, once."""
-        return {"/tf_static": TFMessage} if params.tf is not None else {}
+        """/tf_static: the robot's fixed frames, once; /robot_description: a URDF robot's
+        expanded URDF (``robot_description``), once."""
+        out: dict[str, type] = {"/tf_static": TFMessage} if params.tf is not None else {}
+        if params.robot_description:
+            out[ROBOT_DESCRIPTION] = String
+        return out
 
     @classmethod
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
@@ -134,6 +142,16 @@ class PhysicsNode(StepNode):
         """The robot's bodies and joints exist; the start pose is inside the world, clear of
         every obstacle by the robot's footprint radius. In a swarm, robot ``robot``'s copy
         (each is checked as the first one is)."""
+        urdf = urdf_robot_in(model, robot)
+        if params.robot_description and urdf is None:
+            return [("params.robot_description", "the robot is not described by a URDF or "
+                     "xacro, so there is no URDF to publish.", "robot_description: true with "
+                     "a robots: description that is a .urdf, .xacro or .urdf.xacro.")]
+        if urdf is not None:  # its names are its model's, checked when it was loaded
+            if params.imu is not None and not urdf["imu"]:
+                return [("params.imu", "the URDF robot has no IMU.", "imu: null, or an IMU "
+                         "link in robots.urdf.sensors (imu: LINK) or a Gazebo imu sensor tag.")]
+            return []
         if robot:
             return cls.world_problems(robot_params(params, robot), model, goal)
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, params.base_body)

@@ -23,12 +23,19 @@ import numpy as np
 from tf2_msgs.msg import TFMessage
 
 from descriptions.robot_model import RobotModel
+from descriptions.urdf import urdf_robot_in
 from descriptions.world_geometry import floor_mask
 from nodes.contract import Tick
 from nodes.physics import messages as m
 from nodes.physics.drive import DiffDrive
-from nodes.physics.frames import CameraFrames, RobotFrames
+from nodes.physics.frames import CameraFrames, RobotFrames, TfParams
 from nodes.physics.imu import SimulatedImu
+from nodes.physics.urdf_rig import (
+    ROBOT_DESCRIPTION,
+    UrdfRobotFrames,
+    robot_description,
+    urdf_params,
+)
 from nodes.physics.world import named_id
 from plan.interactive import SET_POSE_TOPIC
 from plan.robots import namespaced, prefixed
@@ -78,7 +85,13 @@ class Rig:
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, params, rng: np.random.Generator,
                  goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
         self.name = robot.name
-        self.params = params = robot_params(params, robot.name)
+        self.urdf = None  # a URDF robot's frames and joint states (nodes.physics.urdf_rig)
+        if urdf_robot_in(model, robot.name) is not None:
+            tf, odom = params.tf, params.odom_frame
+            self.params = params = urdf_params(params, robot)
+            self.urdf = UrdfRobotFrames(model, tf or TfParams(), robot, odom)
+        else:
+            self.params = params = robot_params(params, robot.name)
         self.base = named_id(model, BODY, robot.base)
         free = model.body_jntadr[self.base]
         self.mobile = free >= 0 and model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
@@ -107,10 +120,12 @@ class Rig:
         self.base_frame = robot.base_link
         self.topics = {t: robot_topic(robot.name, t) for t in
                        (CMD_VEL, JOINT_COMMANDS, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC, ODOM,
-                        JOINT_STATES, IMU)}
+                        JOINT_STATES, IMU, ROBOT_DESCRIPTION)}
         self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
         self.frames = None
-        if params.tf is not None:
+        if params.tf is not None and self.urdf is not None:
+            self.frames = self.urdf
+        elif params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
             self.frames = RobotFrames(model, params.tf, robot.base, self.base_frame,
                                       self.odom_frame, imu_site, self.position_joints)
@@ -222,9 +237,12 @@ class Rig:
         base_q = self.base_pose(data)
         base_v = data.qvel[self.vadr:self.vadr + 6] if self.mobile else np.zeros(6)
         out[self.topics[ODOM]] = m.odometry(base_q, base_v, self.odom_frame, self.base_frame)
-        out[self.topics[JOINT_STATES]] = m.joint_state(
-            self.joint_names, data.qpos[self.joint_q], data.qvel[self.joint_v],
-            data.qfrc_actuator[self.joint_v])
+        if self.urdf is not None:
+            out[self.topics[JOINT_STATES]] = self.urdf.joint_state(data)
+        else:
+            out[self.topics[JOINT_STATES]] = m.joint_state(
+                self.joint_names, data.qpos[self.joint_q], data.qvel[self.joint_v],
+                data.qfrc_actuator[self.joint_v])
         if self.imu is not None:
             out[self.topics[IMU]] = self.imu.measure(data)
         return [] if self.frames is None else self.frames.dynamic(data, base_q)
@@ -292,6 +310,11 @@ class SwarmPhysics:
                          None if robot.name else config.joint_goal)
                      for robot in config.robots]
         self.names = [rig.name for rig in self.rigs]
+        self.urdf_text = ""
+        if params.robot_description:  # the layout's URDF, expanded (once per process)
+            from descriptions.urdf_robot import layout_robot
+
+            self.urdf_text = layout_robot(layout.description, layout.urdf).urdf_text
         self.needed = layout.needed if layout is not None else 1
         self.goals = config.goal is not None or config.joint_goal is not None
         start = params.start
@@ -351,6 +374,9 @@ class SwarmPhysics:
         if first and self.params.tf is not None:
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
                                                       for t in rig.frames.static])
+        if first and self.params.robot_description:
+            for rig in self.rigs:
+                out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
         return out
 
     def _publish(self) -> dict[str, Any]:

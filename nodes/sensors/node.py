@@ -12,7 +12,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, model_validator
 from sensor_msgs.msg import CameraInfo, Image, LaserScan, PointCloud2
 
-from descriptions.robot_model import RobotModel
+from descriptions.robot_model import RobotModel, Sensor
 from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
 from nodes.physics.world import robots_of
@@ -143,9 +143,28 @@ def _placed(params: SensorsParams, robot: RobotModel | None) -> SensorsParams:
         sensor = getattr(params, key)
         if sensor is not None:
             update[key] = sensor.model_copy(update={"site": site, "frame_id": frame})
+            described = _from_description(sensor, lidar)
+            if described:  # checked as the scenario's own values would be
+                update[key] = type(sensor).model_validate(
+                    {**update[key].model_dump(), **described})
     if params.camera is not None:
         camera = robot.sensor("camera") if robot is not None else None
         update["camera"] = params.camera.model_copy(update={
             "camera": camera.mujoco_name if camera else names.camera,
             "frame_id": camera.link if camera else names.camera_frame})
     return params.model_copy(update=update)
+
+
+# A description's lidar parameters (a URDF's Gazebo <sensor> tag) -> the lidar's fields.
+LIDAR_FROM_DESCRIPTION = {"samples": "beams", "fov": "fov", "range_min": "range_min",
+                          "range_max": "range_max", "noise_stddev": "noise_stddev"}
+
+
+def _from_description(params: BaseModel, sensor: Sensor | None) -> dict[str, Any]:
+    """The lidar fields the robot model's sensor gives (a URDF's Gazebo tag: samples, field
+    of view, range limits, noise) that the scenario's parameters leave unset."""
+    if sensor is None:
+        return {}
+    given = dict(sensor.params)
+    return {field: given[key] for key, field in LIDAR_FROM_DESCRIPTION.items()
+            if key in given and field not in params.model_fields_set}

@@ -1,0 +1,25 @@
+"""The one error a robot description (URDF or xacro) raises when it cannot be loaded."""
+
+from __future__ import annotations
+
+
+class DescriptionError(ValueError):
+    """A description that cannot be loaded: the file, the link or joint (when one is to
+    blame), the path tried (a mesh, a package), what is wrong and the fix. The scenario
+    layer turns it into a ScenarioError (exit 2) before anything starts."""
+
+    def __init__(self, description: str, problem: str, *, link: str | None = None,
+                 joint: str | None = None, path: str | None = None, fix: str = ""):
+        self.description, self.problem, self.fix = str(description), problem, fix
+        self.link, self.joint, self.path = link, joint, path
+        where = self.description
+        if link:
+            where += f", link {link!r}"
+        if joint:
+            where += f", joint {joint!r}"
+        text = f"robot description {where}: {problem}"
+        if path:
+            text += f" (tried {path})"
+        if fix:
+            text += f". Fix: {fix}"
+        super().__init__(text)

@@ -1,0 +1,65 @@
+"""A scenario's URDF robot, loaded once per process: the scenario's ``urdf:`` settings
+(plan.description_spec.UrdfSpec) as :class:`UrdfOptions`, the load cached by file and
+settings (every node of a process reads the same robot), and a DescriptionError worded as
+the ScenarioError it is (exit 2, naming the scenario file and key)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from descriptions.description_error import DescriptionError
+from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
+from plan.description_spec import UrdfSpec
+from plan.errors import ScenarioError
+
+
+def urdf_options(spec: UrdfSpec | None, scenario_dir: Path) -> UrdfOptions:
+    """UrdfOptions from a scenario's ``urdf:`` settings; package folders are relative to
+    the scenario's directory."""
+    spec = spec or UrdfSpec()
+    return UrdfOptions(
+        args={k: str(v).lower() if isinstance(v, bool) else str(v)
+              for k, v in spec.args.items()},
+        packages={k: str((scenario_dir / v).resolve()) for k, v in spec.packages.items()},
+        base=spec.base, wheels=spec.wheels, wheel_radius=spec.wheel_radius,
+        wheel_separation=spec.wheel_separation, sensors=dict(spec.sensors),
+        interfaces=dict(spec.interfaces),
+        gains={k: {g: v for g, v in (("kp", s.kp), ("kv", s.kv)) if v is not None}
+               for k, s in spec.gains.items()})
+
+
+def load_robot(path: Path | str, options: UrdfOptions) -> LoadedUrdf:
+    """``load_urdf`` cached per process by the file and the options."""
+    key = json.dumps({k: v for k, v in options.__dict__.items() if k != "env"},
+                     sort_keys=True, default=list)
+    return _cached(str(Path(path).resolve()), key, options)
+
+
+_CACHE: dict[tuple[str, str], LoadedUrdf] = {}
+
+
+def _cached(path: str, key: str, options: UrdfOptions) -> LoadedUrdf:
+    if (path, key) not in _CACHE:
+        _CACHE[(path, key)] = load_urdf(path, options)
+    return _CACHE[(path, key)]
+
+
+def scenario_error(exc: DescriptionError, file: Path | str, key: str) -> ScenarioError:
+    """The ScenarioError (exit 2) a DescriptionError is in scenario ``file`` at ``key``."""
+    return ScenarioError(file, key, str(exc) + ("" if str(exc).endswith(".") else "."))
+
+
+def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
+    """A scenario's ``urdf:`` settings as the swarm layout carries them: JSON, the package
+    folders made absolute (every process reads the same robot wherever it runs from)."""
+    spec = spec or UrdfSpec()
+    packages = {k: str((scenario_dir / v).resolve()) for k, v in spec.packages.items()}
+    return spec.model_copy(update={"packages": packages}).model_dump_json()
+
+
+def layout_robot(description: Path | str, settings: str) -> LoadedUrdf:
+    """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
+    ``layout_settings``'s JSON), loaded once per process."""
+    spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
+    return load_robot(description, urdf_options(spec, Path("/")))

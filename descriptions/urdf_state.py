@@ -1,0 +1,104 @@
+"""What robot_state_publisher and joint_state_broadcaster would publish for a description
+robot, read from the MuJoCo state: a transform per URDF joint (parent link -> child link,
+fixed joints once for /tf_static, moving ones per tick for /tf), ``odom -> root link`` for a
+mobile robot, and the joint states of every movable joint. Frame names are the model's link
+names (``robot_3/base_scan`` in a swarm, as ``frame_prefix`` gives them); joint names in
+joint states are the URDF's own (the topic is namespaced instead)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from descriptions.robot_model import RobotModel
+
+BODY = mujoco.mjtObj.mjOBJ_BODY
+JOINT = mujoco.mjtObj.mjOBJ_JOINT
+
+
+@dataclass(frozen=True)
+class LinkTransform:
+    """One transform: parent and child frame, translation and quaternion (w, x, y, z)."""
+
+    parent: str
+    child: str
+    pos: tuple[float, float, float]
+    quat: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class JointStates:
+    """The movable joints' names (the URDF's), positions, velocities and efforts."""
+
+    names: tuple[str, ...]
+    position: tuple[float, ...]
+    velocity: tuple[float, ...]
+    effort: tuple[float, ...]
+
+
+def _relative(data: mujoco.MjData, parent: int, child: int) -> tuple[tuple, tuple]:
+    rp = data.xmat[parent].reshape(3, 3)
+    pos = rp.T @ (data.xpos[child] - data.xpos[parent])
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, (rp.T @ data.xmat[child].reshape(3, 3)).ravel())
+    if quat[0] < 0:
+        quat = -quat
+    return tuple(float(v) for v in pos), tuple(float(v) for v in quat)
+
+
+class UrdfFrames:
+    """The transforms and joint states of one robot (its model possibly scoped) in a
+    compiled world: ids looked up once, values read per state."""
+
+    def __init__(self, model: mujoco.MjModel, robot: RobotModel, odom_frame: str = "odom"):
+        # a URDF link named 'world' is MuJoCo's world body (the robot is fixed to it)
+        body = {k.name: 0 if k.name == robot.prefix + "world" else
+                mujoco.mj_name2id(model, BODY, k.body) for k in robot.links}
+        missing = [name for name, bid in body.items() if bid < 0]
+        if missing:
+            raise KeyError(f"links without a body in the world: {missing}")
+        self.robot, self.odom_frame = robot, odom_frame
+        self.root = body[robot.base_link]
+        pairs = [(j, body[j.parent], body[j.child]) for j in robot.joints]
+        self._fixed = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind == "fixed"]
+        self._moving = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind != "fixed"]
+        self._joints = []
+        for j in robot.joints:
+            if j.kind in ("fixed", "floating", "planar"):
+                continue
+            jid = mujoco.mj_name2id(model, JOINT, j.name)
+            if jid >= 0:
+                self._joints.append((j.name[len(robot.prefix):], int(model.jnt_qposadr[jid]),
+                                     int(model.jnt_dofadr[jid])))
+
+    def static(self, data: mujoco.MjData) -> list[LinkTransform]:
+        """The fixed joints' transforms (for /tf_static, once)."""
+        return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._fixed]
+
+    @property
+    def has_moving(self) -> bool:
+        """Whether any joint moves (its transform changes with the state)."""
+        return bool(self._moving)
+
+    def base(self, data: mujoco.MjData) -> LinkTransform | None:
+        """``odom -> root link`` for a mobile robot (its free joint's pose), else None."""
+        if not self.robot.mobile:
+            return None
+        quat = np.asarray(data.xquat[self.root], dtype=float)
+        return LinkTransform(self.robot.prefix + self.odom_frame, self.robot.base_link,
+                             tuple(float(v) for v in data.xpos[self.root]),
+                             tuple(float(v) for v in (-quat if quat[0] < 0 else quat)))
+
+    def moving(self, data: mujoco.MjData) -> list[LinkTransform]:
+        """The moving joints' transforms (for /tf; after mj_kinematics)."""
+        return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._moving]
+
+    def joint_states(self, data: mujoco.MjData) -> JointStates:
+        """Every movable joint's position, velocity and actuator effort."""
+        return JointStates(
+            tuple(n for n, _, _ in self._joints),
+            tuple(float(data.qpos[q]) for _, q, _ in self._joints),
+            tuple(float(data.qvel[d]) for _, _, d in self._joints),
+            tuple(float(data.qfrc_actuator[d]) for _, _, d in self._joints))

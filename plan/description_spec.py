@@ -1,0 +1,57 @@
+"""What a scenario says about a robot described in URDF or xacro (the ``urdf:`` key of a
+robot whose ``description`` is a ``.urdf``, ``.xacro`` or ``.urdf.xacro``): xacro
+arguments, where its ROS packages are, its base, drive wheels, sensors, command interfaces
+and actuator gains. Pure data; ``descriptions/urdf.py`` reads the description with it."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+URDF_SUFFIXES = (".urdf", ".xacro")
+
+
+class Strict(BaseModel):
+    """Unknown keys are errors (as every scenario section; plan.model imports this module)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def is_urdf_description(path: str) -> bool:
+    """True for a URDF or xacro description (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
+    return path.lower().endswith(URDF_SUFFIXES)
+
+
+class GainsSpec(Strict):
+    """Gains of the actuators cosim adds: kp (position), kv (position damping, velocity)."""
+
+    kp: float | None = Field(None, ge=0)
+    kv: float | None = Field(None, ge=0)
+
+
+class UrdfSpec(Strict):
+    """A URDF or xacro robot: how cosim reads it (README "Your own robot")."""
+
+    args: dict[str, str | bool | int | float] = Field(default_factory=dict, description="xacro "
+                                                      "arguments, "
+                                 "name -> value (as name:=value on the xacro command line)")
+    packages: dict[str, str] = Field(default_factory=dict, description="ROS package name -> "
+                                     "its folder (holding package.xml), relative to this file; "
+                                     "searched before AMENT_PREFIX_PATH and ROS_PACKAGE_PATH")
+    base: Literal["auto", "free", "fixed"] = Field("auto", description="free: a mobile robot "
+                                                   "(a free joint at the root link); fixed: "
+                                                   "fixed to the world; auto: free with wheels")
+    wheels: tuple[str, str] | None = Field(None, description="[left, right] drive wheel joints")
+    wheel_radius: float | None = Field(None, gt=0, description="m; default: from the wheels' "
+                                       "collision geometry")
+    wheel_separation: float | None = Field(None, gt=0, description="m; default: from the "
+                                           "wheels' positions")
+    sensors: dict[Literal["lidar", "camera", "imu"], str] = Field(
+        default_factory=dict, description="sensor kind -> the link it hangs on, e.g. "
+        "{lidar: base_scan}; Gazebo <sensor> tags of the description add theirs")
+    interfaces: dict[str, Literal["position", "velocity", "effort"]] = Field(
+        default_factory=dict, description="joint -> command interface, for joints the "
+        "description's <ros2_control> block does not command")
+    gains: dict[str, GainsSpec] = Field(default_factory=dict, description="joint name, or "
+                                        "wheel / position / velocity / effort -> {kp, kv}")

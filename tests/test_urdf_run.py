@@ -1,0 +1,161 @@
+"""A robot described in xacro runs as a cosim robot (scenarios/nav_urdf.yaml): it reaches the
+nav goal with one digest in-process and multi-process, and a plain rclpy subscriber sees
+/robot_description, /joint_states and TF under the URDF's own names. Bad settings are
+scenario errors (exit 2) naming the key."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+import pytest
+import yaml
+
+from descriptions.load import load_scenario
+from plan.errors import ScenarioError
+from tests.helpers import ORCHESTRATE, ROOT, orchestrate
+
+NAV_URDF = ROOT / "scenarios" / "nav_urdf.yaml"
+LINKS = {"base_footprint", "base_link", "wheel_left_link", "wheel_right_link",
+         "caster_front_link", "caster_back_link", "base_scan", "imu_link", "camera_link",
+         "camera_optical_frame"}
+
+
+def test_nav_urdf_reaches_the_goal_with_one_digest(tmp_path):
+    inproc = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet")
+    multi = orchestrate(NAV_URDF, tmp_path, "--quiet")
+    for run in (inproc, multi):
+        assert run.code == 0, run.stderr
+        assert run.manifest["outcome"]["success"]
+        assert run.manifest["outcome"]["metrics"]["mybot/arrived"] == 1.0
+    assert inproc.manifest["digest"] == multi.manifest["digest"]
+
+
+def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
+
+    node, executor = ros_node
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)
+    got: dict[str, list] = {"description": [], "joints": [], "tf": [], "static": []}
+    node.create_subscription(String, "/mybot/robot_description", got["description"].append,
+                             latched)
+    node.create_subscription(TFMessage, "/tf_static", got["static"].append, latched)
+    node.create_subscription(JointState, "/mybot/joint_states", got["joints"].append, 100)
+    node.create_subscription(TFMessage, "/tf", got["tf"].append, 100)
+    # the whole run (a few seconds of wall time): the latched topics are discovered in it
+    proc = subprocess.Popen([*ORCHESTRATE, str(NAV_URDF), "--out", str(tmp_path), "--quiet"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        for _ in range(40):
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    counts = {k: len(v) for k, v in got.items()}
+    assert got["description"], f"no /mybot/robot_description; received {counts}"
+    urdf = got["description"][-1].data
+    assert '<robot name="mybot"' in urdf and "<samples>360</samples>" in urdf  # expanded
+    static = {(t.header.frame_id, t.child_frame_id) for m in got["static"] for t in m.transforms}
+    assert ("mybot/base_link", "mybot/base_scan") in static
+    assert ("mybot/camera_link", "mybot/camera_optical_frame") in static
+    moving = {(t.header.frame_id, t.child_frame_id) for m in got["tf"] for t in m.transforms}
+    assert ("mybot/odom", "mybot/base_footprint") in moving
+    assert ("mybot/base_link", "mybot/wheel_left_link") in moving
+    frames = {c for _, c in static | moving}
+    assert {f"mybot/{link}" for link in LINKS} - {"mybot/base_footprint"} <= frames
+    assert got["joints"] and got["joints"][-1].name == ["wheel_left_joint", "wheel_right_joint"]
+
+
+def write_scenario(tmp_path, change) -> str:
+    doc = yaml.safe_load(NAV_URDF.read_text())
+    doc["world"] = str((NAV_URDF.parent / doc["world"]).resolve())
+    doc["robots"]["description"] = str(NAV_URDF.parent / doc["robots"]["description"])
+    doc["robots"]["urdf"]["packages"] = {
+        k: str((NAV_URDF.parent / v).resolve())
+        for k, v in doc["robots"]["urdf"]["packages"].items()}
+    change(doc)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
+def test_a_urdf_robot_without_an_imu_is_named_in_the_physics_params(tmp_path):
+    path = write_scenario(tmp_path, lambda d: d["robots"]["urdf"]["args"].update(
+        with_imu="false"))
+    with pytest.raises(ScenarioError, match="the URDF robot has no IMU") as exc:
+        load_scenario(path)
+    assert exc.value.key == "nodes[0] (physics).params.imu"
+
+
+@pytest.mark.parametrize("change,key,words", [
+    (lambda d: d["robots"]["urdf"].pop("packages"), "robots.description",
+     r"\$\(find mybot_description\)"),
+    (lambda d: d["robots"]["urdf"].update(wheels=["wheel_left_joint", "imu_joint"]),
+     "robots.description", "joint 'imu_joint'.*fixed: it does not turn"),
+    (lambda d: d["robots"]["urdf"].update(sensors={"lidar": "laser"}), "robots.description",
+     "link 'laser'.*not in the description"),
+    (lambda d: d["robots"].update(description=str(ROOT / "scenarios/worlds/robot.xml")),
+     "robots.urdf", "not a URDF or xacro"),
+])
+def test_bad_urdf_settings_are_scenario_errors(tmp_path, change, key, words):
+    path = write_scenario(tmp_path, change)
+    with pytest.raises(ScenarioError, match=words) as exc:
+        load_scenario(path)
+    assert exc.value.key == key
+    run = subprocess.run([*ORCHESTRATE, path, "--in-process", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 2 and key in run.stderr
+
+
+def test_a_xacro_arg_reaches_the_lidar_through_the_gazebo_tag(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet", "--duration", "1s",
+                      "--set", "robots.urdf.args.lidar_samples=180")
+    assert run.code == 1, run.stderr  # 1 s: the goal is not reached yet
+    scan = bag_messages(run.run_dir, "/mybot/scan")[0]
+    assert len(scan.ranges) == 180 and scan.header.frame_id == "mybot/base_scan"
+    assert scan.range_max == pytest.approx(12.0)
+
+
+def test_a_swarm_of_urdf_robots_reaches_its_goals(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(ROOT / "scenarios" / "swarm_urdf.yaml", tmp_path, "--in-process",
+                      "--quiet")
+    assert run.code == 0, run.stderr
+    assert run.manifest["outcome"]["metrics"]["robots_arrived"] == 4.0
+    static = bag_messages(run.run_dir, "/tf_static")[0].transforms
+    assert {(t.header.frame_id, t.child_frame_id) for t in static} >= {
+        (f"bot_{i}/base_link", f"bot_{i}/base_scan") for i in range(4)}
+    assert len(bag_messages(run.run_dir, "/bot_3/robot_description")) == 1
+
+
+def test_a_urdf_arm_follows_joint_commands_to_its_last_target(tmp_path):
+    from tests.test_arm import bag_messages
+
+    run = orchestrate(ROOT / "scenarios" / "arm_urdf.yaml", tmp_path, "--in-process",
+                      "--quiet")
+    assert run.code == 0, run.stderr
+    assert run.manifest["outcome"]["metrics"]["target"] == 2.0  # the third of three
+    last = yaml.safe_load((ROOT / "scenarios" / "arm_urdf.yaml").read_text())
+    target = last["nodes"][1]["params"]["targets"][-1]
+    states = bag_messages(run.run_dir, "/myarm/joint_states")[-1]
+    assert states.name == ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2",
+                           "wrist_3"]
+    assert list(states.position) == pytest.approx(target, abs=0.05)
+    moving = {(t.header.frame_id, t.child_frame_id)
+              for t in bag_messages(run.run_dir, "/tf")[-1].transforms}
+    assert ("myarm/wrist_2_link", "myarm/wrist_3_link") in moving
+    static = {(t.header.frame_id, t.child_frame_id)
+              for t in bag_messages(run.run_dir, "/tf_static")[0].transforms}
+    assert ("myarm/wrist_3_link", "myarm/tool0") in static
