@@ -44,7 +44,7 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
                 raise ScenarioError(path, f"{key}.robots[{j}]", f"there is no robot {robot!r}.",
                                     f"one of {', '.join(layout.names[:8])}"
                                     f"{', ...' if len(layout.names) > 8 else ''}.")
-        nodes += [_instance(spec, robot) for robot in chosen]
+        nodes += [_instance(spec, robot, path.parent) for robot in chosen]
         origins.update({f"{spec.name}@{robot}": i for robot in chosen})
     return model.model_copy(update={"nodes": nodes}), origins
 
@@ -60,13 +60,14 @@ def _class_of(spec: NodeSpec) -> type | None:
         return None
 
 
-def _instance(spec: NodeSpec, robot: str) -> NodeSpec:
+def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
     cls = _class_of(spec)
     params = dict(spec.params)
     own = {inp.topic for inp in spec.inputs}
     if cls is not None:
         try:
-            checked = cls.Params.model_validate(params)
+            checked = cls.Params.model_validate(params,
+                                                context={"scenario_dir": scenario_dir})
             own |= set(cls.outputs(checked)) | set(cls.latched_outputs(checked))
         except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
             pass

@@ -169,7 +169,8 @@ class ControllerManagerNode(StepNode):
         the world has (a position actuator; a diff drive's wheels), no joint commanded by two
         active controllers, and inactive names controllers of the file."""
         spec_file = read(params)
-        joints = {model.joint(j).name for j in range(model.njnt)}
+        # in a robots: world every name is the robot's: 'mybot/wheel_left_joint'
+        joints = {model.joint(j).name.rpartition("/")[2] for j in range(model.njnt)}
         positions = position_joints(model)
         commanded = params.command_joints if params.command_joints is not None else positions
         for name in commanded:
@@ -220,7 +221,6 @@ class ControllerManagerNode(StepNode):
 
     def setup(self) -> None:
         """Read the file, build the controllers, find the world's joints."""
-        from descriptions.robot_reader import wheel_geometry
         from nodes.physics.world import load_model
 
         self.file = read(self.params)
@@ -234,8 +234,7 @@ class ControllerManagerNode(StepNode):
             if spec.type == c.JTC:
                 self.controllers[spec.name] = TrajectoryController(spec)
             elif spec.type == c.DIFF_DRIVE:
-                self.controllers[spec.name] = DiffDrive(spec, wheel_geometry(
-                    model, spec.params["left"][0], spec.params["right"][0]))
+                self.controllers[spec.name] = DiffDrive(spec, self._drive(model, spec))
             elif spec.type != c.JSB:
                 self.controllers[spec.name] = ForwardCommand(spec)
         self.command: dict[str, float] = {}
@@ -244,6 +243,17 @@ class ControllerManagerNode(StepNode):
         self.dt = self.config.period_ns / NS_PER_S
         for note in self.file.notes:
             self.note(note)
+
+    def _drive(self, model, spec: c.ControllerSpec) -> tuple[float, float]:
+        """(wheel radius, separation) of the physics node's drive: the robot model's where
+        this node is a robot's (its drive's wheels), else read off the world's wheels."""
+        from descriptions.robot_reader import wheel_geometry
+
+        for robot in self.config.robots or ():
+            drive = robot.drive
+            if drive is not None:
+                return drive.wheel_radius, drive.wheel_separation
+        return wheel_geometry(model, spec.params["left"][0], spec.params["right"][0])
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One update of the controller manager."""
