@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 JS := tests/js
 JS_STAMP := $(JS)/node_modules/.installed
 
-.PHONY: install run test lint bench clean
+.PHONY: install run test lint bench docs clean
 
 # The ROS interface packages PyPI lacks (interfaces/) are built into the venv; a no-op when
 # nothing changed, and only the changed package is rebuilt (tools/build_interfaces.py). Then
@@ -33,6 +33,12 @@ run: install
 test: install
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
+
+# The documentation site into build/site (open build/site/index.html); --strict: a dead link or
+# a page missing from the nav fails the build. The reference pages are generated from the code.
+docs: install
+	$(BIN)/python tools/gen_reference.py
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
 
 bench: install
 	$(BIN)/python -u -m bench

@@ -46,13 +46,19 @@ class NodeSpec(Strict):
     """One node: what runs (kind or module), how often, its parameters, inputs and remaps."""
 
     name: Name = Field(description="letters, digits and _, starting with a letter")
-    kind: str | None = None
-    module: str | None = None
+    kind: str | None = Field(None, description="a built-in node kind (physics, sensors, "
+                             "control, ...); one of kind, module and command")
+    module: str | None = Field(None, description="your own step class as 'package.module:Class' "
+                               "(a subclass of nodes.contract.StepNode)")
     period_ns: PeriodNs = Field(alias="rate", description=RATE_HELP)  # given as a rate in Hz
-    params: dict[str, Any] = Field(default_factory=dict)
-    inputs: list[InputSpec] = Field(default_factory=list)
-    remap: dict[Topic, Topic] = Field(default_factory=dict)
-    debug: DebugSpec = Field(default_factory=DebugSpec)
+    params: dict[str, Any] = Field(default_factory=dict, description="the kind's parameters, "
+                                   "checked against its Params model")
+    inputs: list[InputSpec] = Field(default_factory=list, description="the topics this node "
+                                    "consumes: the schedule's edges")
+    remap: dict[Topic, Topic] = Field(default_factory=dict, description="topic the node "
+                                      "knows -> topic it uses in this run, e.g. "
+                                      "{/cmd_vel: /robot1/cmd_vel}")
+    debug: DebugSpec = Field(default_factory=DebugSpec, description="test-only knobs")
     command: list[str] | None = Field(None, min_length=1, description="a foreign ROS 2 "
                                       "program: [program, args...], run from the scenario's "
                                       "directory with use_sim_time")
@@ -74,11 +80,13 @@ class NodeSpec(Strict):
 class GoalSpec(Strict):
     """Where the robot must get to, and how close counts."""
 
-    x: float
-    y: float
-    yaw: float = 0.0
-    position_tolerance: float = Field(0.25, gt=0)
-    yaw_tolerance: float = Field(3.2, gt=0)
+    x: float = Field(description="m")
+    y: float = Field(description="m")
+    yaw: float = Field(0.0, description="rad")
+    position_tolerance: float = Field(0.25, gt=0, description="m from the goal that counts as "
+                                      "reached")
+    yaw_tolerance: float = Field(3.2, gt=0, description="rad from the goal's yaw that counts "
+                                 "(the default, over pi, ignores the heading)")
 
 
 class JointGoalSpec(Strict):
@@ -94,16 +102,16 @@ class JointGoalSpec(Strict):
 class Region(Strict):
     """An axis-aligned rectangle of the floor: x and y ranges in metres."""
 
-    x: tuple[float, float]
-    y: tuple[float, float]
+    x: tuple[float, float] = Field(description="[min, max] in m")
+    y: tuple[float, float] = Field(description="[min, max] in m")
 
 
 class PlanarPose(Strict):
     """A position in metres and a heading in radians."""
 
-    x: float
-    y: float
-    yaw: float = 0.0
+    x: float = Field(description="m")
+    y: float = Field(description="m")
+    yaw: float = Field(0.0, description="rad")
 
 
 class NamedRobot(Strict):
@@ -112,7 +120,7 @@ class NamedRobot(Strict):
     name: Name = Field(description="letters, digits and _; the robot's namespace")
     start: PlanarPose | None = Field(None, description="where it starts; in a USD stage "
                                      "with robot prims, the prim named so places it instead")
-    goal: PlanarPose
+    goal: PlanarPose = Field(description="where it must get to")
 
 
 class RobotsSpec(Strict):
@@ -127,9 +135,10 @@ class RobotsSpec(Strict):
                                     "prims name (cosim:robot:mjcf)")
     base_body: str = Field("base_link", description="the robot's root body in the description")
     urdf: UrdfSpec | None = Field(None, description="how a URDF or xacro description is read "
-                                  "(xacro args, packages, wheels, sensors, ...; README \"Your "
-                                  "own robot\")")
-    count: int | None = Field(None, ge=1, le=1024)
+                                  "(xacro args, packages, wheels, sensors, ...; "
+                                  "docs/tutorials/own-robot.md)")
+    count: int | None = Field(None, ge=1, le=1024, description="this many robots, placed by "
+                              "the scenario seed in region (instead of named)")
     name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")
     region: Region | None = Field(None, description="count: where the robots start")
     goal_region: Region | None = Field(None, description="count: where their goals are; "
@@ -140,7 +149,7 @@ class RobotsSpec(Strict):
                                            "each with its start and goal (instead of count)")
     position_tolerance: float = Field(0.3, gt=0, description="m from its goal that counts "
                                       "as reached")
-    yaw_tolerance: float = Field(3.2, gt=0)
+    yaw_tolerance: float = Field(3.2, gt=0, description="rad from its goal's yaw that counts")
     success_fraction: float = Field(1.0, gt=0, le=1, description="the fraction of robots that "
                                     "must reach their goals for the run to succeed")
 
@@ -148,9 +157,10 @@ class RobotsSpec(Strict):
 class SuccessSpec(Strict):
     """What a successful run means: goal reached (if a goal is given) and few enough collisions."""
 
-    reach_goal: bool = True
-    max_collisions: int = Field(0, ge=0)
-    stop_on_goal: bool = True
+    reach_goal: bool = Field(True, description="success needs the goal reached (when the "
+                             "scenario has one)")
+    max_collisions: int = Field(0, ge=0, description="most collisions a successful run may have")
+    stop_on_goal: bool = Field(True, description="end the run at the tick the goal is reached")
 
 
 class DeadlineSpec(Strict):

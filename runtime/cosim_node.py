@@ -26,8 +26,8 @@ exit codes:
 """
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    """Command-line options."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
     p = argparse.ArgumentParser(
         prog="cosim-node", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run one node of a cosim scenario. With --lockstep (the default) it joins "
@@ -57,7 +57,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, as the orchestrator does (repeatable)")
     p.add_argument("--run-options", metavar="JSON", help=argparse.SUPPRESS)  # orchestrator's
-    return p.parse_args(argv)
+    return p
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Command-line options."""
+    return build_parser().parse_args(argv)
 
 
 def pick_node(scenario: Scenario, kind: str, name: str | None) -> str:
