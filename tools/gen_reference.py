@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "cosim-orchestrate": ("orchestrator.cosim_orchestrate", "build_parser"),
     "cosim-node": ("runtime.cosim_node", "build_parser"),
     "cosim-sweep": ("orchestrator.sweep.cli", "build_parser"),
+    "cosim-ros2": ("orchestrator.ros2cli.cli", "build_parser"),
 }
 
 

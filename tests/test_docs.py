@@ -1,0 +1,181 @@
+"""The documentation site (docs/, mkdocs.yml): it builds with no warning (dead links, pages
+missing from the nav, broken anchors), its generated reference is the code's, and the
+commands of its tutorials run as written.
+
+A tutorial marks what the reader types as a ```console block of ``$ command`` lines. Each
+block is run here with bash, in a directory that holds the repository's files, the cosim
+commands standing for the installed ones: a ``$ command &`` runs in the background for the
+rest of the block and is stopped (SIGINT) after it. A cosim run that finishes with its goal
+not met (exit 1: a tutorial's runs are short) counts as run; any other failure fails the
+test. A block that cannot run here says why in the comment before it:
+``<!-- test: skip: REASON -->``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import ROOT
+
+DOCS = ROOT / "docs"
+TUTORIALS = ["getting-started.md", *sorted(p.relative_to(DOCS).as_posix()
+                                          for p in (DOCS / "tutorials").glob("*.md")),
+             "concepts/digest.md"]
+RUNS_TO_THE_END = ("cosim-orchestrate", "cosim-sweep")  # exit 1: finished, goal not met
+
+
+def test_site_builds_with_no_warning(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
+                           str(tmp_path / "site")], cwd=ROOT, capture_output=True, text=True,
+                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"}, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "WARNING" not in done.stderr, done.stderr
+    assert (tmp_path / "site" / "reference" / "scenario" / "index.html").exists()
+
+
+def test_generated_reference_is_current():
+    sys.path.insert(0, str(ROOT / "tools"))
+    try:
+        import gen_reference
+    finally:
+        sys.path.remove(str(ROOT / "tools"))
+    stale = [path.relative_to(ROOT).as_posix() for path, text in gen_reference.generate().items()
+             if not path.exists() or path.read_text(encoding="utf-8") != text]
+    assert not stale, (f"the generated reference is stale: {stale}; "
+                       "run .venv/bin/python tools/gen_reference.py and commit")
+
+
+def test_the_reference_covers_every_command_and_scenario_key():
+    text = (DOCS / "reference" / "cli.md").read_text()
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    for command in scripts:
+        assert f"## `{command}`" in text, f"{command} has no section in reference/cli.md"
+    assert "`--expect-digest`" in text and "#### `cosim-ros2 topic pub`" in text
+    scenario = (DOCS / "reference" / "scenario.md").read_text()
+    for key in ("`robots.named[].start`", "| `stale_after` |", "| `for_each` |"):
+        assert key in scenario
+
+
+@dataclass
+class Block:
+    """One ```console block of a page: its commands and whether (why not) it runs here."""
+
+    page: str
+    line: int
+    commands: list[str]
+    skip: str | None
+
+    @property
+    def id(self) -> str:
+        """page:line, the test's id."""
+        return f"{self.page}:{self.line}"
+
+
+def console_blocks(page: str) -> list[Block]:
+    """The page's ```console blocks, with the skip reason of the comment before each."""
+    lines = (DOCS / page).read_text().splitlines()
+    blocks, i = [], 0
+    while i < len(lines):
+        if lines[i].strip() != "```console":
+            i += 1
+            continue
+        before = lines[i - 1].strip() if i else ""
+        skip = re.match(r"<!-- test: skip: (.+) -->$", before)
+        start, commands, i = i + 1, [], i + 1
+        while lines[i].strip() != "```":
+            line = lines[i].strip()
+            if line.startswith("$ "):
+                commands.append(line[2:])
+            elif commands and commands[-1].endswith("\\"):
+                commands[-1] = commands[-1][:-1] + " " + line
+            i += 1
+        blocks.append(Block(page, start, commands, skip.group(1) if skip else None))
+    return blocks
+
+
+BLOCKS = [b for page in TUTORIALS for b in console_blocks(page)]
+
+
+def test_every_tutorial_has_commands_the_suite_runs():
+    for page in TUTORIALS:
+        runs = [b for b in console_blocks(page) if b.skip is None and b.commands]
+        assert runs, f"docs/{page} has no ```console block that the suite runs"
+
+
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.skip is None], ids=lambda b: b.id)
+def test_tutorial_commands_run_as_written(block, tmp_path):
+    work = _workdir(tmp_path)
+    script = ["set -u"]
+    for command in block.commands:
+        command = command.replace(".venv/bin/", "")
+        if command.endswith("&"):
+            script.append(command)
+            continue
+        allowed = 1 if command.split()[0].split("=")[-1] in RUNS_TO_THE_END or any(
+            f" {c} " in f" {command} " for c in RUNS_TO_THE_END) else 0
+        script += [command, "rc=$?",
+                   f"if [ $rc -gt {allowed} ]; then echo \"exit $rc: {_quoted(command)}\" >&2;"
+                   " exit $rc; fi"]
+    proc = subprocess.Popen(["bash", "-c", "\n".join(script)], cwd=work, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PATH": f"{work / 'bin'}:{os.environ['PATH']}"},
+                            start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=240)
+    finally:
+        _stop_group(proc.pid)
+    assert proc.returncode == 0, f"docs/{block.id}:\n{out[-3000:]}\n{err[-3000:]}"
+
+
+def _workdir(tmp_path: Path) -> Path:
+    """A directory with the repository's files (links) and bin/ holding each cosim command
+    and python as this interpreter with this tree first on its path."""
+    work = tmp_path / "work"
+    work.mkdir()
+    for entry in ROOT.iterdir():
+        if entry.name not in (".venv", "runs", "build", ".git", "sweeps"):
+            (work / entry.name).symlink_to(entry)
+    bin_dir = work / "bin"
+    bin_dir.mkdir()
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    for name, ref in scripts.items():
+        module, function = ref.split(":")
+        _executable(bin_dir / name, f"import sys; sys.path.insert(0, {str(ROOT)!r}); "
+                                    f"from {module} import {function}; sys.exit({function}())")
+    (bin_dir / "python").write_text(f'#!/bin/sh\nexec {sys.executable} "$@"\n')
+    (bin_dir / "python").chmod(0o755)
+    return work
+
+
+def _executable(path: Path, code: str) -> None:
+    """A shell script running ``code`` with this interpreter and the script's arguments."""
+    path.write_text(f'#!/bin/sh\nexec {sys.executable} -c "{code}" "$@"\n')
+    path.chmod(0o755)
+
+
+def _quoted(command: str) -> str:
+    """A command made safe inside double quotes of the bash script."""
+    return re.sub(r'(["$`\\])', r"\\\1", command)
+
+
+def _stop_group(pgid: int) -> None:
+    """Stop what the block left in the background: SIGINT, then SIGKILL after 15 s."""
+    for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        done = subprocess.run(["sh", "-c", f"for i in $(seq {int(wait * 10)}); do "
+                               f"kill -0 -{pgid} 2>/dev/null || exit 0; sleep 0.1; done; "
+                               "exit 1"])
+        if done.returncode == 0:
+            return
