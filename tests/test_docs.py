@@ -115,10 +115,10 @@ def test_every_tutorial_has_commands_the_suite_runs():
 def test_tutorial_commands_run_as_written(block, tmp_path):
     work = _workdir(tmp_path)
     script = ["set -u"]
-    for command in block.commands:
+    for n, command in enumerate(block.commands):
         command = command.replace(".venv/bin/", "")
-        if command.endswith("&"):
-            script.append(command)
+        if command.endswith("&"):  # its output to a file: the block's pipes close at its end
+            script.append(f"{command[:-1].rstrip()} > background-{n}.log 2>&1 &")
             continue
         allowed = 1 if command.split()[0].split("=")[-1] in RUNS_TO_THE_END or any(
             f" {c} " in f" {command} " for c in RUNS_TO_THE_END) else 0
@@ -133,7 +133,9 @@ def test_tutorial_commands_run_as_written(block, tmp_path):
         out, err = proc.communicate(timeout=240)
     finally:
         _stop_group(proc.pid)
-    assert proc.returncode == 0, f"docs/{block.id}:\n{out[-3000:]}\n{err[-3000:]}"
+    background = "".join(f"\n{log.name}:\n{log.read_text()[-2000:]}"
+                         for log in sorted(work.glob("background-*.log")))
+    assert proc.returncode == 0, f"docs/{block.id}:\n{out[-3000:]}\n{err[-3000:]}{background}"
 
 
 def _workdir(tmp_path: Path) -> Path:
@@ -168,8 +170,8 @@ def _quoted(command: str) -> str:
 
 
 def _stop_group(pgid: int) -> None:
-    """Stop what the block left in the background: SIGINT, then SIGKILL after 15 s."""
-    for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGKILL, 5.0)):
+    """Stop what the block left in the background: SIGINT, then SIGTERM, then SIGKILL."""
+    for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
         try:
             os.killpg(pgid, sig)
         except ProcessLookupError:
