@@ -2,7 +2,8 @@
 
 A program is *gated* when a gate serves it: ``python`` (cosim's rclpy gate, for a program run
 by a Python interpreter) or ``rmw`` (``librmw_cosim_gate.so``, any program on rcl, when
-``make install`` built it). Both keep one delivery contract (the README's): the program takes
+``make install`` built it). Both keep one delivery contract
+(docs/how-to/foreign-programs.md): the program takes
 each tick's inputs whole and acknowledges each tick with how many messages it published on
 each output. A program no gate serves reads the run's topics directly (ungated).
 """

@@ -13,7 +13,7 @@ Placing: plan/robot_placement.py (checked against the world by
 descriptions/robot_layout.py); the swarm world: descriptions/swarm_world.py; node templates:
 plan/templates.py.
 
-Conventions (the README's "Many robots"): each robot's topics live under its namespace
+Conventions (docs/tutorials/swarm.md): each robot's topics live under its namespace
 (``/robot_3/odom``, ``/robot_3/scan``, ``/robot_3/cmd_vel``); ``/tf``, ``/tf_static``,
 ``/clock`` and cosim's own ``/cosim/...`` topics are shared. A node with ``for_each: robot``
 becomes one node per robot named ``NAME@ROBOT`` (its own seed stream, as every node's seed

@@ -168,7 +168,7 @@ def test_the_import_graph_has_no_cycle():
 
 
 def test_settings_do_not_travel_through_the_environment():
-    # the environment carries process plumbing only (README, development section)
+    # the environment carries process plumbing only (docs/how-to/development.md)
     plumbing = {"COSIM_PARENT_PID", "COSIM_ZENOH_CONNECT", "COSIM_PYTEST_TOKEN", "COSIM_GATE",
                 "COSIM_RMW_GATE"}
     read = set()

@@ -1,5 +1,6 @@
 """Real ROS 2 programs with several inputs stay bit-identical in lockstep (the delivery
-contract in the README): plain rclpy programs of the tests' own, whatever the order they
+contract, docs/how-to/foreign-programs.md): plain rclpy programs of the tests' own,
+whatever the order they
 create their subscriptions in, their executor, a sim-time timer, best-effort subscriptions,
 or how many messages they publish per tick (none on some, two on others), get every tick's
 inputs as one whole. Runs (all but the first with the processes started in a shuffled

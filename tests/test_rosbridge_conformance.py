@@ -9,7 +9,7 @@ node publishes the cases' std_msgs/String messages ("BBBBBBBBBB" on /b_topic; "h
 "hello" on /a_topic), /a_topic is the run's input from outside, the service is the run's
 std_srvs/SetBool /cosim/pause, and the action is simulation_interfaces' SimulateSteps. Where
 upstream's ROS node publishes N messages, the run is stepped N ticks (a realtime node
-publishes on its own). The cases left out, and the differences, are listed in the README
+publishes on its own). The cases left out, and the differences, are listed in docs/how-to/live.md
 ("rosbridge conformance").
 """
 

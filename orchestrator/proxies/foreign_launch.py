@@ -4,8 +4,8 @@ loads rclpy: the orchestrator builds the command before it forks its own node pr
 A program a gate serves is *gated* (every program, where ``make install`` built the RMW
 gate): its inputs and its ``/clock`` are remapped onto private feed topics
 that the orchestrator alone publishes, one tick's bundle at a time, and a gate holds the
-program's executor until a whole bundle is in its readers (see the README's delivery
-contract), and acknowledges each tick with how many messages it published on each output,
+program's executor until a whole bundle is in its readers (the delivery contract,
+docs/how-to/foreign-programs.md), and acknowledges each tick with how many messages it published on each output,
 so the program may publish zero, one or several per tick. Two gates keep that one contract
 (``NodePlan.gate``, ``plan.gates``):
 

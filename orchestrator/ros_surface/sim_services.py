@@ -210,7 +210,7 @@ class SimServices:
         response.features.custom_info = (
             "cosim: a deterministic lockstep co-simulation; one tick per step; services "
             f"under {self.prefix}; a reset covers time and state together; one entity, the robot; "
-            "see the README, 'ROS 2 interfaces of a run'")
+            "see docs/how-to/ros-interfaces.md")
         return response
 
     def _get_state(self, request, response):
