@@ -6,8 +6,8 @@ gate): its inputs and its ``/clock`` are remapped onto private feed topics
 that the orchestrator alone publishes, one tick's bundle at a time, and a gate holds the
 program's executor until a whole bundle is in its readers (the delivery contract,
 docs/how-to/foreign-programs.md), and acknowledges each tick with how many messages it
-published on each output, so the program may publish zero, one or several per tick. Two gates keep that one contract
-(``NodePlan.gate``, ``plan.gates``):
+published on each output, so the program may publish zero, one or several per tick. Two
+gates keep that one contract (``NodePlan.gate``, ``plan.gates``):
 
 - ``python``: for a Python program (its command runs ``python``/``python3`` or a ``.py``
   file), ``runtime/foreign_gate`` injected through ``sitecustomize`` on its ``PYTHONPATH``;
