@@ -252,7 +252,14 @@ def _command_sections(parser: argparse.ArgumentParser, title: str, level: int) -
         lines += [cell(parser.description), ""]
     usage = " ".join(parser.format_usage().split())
     lines += ["```", usage.removeprefix("usage: "), "```", ""]
-    lines += _option_rows(parser) + [""]
+    rows = _option_rows(parser)
+    if len(rows) > 2:
+        lines += rows + [""]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            lines += ["| command | what it does |", "|---|---|"]
+            lines += [f"| `{choice.dest}` | {cell(choice.help or '')} |"
+                      for choice in action._choices_actions] + [""]
     if parser.epilog:
         lines += ["```text", parser.epilog.strip("\n"), "```", ""]
     for action in parser._actions:
