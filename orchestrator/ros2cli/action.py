@@ -63,6 +63,7 @@ def send_goal(args: argparse.Namespace) -> int:
         if not spin_until(executor, client.server_is_ready, args.timeout):
             print(f"no server of {args.action_name}", file=sys.stderr)
             return 1
+        spin_for(executor, 0.2)  # the server's reply path may be matched a moment later
         print(f"Sending goal:\n{to_yaml(goal)}\n", flush=True)
         sent = client.send_goal_async(goal, feedback_callback=feedback if args.feedback
                                       else None)

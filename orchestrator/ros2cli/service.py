@@ -50,6 +50,7 @@ def service_call(args: argparse.Namespace) -> int:
             print(f"no server of {args.service_name} within {args.timeout:g} s",
                   file=sys.stderr)
             return 1
+        spin_for(executor, 0.2)  # the server's reply path may be matched a moment later
         print(f"requester: making request:\n{to_yaml(request)}\n", flush=True)
         future = client.call_async(request)
         if not spin_until(executor, future.done, args.timeout):
