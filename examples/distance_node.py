@@ -4,7 +4,7 @@ A cosim node is a pure step function: it reads its inputs (ROS 2 messages keyed 
 returns its outputs, and never touches a clock or a transport. Run it in
 examples/distance.yaml:
 
-    PYTHONPATH=examples cosim-orchestrate examples/distance.yaml --in-process
+    cosim-orchestrate examples/distance.yaml --in-process
 """
 
 from __future__ import annotations
