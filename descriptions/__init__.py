@@ -6,7 +6,7 @@ This is the wing of cosim that loads MuJoCo and OpenUSD; ``plan/`` below it stay
 and reads a world through ``plan.world_reader`` (``descriptions.load.load_scenario`` gives it
 this wing's loader).
 
-A URDF or xacro robot (README "Your own robot"): ``xacro_expand`` (xacro, ``$(find)``),
+A URDF or xacro robot (docs/tutorials/own-robot.md): ``xacro_expand`` (xacro, ``$(find)``),
 ``packages`` (``package://``), ``urdf_parse`` (the document as data), ``urdf_to_mjcf`` (the
 faithful MjSpec), ``urdf`` (actuators, sensors and its robot model: ``load_urdf``),
 ``urdf_geometry`` (wheel radius, separation, footprint), ``urdf_state`` (TF and joint states

@@ -31,7 +31,7 @@ class GainsSpec(Strict):
 
 
 class UrdfSpec(Strict):
-    """A URDF or xacro robot: how cosim reads it (README "Your own robot")."""
+    """A URDF or xacro robot: how cosim reads it (docs/tutorials/own-robot.md)."""
 
     args: dict[str, str | bool | int | float] = Field(default_factory=dict, description="xacro "
                                                       "arguments, "

@@ -34,7 +34,7 @@ class NodeRole(Enum):
     def is_gated(self) -> bool:
         """A foreign program a gate serves: it acknowledges every tick with how many
         messages it published on each output, so it may publish any number per tick (the
-        README's delivery contract)."""
+        delivery contract, docs/how-to/foreign-programs.md)."""
         return self in _GATE
 
     @property

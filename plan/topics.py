@@ -41,13 +41,13 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
                 else f"raised {type(exc).__name__} in outputs(params): {exc}")
         raise where.fail(where.node_key(i, key), f"{cls.__module__}.{cls.__qualname__} {what}.",
                          "a node class with the whole contract: outputs(params) returning "
-                         "{topic: message class}, reset and step (see 'Writing your own "
-                         "node' in the README).") from None
+                         "{topic: message class}, reset and step (see "
+                         "docs/tutorials/own-node.md).") from None
     if missing := _not_implemented(cls, "step"):
         raise where.fail(where.node_key(i, "module" if spec.module else "kind"),
                          f"{cls.__module__}.{cls.__qualname__} {missing}.",
                          "a node class with the whole contract: outputs(params), reset and "
-                         "step(tick, inputs) (see 'Writing your own node' in the README).")
+                         "step(tick, inputs) (see docs/tutorials/own-node.md).")
     if both := sorted(set(own) & set(latched)):
         raise where.fail(where.node_key(i), f"the node declares {both[0]} both as an output "
                          "of every activation and as a latched one.",

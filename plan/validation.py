@@ -93,11 +93,10 @@ def describe_validation_error(exc: ValidationError, raw: Any,
 
 
 def _reference(loc: tuple) -> str:
-    """Where a key the schema cannot describe here is explained: the README's section on it
-    and the schema (plan/model.py, every key with its description)."""
-    section = "Remapping" if "remap" in loc else "A scenario, walked through"
-    return (f"see the README, section '{section}', and the schema in plan/model.py (every "
-            "key described).")
+    """Where a key the schema cannot describe here is explained: the documentation's page on
+    it and the schema (plan/model.py, every key with its description)."""
+    page = "how-to/remapping.md" if "remap" in loc else "reference/scenario.md"
+    return (f"see docs/{page} and the schema in plan/model.py (every key described).")
 
 
 def _describe_field(model: type[BaseModel], loc: tuple) -> str:

@@ -210,7 +210,7 @@ def test_cosim_nodes_pass_with_the_nav_scenario_params():
 def readme_example() -> str:
     """The Python block of the README's 'Writing your own node' section that runs
     check_node (the section's walk-through comes first)."""
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "tutorials" / "own-node.md").read_text()
     section = text.split("## Writing your own node", 1)[1].split("\n## ", 1)[0]
     blocks = [b.split("```", 1)[0] for b in section.split("```python\n")[1:]]
     return next(b for b in blocks if "check_node(" in b)

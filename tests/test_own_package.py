@@ -21,9 +21,10 @@ COMMAND = Path(sys.executable).parent / "cosim-orchestrate"  # the installed ent
 def walk_through() -> dict[str, str]:
     """File name -> text of every fenced block of the README's 'Writing your own node'
     whose first line is a comment naming its file."""
-    readme = (ROOT / "README.md").read_text()
-    section = readme[readme.index("## Writing your own node\n"):]
-    section = section[:section.index("\n## ", 1)]
+    page = (ROOT / "docs" / "tutorials" / "own-node.md").read_text()
+    section = page[page.index("## Writing your own node\n"):]
+    end = section.find("\n## ", 1)
+    section = section[:end] if end > 0 else section
     files = {}
     for block in re.findall(r"```\w*\n(.*?)```", section, re.S):
         first = block.splitlines()[0]

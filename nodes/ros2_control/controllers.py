@@ -3,7 +3,7 @@ joint state and its own inputs at every update of the controller manager, and sa
 commands (joint positions, a base twist) and what it publishes.
 
 Behaviour follows the Jazzy documentation and sources of ros2_controllers, with the
-differences the README's "ros2_control" section lists (cosim's joints take position
+differences docs/concepts/topics.md (ros2_control) lists (cosim's joints take position
 commands; a diff drive's wheels are driven through the physics node's drive).
 """
 
