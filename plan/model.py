@@ -80,13 +80,14 @@ class NodeSpec(Strict):
 class GoalSpec(Strict):
     """Where the robot must get to, and how close counts."""
 
-    x: float = Field(description="m")
-    y: float = Field(description="m")
-    yaw: float = Field(0.0, description="rad")
-    position_tolerance: float = Field(0.25, gt=0, description="m from the goal that counts as "
-                                      "reached")
-    yaw_tolerance: float = Field(3.2, gt=0, description="rad from the goal's yaw that counts "
-                                 "(the default, over pi, ignores the heading)")
+    x: float = Field(description="a number, in metres")
+    y: float = Field(description="a number, in metres")
+    yaw: float = Field(0.0, description="a number, in radians")
+    position_tolerance: float = Field(0.25, gt=0, description="a number > 0: metres "
+                                      "from the goal that count as reached")
+    yaw_tolerance: float = Field(3.2, gt=0, description="a number > 0: radians "
+                                 "from the goal's yaw that count (the default, over pi, ignores "
+                                 "the heading)")
 
 
 class JointGoalSpec(Strict):
@@ -102,16 +103,16 @@ class JointGoalSpec(Strict):
 class Region(Strict):
     """An axis-aligned rectangle of the floor: x and y ranges in metres."""
 
-    x: tuple[float, float] = Field(description="[min, max] in m")
-    y: tuple[float, float] = Field(description="[min, max] in m")
+    x: tuple[float, float] = Field(description="[min, max], two numbers in metres")
+    y: tuple[float, float] = Field(description="[min, max], two numbers in metres")
 
 
 class PlanarPose(Strict):
     """A position in metres and a heading in radians."""
 
-    x: float = Field(description="m")
-    y: float = Field(description="m")
-    yaw: float = Field(0.0, description="rad")
+    x: float = Field(description="a number, in metres")
+    y: float = Field(description="a number, in metres")
+    yaw: float = Field(0.0, description="a number, in radians")
 
 
 class NamedRobot(Strict):
@@ -149,7 +150,8 @@ class RobotsSpec(Strict):
                                            "each with its start and goal (instead of count)")
     position_tolerance: float = Field(0.3, gt=0, description="m from its goal that counts "
                                       "as reached")
-    yaw_tolerance: float = Field(3.2, gt=0, description="rad from its goal's yaw that counts")
+    yaw_tolerance: float = Field(3.2, gt=0, description="a number > 0: radians "
+                                 "from its goal's yaw that count")
     success_fraction: float = Field(1.0, gt=0, le=1, description="the fraction of robots that "
                                     "must reach their goals for the run to succeed")
 
@@ -157,10 +159,12 @@ class RobotsSpec(Strict):
 class SuccessSpec(Strict):
     """What a successful run means: goal reached (if a goal is given) and few enough collisions."""
 
-    reach_goal: bool = Field(True, description="success needs the goal reached (when the "
-                             "scenario has one)")
-    max_collisions: int = Field(0, ge=0, description="most collisions a successful run may have")
-    stop_on_goal: bool = Field(True, description="end the run at the tick the goal is reached")
+    reach_goal: bool = Field(True, description="true or false: success "
+                             "needs the goal reached (when the scenario has one)")
+    max_collisions: int = Field(0, ge=0, description="a whole number >= 0: the "
+                                 "most collisions a successful run may have")
+    stop_on_goal: bool = Field(True, description="true or false: end the "
+                               "run at the tick the goal is reached")
 
 
 class DeadlineSpec(Strict):
