@@ -51,14 +51,14 @@ class NodeSpec(Strict):
     module: str | None = Field(None, description="your own step class as 'package.module:Class' "
                                "(a subclass of nodes.contract.StepNode)")
     period_ns: PeriodNs = Field(alias="rate", description=RATE_HELP)  # given as a rate in Hz
-    params: dict[str, Any] = Field(default_factory=dict, description="the kind's parameters, "
-                                   "checked against its Params model")
-    inputs: list[InputSpec] = Field(default_factory=list, description="the topics this node "
-                                    "consumes: the schedule's edges")
-    remap: dict[Topic, Topic] = Field(default_factory=dict, description="topic the node "
-                                      "knows -> topic it uses in this run, e.g. "
+    params: dict[str, Any] = Field(default_factory=dict, description="a mapping: the kind's "
+                                   "parameters, checked against its Params model")
+    inputs: list[InputSpec] = Field(default_factory=list, description="a list of {topic, mode}: "
+                                    "the topics this node consumes (the schedule's edges)")
+    remap: dict[Topic, Topic] = Field(default_factory=dict, description="a mapping: topic the "
+                                      "node knows -> topic it uses in this run, e.g. "
                                       "{/cmd_vel: /robot1/cmd_vel}")
-    debug: DebugSpec = Field(default_factory=DebugSpec, description="test-only knobs")
+    debug: DebugSpec = Field(default_factory=DebugSpec, description="a mapping of test-only knobs")
     command: list[str] | None = Field(None, min_length=1, description="a foreign ROS 2 "
                                       "program: [program, args...], run from the scenario's "
                                       "directory with use_sim_time")
