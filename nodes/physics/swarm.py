@@ -27,6 +27,7 @@ from descriptions.urdf import urdf_robot_in
 from descriptions.world_geometry import floor_mask
 from nodes.contract import Tick
 from nodes.physics import messages as m
+from nodes.physics.batch import IMU, SwarmBook, SwarmDrives
 from nodes.physics.drive import DiffDrive
 from nodes.physics.frames import CameraFrames, RobotFrames, TfParams
 from nodes.physics.imu import SimulatedImu
@@ -45,7 +46,6 @@ from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
 ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
 BODY = mujoco.mjtObj.mjOBJ_BODY
-IMU = "/imu"
 
 
 def robot_params(params, robot: str):
@@ -136,8 +136,6 @@ class Rig:
         self.goal_q = model.jnt_qposadr[goal_joints]
         self.goal_v = model.jnt_dofadr[goal_joints]
         self.goal_time_ns: int | None = None
-        self.path_length = 0.0
-        self.last_xy: tuple[float, float] | None = None
         self.hits_obstacles = 0
         self.hits_robots = 0
         self.refused_command = None  # the last wrong-length /joint_commands noted
@@ -205,16 +203,10 @@ class Rig:
         self.drive.v = self.drive.w = 0.0
         mujoco.mj_forward(model, data)
 
-    def account(self, data: mujoco.MjData, tick: Tick) -> None:
-        """The path driven, and the goal in ground truth: the pose within the goal's
-        tolerances, or the joints within the joint goal's of their positions and of rest
-        (sticky)."""
-        if self.mobile:
-            q = data.qpos[self.qadr:self.qadr + 7]
-            x, y = float(q[0]), float(q[1])
-            if self.last_xy is not None:
-                self.path_length += float(np.hypot(x - self.last_xy[0], y - self.last_xy[1]))
-            self.last_xy = (x, y)
+    def check_goal(self, data: mujoco.MjData, tick: Tick) -> None:
+        """The goal in ground truth: the pose within the goal's tolerances, or the joints
+        within the joint goal's of their positions and of rest (sticky). The path driven
+        and the check of every robot at once: nodes.physics.batch.SwarmBook.account."""
         if self.goal_time_ns is not None:
             return
         g = self.joint_goal
@@ -227,25 +219,12 @@ class Rig:
         g = self.goal
         if g is None or not self.mobile:
             return
+        q = data.qpos[self.qadr:self.qadr + 7]
+        x, y = float(q[0]), float(q[1])
         yaw_error = (m.yaw_of(q[3:7]) - g["yaw"] + np.pi) % (2 * np.pi) - np.pi
         if (np.hypot(x - g["x"], y - g["y"]) <= g["position_tolerance"]
                 and abs(yaw_error) <= g["yaw_tolerance"]):
             self.goal_time_ns = tick.time_ns
-
-    def publish(self, data: mujoco.MjData, out: dict[str, Any]) -> list:
-        """This robot's odometry, joint states and IMU into ``out``; its moving frames."""
-        base_q = self.base_pose(data)
-        base_v = data.qvel[self.vadr:self.vadr + 6] if self.mobile else np.zeros(6)
-        out[self.topics[ODOM]] = m.odometry(base_q, base_v, self.odom_frame, self.base_frame)
-        if self.urdf is not None:
-            out[self.topics[JOINT_STATES]] = self.urdf.joint_state(data)
-        else:
-            out[self.topics[JOINT_STATES]] = m.joint_state(
-                self.joint_names, data.qpos[self.joint_q], data.qvel[self.joint_v],
-                data.qfrc_actuator[self.joint_v])
-        if self.imu is not None:
-            out[self.topics[IMU]] = self.imu.measure(data)
-        return [] if self.frames is None else self.frames.dynamic(data, base_q)
 
 
 def robot_topic(robot: str, topic: str) -> str:
@@ -328,6 +307,8 @@ class SwarmPhysics:
         for rig in self.rigs:
             rig.hits_obstacles = rig.hits_robots = 0
         self.driven = [rig for rig in self.rigs if rig.drive is not None]
+        self.drives = SwarmDrives(self.driven, dt)
+        self.book = SwarmBook(model, self.rigs)
         self.started = False
         self.any_imu = any(rig.imu is not None for rig in self.rigs)
         self.needs_kinematics = any(r.frames is not None and r.frames.needs_kinematics
@@ -351,13 +332,8 @@ class SwarmPhysics:
             self.contacts.update(data)
         elif self.started:
             commands = [m.twist_of(inputs.get(rig.topics[CMD_VEL])) for rig in self.driven]
-            ctrl = data.ctrl
-            for _ in range(self.substeps):
-                for rig, (v, w) in zip(self.driven, commands, strict=True):
-                    left, right = rig.wheel_act
-                    ctrl[left], ctrl[right] = rig.drive.update(v, w, self.dt)
-                mujoco.mj_step(model, data)
-                self.contacts.update(data)
+            self.drives.integrate(model, data, commands, self.substeps,
+                                  lambda: self.contacts.update(data))
             # bring what mj_step leaves one substep behind (it computes sensors and body
             # poses before integrating) up to the state published; neither call changes
             # what the next mj_step computes
@@ -367,9 +343,10 @@ class SwarmPhysics:
                 mujoco.mj_kinematics(model, data)
         self.started = True
         teleport = inputs.get(SET_POSE_TOPIC)
-        for rig in self.rigs:
-            rig.teleport(model, data, teleport)
-            rig.account(data, tick)
+        if teleport is not None:
+            for rig in self.rigs:
+                rig.teleport(model, data, teleport)
+        self.book.account(data, tick)
         out = self._publish()
         if first and self.params.tf is not None:
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
@@ -382,9 +359,7 @@ class SwarmPhysics:
     def _publish(self) -> dict[str, Any]:
         d = self.data
         out: dict[str, Any] = {"/cosim/world_state": m.world_state(d.qpos, d.qvel)}
-        transforms = []
-        for rig in self.rigs:
-            transforms += rig.publish(d, out)
+        transforms = self.book.publish(d, out, self.params.tf is not None)
         if self.params.tf is not None:
             out["/tf"] = TFMessage(transforms=transforms)
         return out
@@ -410,7 +385,7 @@ class SwarmPhysics:
             out[f"{robot}/arrived"] = float(done)
             if done:
                 out[f"{robot}/time_to_goal"] = rig.goal_time_ns / 1e9
-            out[f"{robot}/path_length"] = rig.path_length
+            out[f"{robot}/path_length"] = self.book.path_length(rig)
             out[f"{robot}/collisions_obstacles"] = float(rig.hits_obstacles)
             out[f"{robot}/collisions_robots"] = float(rig.hits_robots)
             out[f"{robot}/x"], out[f"{robot}/y"] = float(q[0]), float(q[1])
@@ -419,7 +394,7 @@ class SwarmPhysics:
                     "collisions_obstacles": float(c.obstacle_events),
                     "collisions_robots": float(c.robot_events),
                     "collisions": float(c.obstacle_events + c.robot_events),
-                    "path_length": sum(r.path_length for r in self.rigs),
+                    "path_length": sum(self.book.path_length(r) for r in self.rigs),
                     "swarm_goal": float(arrived >= self.needed)})
         out["arrived"] = out["swarm_goal"]
         return out
