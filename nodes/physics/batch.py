@@ -25,6 +25,7 @@ from plan.topic_names import JOINT_STATES, ODOM
 
 COVARIANCE = np.array(m.TRUTH_COVARIANCE, dtype=np.float64)
 IMU = "/imu"
+NEGATE = np.array([1.0, -1.0, -1.0, -1.0])  # a quaternion's conjugate
 
 
 class SwarmDrives:
@@ -232,14 +233,15 @@ class SwarmBook:
             x, y, z = rel[:, 0], rel[:, 1], rel[:, 2]
             pos = np.stack([a * x + d * y + g * z, b * x + e * y + h * z,
                             c * x + f * y + i * z], axis=1).tolist()
-            xquat = data.xquat
-            conj = np.empty(4)
-            quat = np.empty(4)
+            conj = data.xquat[parent] * NEGATE  # mju_negQuat, exactly
+            child = data.xquat[body]
+            quat = np.empty((len(body), 4))
+            for k in range(len(body)):
+                mujoco.mju_mulQuat(quat[k], conj[k], child[k])
+            quats = quat.tolist()
             for k, (rig_index, mb) in enumerate(self.moving):
-                mujoco.mju_negQuat(conj, xquat[mb.parent])
-                mujoco.mju_mulQuat(quat, conj, xquat[mb.body])
                 moved[rig_index].append(fm.transform_stamped(mb.parent_frame, mb.frame,
-                                                             pos[k], quat.tolist()))
+                                                             pos[k], quats[k]))
         out = []
         for k, rig in enumerate(self.rigs):
             if rig.frames is None:
