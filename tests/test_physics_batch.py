@@ -10,6 +10,7 @@ import dataclasses
 
 import mujoco
 import numpy as np
+import pytest
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray
@@ -86,8 +87,10 @@ def reference_drive(swarm, data: mujoco.MjData, inputs: dict) -> tuple[mujoco.Mj
     return ref, drives
 
 
-def test_the_batch_publishes_what_each_robot_would_bit_for_bit():
-    scenario = load_scenario(SMALL, {"nodes.physics.params": {}})  # IMU and frames on
+@pytest.mark.parametrize("params", [{}, {"imu": None, "tf": {"map_frame": None}}],
+                         ids=["imu-and-map", "no-imu-no-map"])
+def test_the_batch_publishes_what_each_robot_would_bit_for_bit(params):
+    scenario = load_scenario(SMALL, {"nodes.physics.params": params})
     node = make_node(scenario, "physics")
     swarm = node.swarm
     rigs = swarm.rigs
@@ -119,13 +122,17 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit():
             same(out[rig.topics[JOINT_STATES]], m.joint_state(
                 rig.joint_names, data.qpos[rig.joint_q], data.qvel[rig.joint_v],
                 data.qfrc_actuator[rig.joint_v]))
-            kept, rig.imu.rng = rig.imu.rng, rng
-            try:
-                same(out[rig.topics[IMU]], rig.imu.measure(data))
-            finally:
-                rig.imu.rng = kept
+            if rig.imu is None:
+                assert rig.topics[IMU] not in out
+            else:
+                kept, rig.imu.rng = rig.imu.rng, rng
+                try:
+                    same(out[rig.topics[IMU]], rig.imu.measure(data))
+                finally:
+                    rig.imu.rng = kept
             transforms += rig.frames.dynamic(data, q)
-        assert len(out["/tf"].transforms) == len(transforms) == 4 * len(rigs)
+        per_robot = 3 + (swarm.params.tf.map_frame is not None)  # (map, odom,) base, head
+        assert len(out["/tf"].transforms) == len(transforms) == per_robot * len(rigs)
         for a, b in zip(out["/tf"].transforms, transforms, strict=True):
             same(a, b)
         xy = [(float(data.qpos[r.qadr]), float(data.qpos[r.qadr + 1])) for r in rigs]

@@ -247,8 +247,7 @@ class SwarmBook:
             if rig.frames is None:
                 continue
             mo = self.map_to_odom[k]
-            if mo is not None:
-                frames = rig.frames
+            frames = rig.frames
             if mo is not None:
                 out.append(fm.transform_stamped(mo[0], frames.odom_frame, mo[1], mo[2]))
             p = poses[k]
