@@ -24,9 +24,10 @@ from nodes.physics.frames import transform
 from orchestrator.lockstep.inprocess import make_node
 from plan.topic_names import JOINT_STATES, ODOM
 from runtime.cdr.encode import encode
-from tests.helpers import SCENARIOS
+from tests.helpers import ROOT, SCENARIOS
 
 SMALL = SCENARIOS / "swarm_small.yaml"
+SWARM_URDF = ROOT / "scenarios" / "swarm_urdf.yaml"
 
 
 def same(a, b) -> None:
@@ -60,7 +61,7 @@ def test_slot_built_messages_equal_those_built_the_usual_way():
         same(fm.imu("imu_link", q[3:].tolist(), v[:3].tolist(), v[3:].tolist(), cov), usual)
 
 
-def commands(names: list[str], k: int) -> dict:
+def commands(names: list[str], k: int, heads: bool) -> dict:
     """Different commands per robot and tick, some beyond the drive's limits, and head
     positions so that the moving frames move."""
     out = {}
@@ -69,7 +70,9 @@ def commands(names: list[str], k: int) -> dict:
         t.linear.x = [0.4, -2.0, 1.5, 0.1][(i + k // 5) % 4]
         t.angular.z = [0.0, 3.5, -1.0, 0.7][(i + k // 7) % 4]
         out[f"/{name}/cmd_vel"] = t
-        out[f"/{name}/joint_commands"] = Float64MultiArray(data=[0.3 * i - 0.5, 0.1 * k % 0.6])
+        if heads:
+            out[f"/{name}/joint_commands"] = Float64MultiArray(
+                data=[0.3 * i - 0.5, 0.1 * k % 0.6])
     return out
 
 
@@ -87,10 +90,11 @@ def reference_drive(swarm, data: mujoco.MjData, inputs: dict) -> tuple[mujoco.Mj
     return ref, drives
 
 
-@pytest.mark.parametrize("params", [{}, {"imu": None, "tf": {"map_frame": None}}],
-                         ids=["imu-and-map", "no-imu-no-map"])
-def test_the_batch_publishes_what_each_robot_would_bit_for_bit(params):
-    scenario = load_scenario(SMALL, {"nodes.physics.params": params})
+@pytest.mark.parametrize("path, params", [
+    (SMALL, {}), (SMALL, {"imu": None, "tf": {"map_frame": None}}),
+    (SWARM_URDF, {"robot_description": True})], ids=["imu-and-map", "no-imu-no-map", "urdf"])
+def test_the_batch_publishes_what_each_robot_would_bit_for_bit(path, params):
+    scenario = load_scenario(path, {"nodes.physics.params": params})
     node = make_node(scenario, "physics")
     swarm = node.swarm
     rigs = swarm.rigs
@@ -98,12 +102,14 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(params):
     period = scenario.nodes["physics"].spec.period_ns
     path = [0.0] * len(rigs)
     last = None
+    heads = all(len(r.head_act) == 2 for r in rigs)
     for k in range(40):
-        inputs = commands(names, k)
+        inputs = commands(names, k, heads)
+        if k and heads:
+            swarm.data.ctrl[[a for r in rigs for a in r.head_act]] = np.concatenate(
+                [inputs[f"/{n}/joint_commands"].data for n in names])
         if k:
             data = swarm.data
-            data.ctrl[[a for r in rigs for a in r.head_act]] = np.concatenate(
-                [inputs[f"/{n}/joint_commands"].data for n in names])
             ref_data, ref_drives = reference_drive(swarm, data, inputs)
         state = node.rng.bit_generator.state
         out = node.step(Tick(k, k * period), inputs)
@@ -119,9 +125,9 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(params):
             q = rig.base_pose(data)
             same(out[rig.topics[ODOM]], m.odometry(q, data.qvel[rig.vadr:rig.vadr + 6],
                                                    rig.odom_frame, rig.base_frame))
-            same(out[rig.topics[JOINT_STATES]], m.joint_state(
-                rig.joint_names, data.qpos[rig.joint_q], data.qvel[rig.joint_v],
-                data.qfrc_actuator[rig.joint_v]))
+            same(out[rig.topics[JOINT_STATES]], rig.urdf.joint_state(data) if rig.urdf else
+                 m.joint_state(rig.joint_names, data.qpos[rig.joint_q], data.qvel[rig.joint_v],
+                               data.qfrc_actuator[rig.joint_v]))
             if rig.imu is None:
                 assert rig.topics[IMU] not in out
             else:
@@ -131,8 +137,10 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(params):
                 finally:
                     rig.imu.rng = kept
             transforms += rig.frames.dynamic(data, q)
-        per_robot = 3 + (swarm.params.tf.map_frame is not None)  # (map, odom,) base, head
-        assert len(out["/tf"].transforms) == len(transforms) == per_robot * len(rigs)
+        assert len(out["/tf"].transforms) == len(transforms)
+        if not rigs[0].urdf:
+            per_robot = 3 + (swarm.params.tf.map_frame is not None)  # (map,) base, head
+            assert len(transforms) == per_robot * len(rigs)
         for a, b in zip(out["/tf"].transforms, transforms, strict=True):
             same(a, b)
         xy = [(float(data.qpos[r.qadr]), float(data.qpos[r.qadr + 1])) for r in rigs]
