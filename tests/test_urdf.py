@@ -84,6 +84,20 @@ def test_xacro_expands_with_args_and_find():
     assert "package://mybot_description/meshes/wheel.stl" in text  # left for the loader
 
 
+def test_the_expanded_urdf_does_not_depend_on_where_the_package_lies(tmp_path):
+    """/robot_description is in every digest: the same robot expanded from two places is
+    the same text (xacro's banner names the file, not its absolute path)."""
+    import shutil
+
+    pkg = ROOT / "scenarios" / "robots" / "mybot_description"
+    elsewhere = tmp_path / "somewhere" / "mybot_description"
+    shutil.copytree(pkg, elsewhere)
+    texts = [expand(where / "urdf" / "mybot.urdf.xacro", {"lidar_samples": "360"},
+                    PackageResolver({"mybot_description": where})).urdf
+             for where in (pkg, elsewhere)]
+    assert texts[0] == texts[1] and str(pkg) not in texts[0]
+
+
 def test_xacro_error_carries_xacros_message(tmp_path):
     path = tmp_path / "bad.urdf.xacro"
     path.write_text('<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">'
