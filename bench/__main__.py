@@ -19,6 +19,7 @@ from bench import (
     sensors,
     sweep,
     twin,
+    urdf,
     zenoh_chain,
 )
 
@@ -44,6 +45,8 @@ SECTIONS = [
     ("digital twin: mirror delay on loopback at 50 Hz and faster robots",
      lambda: twin.main([])),
     ("nav: where each process spends its time (py-spy)", lambda: profile.main([])),
+    ("your own robot: nav_urdf's URDF robot against the MJCF robot, start-up and loop",
+     lambda: urdf.main(["--repeats", "3"])),
     ("ros2_control: the arm through the controller manager over /joint_commands alone",
      lambda: ros2_control.main(["--repeats", "3"])),
     ("message cost", messages.main),

@@ -19,7 +19,8 @@ import yaml
 from bench.common import ROOT, run_manifest, write_scenario
 
 
-def scenarios(seconds: int, directory: Path) -> dict[str, Path]:
+def scenarios(seconds: int, directory: Path, node_process: str | None = None
+              ) -> dict[str, Path]:
     """Both arms for ``seconds`` of simulated time, physics at 100 Hz, no stop at the goal."""
     out = {}
     for name in ("arm", "arm_control"):
@@ -32,34 +33,46 @@ def scenarios(seconds: int, directory: Path) -> dict[str, Path]:
         for node in doc["nodes"]:
             if node["kind"] == "physics":
                 node["rate"] = 100
+                if node_process:
+                    node["process"] = node_process
             if node["kind"] == "ros2_control":
+                node["process"] = node_process
                 node["params"]["controllers"] = str(
                     (ROOT / "scenarios" / node["params"]["controllers"]).resolve())
+        directory.mkdir(parents=True, exist_ok=True)
         out[name] = write_scenario(doc, directory)
     return out
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Print the wall time of each, the ratio and whether each pair's digests agree."""
+    """Print the loop of each (median), the ratios, and whether each scenario gave one
+    digest; multi-process with the controller manager in its own process and in physics'
+    (``process:``, as ros2_control's hardware interface shares the manager's process)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--seconds", type=int, default=3)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="cosim-bench-ros2-control-") as tmp:
-        paths = scenarios(args.seconds, Path(tmp))
-        for mode, extra in (("multi-process", ()), ("in-process", ("--in-process",))):
-            walls: dict[str, list[float]] = {name: [] for name in paths}
-            digests: dict[str, set[str]] = {name: set() for name in paths}
-            for _ in range(args.repeats):
-                for name, path in paths.items():  # side by side: one of each per repeat
-                    manifest = run_manifest(path, *extra)
-                    walls[name].append(manifest["loop_s"])
-                    digests[name].add(manifest["digest"])
-            plain, managed = (statistics.median(walls[n]) for n in ("arm", "arm_control"))
-            print(f"{mode}: arm_control loop {managed:.2f} s over arm {plain:.2f} s = "
-                  f"{managed / plain:.2f}x (median of {args.repeats}, {args.seconds} s "
-                  f"simulated at 100 Hz); digests one per scenario: "
-                  f"{all(len(d) == 1 for d in digests.values())}")
+        apart = scenarios(args.seconds, Path(tmp) / "apart")
+        packed = scenarios(args.seconds, Path(tmp) / "packed", node_process="hardware")
+        cases = {"arm": (apart["arm"], ()), "manager": (apart["arm_control"], ()),
+                 "manager with physics": (packed["arm_control"], ()),
+                 "arm in-process": (apart["arm"], ("--in-process",)),
+                 "manager in-process": (apart["arm_control"], ("--in-process",))}
+        loops: dict[str, list[float]] = {name: [] for name in cases}
+        digests: dict[str, set[str]] = {name: set() for name in cases}
+        for _ in range(args.repeats):
+            for name, (path, extra) in cases.items():  # side by side: one of each per repeat
+                manifest = run_manifest(path, *extra)
+                loops[name].append(manifest["loop_s"])
+                digests[name].add(manifest["digest"])
+    m = {name: statistics.median(values) for name, values in loops.items()}
+    print(f"{args.seconds} s simulated at 100 Hz, median of {args.repeats}: arm {m['arm']:.2f} s; "
+          f"with the controller manager {m['manager']:.2f} s = {m['manager'] / m['arm']:.2f}x, "
+          f"in physics' process {m['manager with physics']:.2f} s = "
+          f"{m['manager with physics'] / m['arm']:.2f}x; in-process "
+          f"{m['manager in-process'] / m['arm in-process']:.2f}x; one digest per case: "
+          f"{all(len(d) == 1 for d in digests.values())}")
 
 
 if __name__ == "__main__":

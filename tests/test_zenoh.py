@@ -20,7 +20,10 @@ from runtime.transport.zenoh import liveliness_key, topic_key, type_hash
 from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS, node_process, orchestrate
 
 LONG = SCENARIOS / "long_chain.yaml"
-SHORT = {"long_chain.yaml": "1s"}  # scenarios too long for a digest comparison: run shorter
+# scenarios too long for a digest comparison over every transport: run shorter (their whole
+# runs are compared in tests/test_swarm.py and the scenario tests)
+SHORT = {"long_chain.yaml": "1s", "swarm.yaml": "4s", "swarm_usd.yaml": "4s",
+         "swarm_urdf.yaml": "4s"}
 
 
 def all_scenarios() -> list[Path]:
