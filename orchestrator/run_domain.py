@@ -45,7 +45,9 @@ class RunDomain:
                else "this run's own; pin one with --domain N or ROS_DOMAIN_ID=N")
         where = ("discovery on this machine only" if self.local_only
                  else f"discovery range {os.environ.get(RANGE_VAR, 'SUBNET')}")
-        tool = (f": ROS_DOMAIN_ID={self.domain} ros2 topic list" if transport == "ros2"
+        # a tool on the default range (SUBNET) does not always find a LOCALHOST run
+        local = f"{RANGE_VAR}=LOCALHOST " if self.local_only else ""
+        tool = (f": {local}ROS_DOMAIN_ID={self.domain} ros2 topic list" if transport == "ros2"
                 else "")
         return [f"ROS domain {self.domain} ({how}; {where}){tool}"]
 

@@ -15,6 +15,9 @@ from tests.leftovers import alive, become_subreaper, mark_this_session, session_
 # One domain per test run, chosen before anything imports rclpy; children inherit it.
 DOMAIN = os.environ.get("COSIM_TEST_DOMAIN") or str(random.SystemRandom().randint(1, 100))
 os.environ["ROS_DOMAIN_ID"] = DOMAIN
+# Discovery on this machine only, as cosim-orchestrate keeps a run's: a client on the default
+# range (SUBNET) was not found by, nor found, a busy LOCALHOST run's services here
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("MUJOCO_GL", "egl")
 mark_this_session()
 become_subreaper()

@@ -7,7 +7,7 @@ import sys
 from typing import Any
 
 from orchestrator.ros2cli.messages import fill, interface_class, parse_values, to_yaml
-from orchestrator.ros2cli.session import hidden, ros_session, spin_for, spin_until
+from orchestrator.ros2cli.session import print_names, ros_session, spin_for, spin_until
 
 STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED",
           5: "CANCELED", 6: "ABORTED"}  # action_msgs/msg/GoalStatus
@@ -41,10 +41,7 @@ def action_list(args: argparse.Namespace) -> int:
 
     with ros_session(args.domain) as (node, executor):
         spin_for(executor, args.spin_time)
-        for name, types in sorted(get_action_names_and_types(node)):
-            if hidden(name):
-                continue
-            print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+        print_names(get_action_names_and_types(node), args.show_types)
     return 0
 
 

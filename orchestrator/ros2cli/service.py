@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from orchestrator.ros2cli.messages import fill, interface_class, parse_values, to_yaml
-from orchestrator.ros2cli.session import hidden, ros_session, spin_for, spin_until
+from orchestrator.ros2cli.session import print_names, ros_session, spin_for, spin_until
 
 
 def add_verbs(sub: argparse._SubParsersAction, common: argparse.ArgumentParser) -> None:
@@ -33,10 +33,8 @@ def service_list(args: argparse.Namespace) -> int:
     """Print the services (and their types)."""
     with ros_session(args.domain) as (node, executor):
         spin_for(executor, args.spin_time)
-        for name, types in sorted(node.get_service_names_and_types()):
-            if hidden(name) and not args.include_hidden_services:
-                continue
-            print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+        print_names(node.get_service_names_and_types(), args.show_types,
+                    args.include_hidden_services)
     return 0
 
 

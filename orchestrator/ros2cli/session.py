@@ -19,6 +19,8 @@ def ros_session(domain: int | None) -> Iterator[tuple[Any, Any]]:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    # cosim's runs keep discovery on the machine unless told otherwise: so does the tool
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     context = rclpy.Context()
     if domain is None:
         rclpy.init(context=context)
@@ -90,3 +92,12 @@ def matching_qos(node: Any, topic: str, depth: int = 10) -> QoSProfile:
 def hidden(name: str) -> bool:
     """Whether a graph name is hidden (a part that starts with '_'), as ros2cli hides them."""
     return any(part.startswith("_") for part in name.split("/"))
+
+
+def print_names(names_and_types, show_types: bool, include_hidden: bool = False) -> None:
+    """Print graph names sorted, as ros2cli's ``list`` verbs do: hidden ones only when asked,
+    each with its types after it with ``show_types``."""
+    for name, types in sorted(names_and_types):
+        if hidden(name) and not include_hidden:
+            continue
+        print(f"{name} [{', '.join(types)}]" if show_types else name)

@@ -16,8 +16,8 @@ from orchestrator.ros2cli.messages import (
     type_name,
 )
 from orchestrator.ros2cli.session import (
-    hidden,
     matching_qos,
+    print_names,
     ros_session,
     spin_for,
     spin_until,
@@ -89,10 +89,8 @@ def topic_list(args: argparse.Namespace) -> int:
     """Print the topics (and their types)."""
     with ros_session(args.domain) as (node, executor):
         spin_for(executor, args.spin_time)
-        for name, types in sorted(node.get_topic_names_and_types()):
-            if hidden(name) and not args.include_hidden_topics:
-                continue
-            print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+        print_names(node.get_topic_names_and_types(), args.show_types,
+                    args.include_hidden_topics)
     return 0
 
 
