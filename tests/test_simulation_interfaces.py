@@ -23,7 +23,7 @@ from tests.helpers import SCENARIOS
 from tests.sim_client import OK, SimClient, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"  # 100 Hz ticks; here 20 s long: 2001 ticks
-LONG = SCENARIOS / "long_chain.yaml"  # 100 Hz ticks, 120 s
+LONG = SCENARIOS / "long_chain.yaml"  # 100 Hz ticks, an hour
 DURATION = "20s"  # long enough that a cancel comes before the run's end
 TICK_NS = 10_000_000
 F = SimulatorFeatures
