@@ -66,6 +66,7 @@ def test_a_teleop_already_there_stops_the_run_before_its_first_tick(tmp_path):
         env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
         teleop = subprocess.Popen(TELEOP, cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
         try:
+            assert teleop.stdout.readline().strip() == "up"  # there before the run starts
             result = orchestrate(scenario, tmp_path / "out", env=env)
         finally:
             teleop.kill()

@@ -1,5 +1,6 @@
 """A teleop left running: a plain rclpy node publishing Twist on /cmd_vel at 20 Hz, on the
-domain of ROS_DOMAIN_ID, until killed. Prints 'publishing' once it has a subscriber."""
+domain of ROS_DOMAIN_ID, until killed. Prints 'up' once its publisher exists and 'publishing'
+once it has a subscriber."""
 
 import sys
 import time
@@ -13,6 +14,7 @@ def main() -> None:
     rclpy.init()
     node = rclpy.create_node(sys.argv[1] if len(sys.argv) > 1 else "teleop_left_running")
     pub = node.create_publisher(Twist, "/cmd_vel", 10)
+    print("up", flush=True)
     said = False
     while True:
         msg = Twist()
