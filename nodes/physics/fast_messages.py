@@ -47,24 +47,23 @@ def header(frame_id: str) -> Header:
     return h
 
 
-def vector3(x: float, y: float, z: float) -> Vector3:
-    """A Vector3 of Python floats."""
-    v = Vector3.__new__(Vector3)
+def _xyz(cls: type, x: float, y: float, z: float):
+    v = cls.__new__(cls)
     v._check_fields = CHECK
     v._x = x
     v._y = y
     v._z = z
     return v
+
+
+def vector3(x: float, y: float, z: float) -> Vector3:
+    """A Vector3 of Python floats."""
+    return _xyz(Vector3, x, y, z)
 
 
 def point(x: float, y: float, z: float) -> Point:
     """A Point of Python floats."""
-    v = Point.__new__(Point)
-    v._check_fields = CHECK
-    v._x = x
-    v._y = y
-    v._z = z
-    return v
+    return _xyz(Point, x, y, z)
 
 
 def quaternion(w: float, x: float, y: float, z: float) -> Quaternion:
