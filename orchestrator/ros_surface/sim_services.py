@@ -99,8 +99,10 @@ class SimServices:
         from rclpy.executors import MultiThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
+        from orchestrator.ros_surface import reliable_replies
         from orchestrator.ros_surface.param_server import parameter_nodes
 
+        reliable_replies.install()
         started = time.monotonic()
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
