@@ -74,6 +74,19 @@ def test_the_readme_is_short_and_leads_into_the_docs():
     assert not missing, f"README.md links to files that do not exist: {missing}"
 
 
+def test_the_readme_lists_every_exit_code_of_cosim_orchestrate():
+    from tools.gen_reference import exit_codes
+
+    text = (ROOT / "README.md").read_text()
+    table = text.split("| `cosim-orchestrate` | meaning |", 1)[1].split("\n\n", 1)[0]
+    listed = {int(code): meaning for code, meaning in
+              re.findall(r"^\| (\d+) \| ([^|]+) \|$", table, flags=re.M)}
+    codes = exit_codes("orchestrator.cosim_orchestrate")
+    assert sorted(listed) == sorted(codes), "README's exit codes differ from EXIT_* constants"
+    for code, meaning in codes.items():
+        assert listed[code].startswith(meaning), (code, listed[code], meaning)
+
+
 @dataclass
 class Block:
     """One ```console block of a page: its commands and whether (why not) it runs here."""

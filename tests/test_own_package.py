@@ -5,6 +5,7 @@ every node process, forked or spawned."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -56,3 +57,19 @@ def test_a_package_of_your_own_loads_from_your_directory(tmp_path, where, how):
                           cwd=cwd, capture_output=True, text=True, timeout=180)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("success: digest "), done.stdout
+
+
+def test_the_readmes_check_node_example_passes_on_the_walk_through_package(tmp_path):
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## Your own node, checked"):]
+    example = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    for name, body in walk_through().items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(body)
+    (tmp_path / "mypkg" / "__init__.py").write_text("")
+    done = subprocess.run([sys.executable, "-c", example], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().startswith("check_node(MyNode): all "), done.stdout
+    assert done.stdout.strip().endswith("checks passed"), done.stdout
