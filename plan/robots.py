@@ -26,6 +26,7 @@ robot. A scenario without a robots: section is a swarm of one unnamed robot.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -95,6 +96,17 @@ def per_robot(topics, robots: list[str] | None):
 def robot_of(node_name: str) -> str | None:
     """The robot of a node instance ('control@robot_3' -> 'robot_3'), None for others."""
     return node_name.partition("@")[2] or None
+
+
+def ros_identity(node_name: str) -> tuple[str, str]:
+    """(name, namespace) of a cosim node as a ROS 2 node: 'control' -> ('control', '/'),
+    'control@robot_3' -> ('control', '/robot_3'), as the robot's topics are namespaced.
+    Characters a ROS 2 node name may not hold become '_'."""
+    base, _, robot = node_name.partition("@")
+    name = re.sub(r"[^A-Za-z0-9_]", "_", base)
+    if name[:1].isdigit():
+        name = f"_{name}"
+    return name, f"/{robot}" if robot else "/"
 
 
 def topic_token(node_name: str) -> str:

@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import random
+import time
 
 import psutil
 import pytest
@@ -21,6 +23,31 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("MUJOCO_GL", "egl")
 mark_this_session()
 become_subreaper()
+
+
+@pytest.fixture(autouse=True)
+def no_participant_left_behind(request):
+    """Fail the test that leaves a DDS participant of this process on the test domain (an
+    rclpy node not destroyed): half-built servers left so were found by the clients of later
+    tests' runs, which then waited for answers that never came."""
+    before = participant_ids()
+    yield
+    deadline = time.monotonic() + 5.0  # a participant goes when its last node is collected
+    while (left := participant_ids() - before) and time.monotonic() < deadline:
+        gc.collect()
+        time.sleep(0.2)
+    if left:
+        pytest.fail(f"{request.node.nodeid} left {len(left)} DDS participant(s) of the test "
+                    f"process on ROS domain {DOMAIN} (participant ids {sorted(left)}): an "
+                    "rclpy node or context was not destroyed")
+
+
+def participant_ids() -> set[int]:
+    """The participant ids this process holds on the test domain (each participant binds
+    its metatraffic unicast port 7410 + 250 * domain + 2 * id, RTPS 9.6.1.1)."""
+    base = 7410 + 250 * int(DOMAIN)
+    return {(c.laddr.port - base) // 2 for c in psutil.Process().net_connections(kind="udp")
+            if base <= c.laddr.port < base + 250 and (c.laddr.port - base) % 2 == 0}
 
 
 @pytest.fixture(autouse=True)
@@ -87,3 +114,4 @@ def ros_node():
     executor.shutdown()
     node.destroy_node()
     rclpy.shutdown(context=context)
+

@@ -121,3 +121,29 @@ def test_service_param_and_action_verbs_on_a_paused_run(tmp_path):
             run.send_signal(signal.SIGINT)
             finish(run, timeout=30)
     assert code in (0, 1), err  # stopped before the goal: goal not met
+
+
+def test_a_swarms_nodes_serve_their_parameters_under_their_robots_namespace(tmp_path):
+    # control@robot_3 is no valid ROS 2 node name: the run's ROS interfaces once failed to
+    # start on it, leaving servers that never answered (here and in later runs' clients)
+    run = orchestrate(ROOT / "scenarios" / "swarm.yaml", tmp_path, "--paused", "--pack", "kind",
+                      "--set", "interactive=true")
+    try:
+        got = ros2("param", "get", "/robot_3/control", "max_speed")
+        assert got.stdout == "Double value is: 0.5\n", got.stderr
+        assert ros2("param", "set", "/robot_3/control", "max_speed", "0.4").stdout == (
+            "Set parameter successful\n")
+        assert ros2("param", "get", "/robot_3/control", "max_speed").stdout == (
+            "Double value is: 0.4\n")
+        assert ros2("param", "get", "/robot_2/control", "max_speed").stdout == (
+            "Double value is: 0.5\n")
+        stop = ros2("service", "call", "/set_simulation_state",
+                    "simulation_interfaces/srv/SetSimulationState", "{state: {state: 3}}")
+        assert stop.returncode == 0, stop.stderr
+        code, _, err = finish(run, timeout=60)
+    finally:
+        if run.poll() is None:
+            run.send_signal(signal.SIGINT)
+            finish(run, timeout=30)
+    assert code in (0, 1), err
+    assert "could not start" not in err

@@ -22,6 +22,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from nodes.live_params import change_message, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.interactive import params_topic
+from plan.robots import ros_identity
 from plan.scenario import EXTERNAL_NAME, NodePlan
 from plan.validation import describe_validation_error, field_of, inner_model
 from runtime.arrivals import Arrivals
@@ -49,7 +50,9 @@ class NodeParameters:
         self.changes: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._resetting = False
-        self.node = rclpy.create_node(plan.name, context=context, enable_rosout=False)
+        name, namespace = ros_identity(plan.name)
+        self.node = rclpy.create_node(name, namespace=namespace, context=context,
+                                      enable_rosout=False)
         for name, value in self.scenario_values.items():
             runtime = name.split(".")[0] in cls.runtime_params
             self.node.declare_parameter(name, value, describe(type(plan.params), name, runtime))
@@ -110,15 +113,20 @@ class NodeParameters:
         self.node.destroy_node()
 
 
-def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl
-                    ) -> list[NodeParameters]:
+def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl,
+                    into: list[NodeParameters] | None = None) -> list[NodeParameters]:
     """A NodeParameters for every cosim node of the run (not foreign programs, not the
-    external node)."""
+    external node), appended to ``into`` as each is made (so that the caller can remove
+    those made when a later one fails)."""
     from nodes.registry import load_class
 
+    made = [] if into is None else into
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
-    return [NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control, period)
-            for plan in scenario.nodes.values() if plan.role.runs_step_runtime]
+    for plan in scenario.nodes.values():
+        if plan.role.runs_step_runtime:
+            made.append(NodeParameters(context, plan, load_class(plan.class_ref), arrivals,
+                                       control, period))
+    return made
 
 
 def describe(model: type[BaseModel], name: str, runtime: bool) -> ParameterDescriptor:

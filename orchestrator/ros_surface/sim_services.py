@@ -84,6 +84,7 @@ class SimServices:
         except Exception:  # noqa: BLE001 - the run goes on without its ROS 2 interfaces
             log.exception("the run's ROS 2 interfaces could not start")
             self.executor = None
+            self._remove_half_built()
             return
         finally:
             self._built.set()
@@ -91,6 +92,24 @@ class SimServices:
             self.executor.spin()
         except ExternalShutdownException:
             pass
+
+    def _remove_half_built(self) -> None:
+        """Shut down the context of servers that failed to start: servers left without an
+        executor would be found by clients (of this run and of later runs in the same process)
+        and never answer them."""
+        import rclpy
+
+        context = getattr(self, "context", None)
+        if context is None:
+            return
+        # the participant lives while any node of it does: shutting the context down is not
+        # enough
+        for params in getattr(self, "parameters", []):
+            params.destroy()
+        if getattr(self, "node", None) is not None:
+            self.node.destroy_node()
+        if context.ok():
+            rclpy.shutdown(context=context)
 
     def _build(self, scenario: Scenario, arrivals: Arrivals | None) -> None:
         import rclpy
@@ -142,7 +161,8 @@ class SimServices:
             SimulateSteps, None, self._simulate_steps)}
         if self.navigate is not None:
             self.local_actions["/navigate_to_pose"] = self.navigate.local_action()
-        self.parameters = parameter_nodes(self.context, scenario, arrivals, self.control)
+        self.parameters = []
+        parameter_nodes(self.context, scenario, arrivals, self.control, into=self.parameters)
         executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:
             executor.add_node(node)
