@@ -14,6 +14,7 @@ import yaml
 from descriptions.load import load_scenario
 from plan.errors import ScenarioError
 from tests.helpers import ORCHESTRATE, ROOT, orchestrate
+from tests.sim_client import OK, SimClient
 
 NAV_URDF = ROOT / "scenarios" / "nav_urdf.yaml"
 LINKS = {"base_footprint", "base_link", "wheel_left_link", "wheel_right_link",
@@ -34,6 +35,7 @@ def test_nav_urdf_reaches_the_goal_with_one_digest(tmp_path):
 def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
+    from simulation_interfaces.msg import SimulationState
     from std_msgs.msg import String
     from tf2_msgs.msg import TFMessage
 
@@ -46,16 +48,25 @@ def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
     node.create_subscription(TFMessage, "/tf_static", got["static"].append, latched)
     node.create_subscription(JointState, "/mybot/joint_states", got["joints"].append, 100)
     node.create_subscription(TFMessage, "/tf", got["tf"].append, 100)
-    # the whole run (a few seconds of wall time): the latched topics are discovered in it
-    proc = subprocess.Popen([*ORCHESTRATE, str(NAV_URDF), "--out", str(tmp_path), "--quiet"],
+    # as a ROS user does: start the run paused, see its topics, then play (a lockstep run
+    # does not wait for outside subscribers, and a whole run takes two seconds of wall time,
+    # less than discovery may take on a busy machine)
+    proc = subprocess.Popen([*ORCHESTRATE, str(NAV_URDF), "--out", str(tmp_path), "--quiet",
+                             "--paused"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    sim = SimClient(ros_node)
     try:
+        sim.spin_until(lambda: all(node.get_publishers_info_by_topic(t) for t in (
+            "/mybot/joint_states", "/tf", "/mybot/robot_description", "/tf_static")))
+        sim.spin(0.5)  # the run's writers match the subscriptions too
+        assert sim.set_state(SimulationState.STATE_PLAYING).result == OK
         deadline = time.monotonic() + 120
         while proc.poll() is None and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         for _ in range(40):
             executor.spin_once(timeout_sec=0.05)
     finally:
+        sim.close()
         if proc.poll() is None:
             proc.kill()
         _, err = proc.communicate(timeout=30)
