@@ -111,7 +111,9 @@ def ros_node():
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     yield node, executor
+    from runtime.transport.ros2 import destroy_node
+
     executor.shutdown()
-    node.destroy_node()
+    destroy_node(node)  # with the action clients a test made on it
     rclpy.shutdown(context=context)
 

@@ -45,6 +45,7 @@ from plan.interactive import GOAL_TOPIC
 from plan.run_paths import RunPaths
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
+from runtime.transport.ros2 import destroy_node
 
 THREADS = 8  # requests served at once (several may wait for the run)
 FLUSH_S = 0.3  # quiet after the last answer, before the services go away (replies in flight)
@@ -107,7 +108,7 @@ class SimServices:
         for params in getattr(self, "parameters", []):
             params.destroy()
         if getattr(self, "node", None) is not None:
-            self.node.destroy_node()
+            destroy_node(self.node)
         if context.ok():
             rclpy.shutdown(context=context)
 
@@ -199,7 +200,7 @@ class SimServices:
         self.thread.join(timeout=5.0)
         for params in self.parameters:
             params.destroy()
-        self.node.destroy_node()
+        destroy_node(self.node)  # its action servers too
         rclpy.shutdown(context=self.context)
 
     def _answering(self, handler):

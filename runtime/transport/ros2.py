@@ -29,6 +29,17 @@ def use_cosim_dds_profile() -> None:
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(PROFILE)
 
 
+def destroy_node(node) -> None:
+    """Destroy an rclpy node and its action servers and clients: ``Node.destroy_node`` leaves
+    those (waitables), and while one holds the node, the node's DDS participant stays in the
+    graph, with servers that no longer answer."""
+    for waitable in list(node.waitables):
+        destroy = getattr(waitable, "destroy", None)
+        if destroy is not None:
+            destroy()
+    node.destroy_node()
+
+
 def reliable_qos(depth: int, latched: bool = False) -> QoSProfile:
     """Reliable, keep-last ``depth``: nothing is dropped while depth suffices. Volatile, or
     transient-local when ``latched`` (a late subscription still gets the last ``depth``)."""
@@ -135,7 +146,7 @@ class Ros2Transport(Transport):
     def close(self) -> None:
         """Destroy the node and shut the context down."""
         try:
-            self.node.destroy_node()
+            destroy_node(self.node)
         finally:
             if self._context.ok():
                 rclpy.shutdown(context=self._context)
