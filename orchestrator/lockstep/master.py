@@ -120,8 +120,9 @@ class LockstepMaster:
     # -- start ---------------------------------------------------------------------------
 
     def wait_ready(self, started_at: float) -> None:
-        """Wait until every node is ready and matched; name who is not at the deadline."""
-        deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
+        """Wait until every node is ready and matched; name who is not at the deadline
+        (counted from ``started_at``, when the nodes were started)."""
+        deadline = started_at + self.scenario.model.deadlines.start / 1e9
         names = set(self.participants)
         ready: set[str] = set()
         while True:
