@@ -28,6 +28,26 @@ def ros2(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
                           cwd=ROOT)
 
 
+def quit_run(run: subprocess.Popen) -> tuple[int, str]:
+    """Stop a paused run with SetSimulationState STOPPED, as a user would; (its code, stderr).
+    A run that outlives this is interrupted (and its code is then not the one returned)."""
+    try:
+        stop = ros2("service", "call", "/set_simulation_state",
+                    "simulation_interfaces/srv/SetSimulationState", "{state: {state: 3}}")
+        assert stop.returncode == 0, stop.stderr
+        code, _, err = finish(run, timeout=60)
+        return code, err
+    finally:
+        interrupt(run)
+
+
+def interrupt(run: subprocess.Popen) -> None:
+    """SIGINT to a run still going (a test that failed midway), and wait for it."""
+    if run.poll() is None:
+        run.send_signal(signal.SIGINT)
+        finish(run, timeout=30)
+
+
 def odom_x() -> float:
     """x of the robot on the next /odom, read with topic echo --once."""
     done = ros2("topic", "echo", "--once", "--timeout", "30", "/odom")
@@ -111,15 +131,10 @@ def test_service_param_and_action_verbs_on_a_paused_run(tmp_path):
         # has heard its goal accepted is dropped, as by any action client: not asserted)
         assert "3 step(s) done" in steps.stdout
         assert steps.stdout.rstrip().endswith("Goal finished with status: SUCCEEDED")
-
-        stop = ros2("service", "call", "/set_simulation_state",
-                    "simulation_interfaces/srv/SetSimulationState", "{state: {state: 3}}")  # quit
-        assert stop.returncode == 0, stop.stderr
-        code, _, err = finish(run, timeout=60)
-    finally:
-        if run.poll() is None:
-            run.send_signal(signal.SIGINT)
-            finish(run, timeout=30)
+    except BaseException:
+        interrupt(run)
+        raise
+    code, err = quit_run(run)
     assert code in (0, 1), err  # stopped before the goal: goal not met
 
 
@@ -137,13 +152,9 @@ def test_a_swarms_nodes_serve_their_parameters_under_their_robots_namespace(tmp_
             "Double value is: 0.4\n")
         assert ros2("param", "get", "/robot_2/control", "max_speed").stdout == (
             "Double value is: 0.5\n")
-        stop = ros2("service", "call", "/set_simulation_state",
-                    "simulation_interfaces/srv/SetSimulationState", "{state: {state: 3}}")
-        assert stop.returncode == 0, stop.stderr
-        code, _, err = finish(run, timeout=60)
-    finally:
-        if run.poll() is None:
-            run.send_signal(signal.SIGINT)
-            finish(run, timeout=30)
+    except BaseException:
+        interrupt(run)
+        raise
+    code, err = quit_run(run)
     assert code in (0, 1), err
     assert "could not start" not in err
