@@ -37,16 +37,17 @@ from typing import Any
 import mujoco
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
-from control_msgs.msg import DynamicJointState, InterfaceValue, JointTrajectoryControllerState
+from control_msgs.msg import DynamicJointState, JointTrajectoryControllerState
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
 from nodes.contract import StepNode, Tick
 from nodes.ros2_control import config as c
+from nodes.ros2_control import fast_messages as fast
 from nodes.ros2_control.controllers import (
     DiffDrive,
     ForwardCommand,
@@ -373,16 +374,15 @@ class ControllerManagerNode(StepNode):
             if spec.type == c.JSB:
                 local = f"/{spec.name}" if spec.params["use_local_topics"] else ""
                 names = list(spec.joints) or list(state)
-                out[f"{local}/joint_states"] = JointState(
-                    name=names, position=[state[n].position for n in names],
-                    velocity=[state[n].velocity for n in names],
-                    effort=[state[n].effort for n in names])
+                readings = [state[n] for n in names]
+                positions = [r.position for r in readings]
+                velocities = [r.velocity for r in readings]
+                efforts = [r.effort for r in readings]
+                out[f"{local}/joint_states"] = fast.joint_state(names, positions, velocities,
+                                                                efforts)
                 if spec.params["publish_dynamic_joint_states"]:
-                    out[f"{local}/dynamic_joint_states"] = DynamicJointState(
-                        joint_names=names, interface_values=[InterfaceValue(
-                            interface_names=["position", "velocity", "effort"],
-                            values=[state[n].position, state[n].velocity, state[n].effort])
-                            for n in names])
+                    out[f"{local}/dynamic_joint_states"] = fast.dynamic_joint_state(
+                        names, positions, velocities, efforts)
             elif spec.type == c.JTC:
                 out[f"/{spec.name}/controller_state"] = controller_state(ctrl, state)
             elif spec.type == c.DIFF_DRIVE:
@@ -395,8 +395,8 @@ class ControllerManagerNode(StepNode):
                 twist.linear.x = radius * (left + right) / 2.0
                 twist.angular.z = radius * (right - left) / separation
         if any(s.type not in (c.JSB, c.DIFF_DRIVE) for s in self.file.controllers):
-            out[HARDWARE_COMMANDS] = Float64MultiArray(
-                data=[self.command[j] for j in self.command_joints])
+            out[HARDWARE_COMMANDS] = fast.float64_array(
+                [self.command[j] for j in self.command_joints])
         if twist is not None:
             out[BASE_COMMAND] = twist
         return out
@@ -455,25 +455,20 @@ def goal_tolerances(ctrl: TrajectoryController, goal):
 
 def controller_state(ctrl: TrajectoryController, state) -> JointTrajectoryControllerState:
     """~/controller_state: reference, feedback, error and output of every joint."""
-    msg = JointTrajectoryControllerState()
-    msg.joint_names = list(ctrl.joints)
+    joints = ctrl.joints
+    positions = [state[j].position for j in joints]
+    velocities = [state[j].velocity for j in joints]
+    feedback = fast.point(positions, velocities)
     desired = ctrl.desired
-    feedback = JointTrajectoryPoint(
-        positions=[state[j].position for j in ctrl.joints],
-        velocities=[state[j].velocity for j in ctrl.joints])
-    if desired is not None:
-        msg.reference = JointTrajectoryPoint(positions=list(desired.positions),
-                                             velocities=list(desired.velocities),
-                                             accelerations=list(desired.accelerations))
-        msg.error = JointTrajectoryPoint(
-            positions=[d - f for d, f in zip(desired.positions, feedback.positions,
-                                             strict=True)],
-            velocities=[d - f for d, f in zip(desired.velocities, feedback.velocities,
-                                              strict=True)])
-        msg.output = JointTrajectoryPoint(positions=list(desired.positions))
-    msg.feedback = feedback
-    msg.speed_scaling_factor = 1.0
-    return msg
+    if desired is None:
+        reference, error, output = fast.point(), fast.point(), fast.point()
+    else:
+        reference = fast.point(desired.positions, desired.velocities, desired.accelerations)
+        error = fast.point([d - f for d, f in zip(desired.positions, positions, strict=True)],
+                           [d - f for d, f in zip(desired.velocities, velocities,
+                                                  strict=True)])
+        output = fast.point(desired.positions)
+    return fast.controller_state(joints, reference, feedback, error, output)
 
 
 def diff_drive_odometry(ctrl: DiffDrive) -> Odometry:

@@ -1,0 +1,113 @@
+"""The controller manager's messages built straight into their slots, at every update.
+
+A default JointTrajectoryControllerState builds four JointTrajectoryPoints and four
+MultiDOFJointTrajectoryPoints, each with its Duration, and every field then goes through its
+property setter: a third of the manager's step (bench/README). As ``nodes.physics.
+fast_messages`` does for physics, these builders create each object with ``__new__`` and set
+its slots to exactly what the constructor and setters leave there (lists of str, ``array('d')``
+for float64 sequences): the messages compare equal to, and encode to the same bytes as, those
+built the usual way (tests/test_ros2_control_messages.py).
+"""
+
+from __future__ import annotations
+
+from array import array
+
+from builtin_interfaces.msg import Duration
+from control_msgs.msg import DynamicJointState, InterfaceValue, JointTrajectoryControllerState
+from std_msgs.msg import Float64MultiArray, MultiArrayLayout
+from trajectory_msgs.msg import JointTrajectoryPoint, MultiDOFJointTrajectoryPoint
+
+from nodes.physics.fast_messages import CHECK, header
+from nodes.physics.fast_messages import joint_state as _joint_state
+
+INTERFACES = ("position", "velocity", "effort")
+
+
+def _duration() -> Duration:
+    d = Duration.__new__(Duration)
+    d._check_fields = CHECK
+    d._sec = 0
+    d._nanosec = 0
+    return d
+
+
+def point(positions=(), velocities=(), accelerations=()) -> JointTrajectoryPoint:
+    """A JointTrajectoryPoint of these float sequences, no effort, time_from_start 0."""
+    p = JointTrajectoryPoint.__new__(JointTrajectoryPoint)
+    p._check_fields = CHECK
+    p._positions = array("d", positions)
+    p._velocities = array("d", velocities)
+    p._accelerations = array("d", accelerations)
+    p._effort = array("d")
+    p._time_from_start = _duration()
+    return p
+
+
+def _multi_dof_point() -> MultiDOFJointTrajectoryPoint:
+    p = MultiDOFJointTrajectoryPoint.__new__(MultiDOFJointTrajectoryPoint)
+    p._check_fields = CHECK
+    p._transforms = []
+    p._velocities = []
+    p._accelerations = []
+    p._time_from_start = _duration()
+    return p
+
+
+def controller_state(joints: list[str], reference: JointTrajectoryPoint,
+                     feedback: JointTrajectoryPoint, error: JointTrajectoryPoint,
+                     output: JointTrajectoryPoint) -> JointTrajectoryControllerState:
+    """~/controller_state of a trajectory controller (no multi-DOF joints, speed scaling 1)."""
+    msg = JointTrajectoryControllerState.__new__(JointTrajectoryControllerState)
+    msg._check_fields = CHECK
+    msg._header = header("")
+    msg._joint_names = list(joints)
+    msg._reference = reference
+    msg._feedback = feedback
+    msg._error = error
+    msg._output = output
+    msg._multi_dof_joint_names = []
+    msg._multi_dof_reference = _multi_dof_point()
+    msg._multi_dof_feedback = _multi_dof_point()
+    msg._multi_dof_error = _multi_dof_point()
+    msg._multi_dof_output = _multi_dof_point()
+    msg._speed_scaling_factor = 1.0
+    return msg
+
+
+def joint_state(names: list[str], positions, velocities, efforts):
+    """The joint state broadcaster's sensor_msgs/JointState."""
+    return _joint_state(list(names), array("d", positions), array("d", velocities),
+                        array("d", efforts))
+
+
+def dynamic_joint_state(names: list[str], positions, velocities, efforts
+                        ) -> DynamicJointState:
+    """The broadcaster's control_msgs/DynamicJointState: position, velocity and effort of
+    every joint."""
+    values = []
+    for p, v, e in zip(positions, velocities, efforts, strict=True):
+        iv = InterfaceValue.__new__(InterfaceValue)
+        iv._check_fields = CHECK
+        iv._interface_names = list(INTERFACES)
+        iv._values = array("d", (p, v, e))
+        values.append(iv)
+    msg = DynamicJointState.__new__(DynamicJointState)
+    msg._check_fields = CHECK
+    msg._header = header("")
+    msg._joint_names = list(names)
+    msg._interface_values = values
+    return msg
+
+
+def float64_array(data) -> Float64MultiArray:
+    """A Float64MultiArray with an empty layout."""
+    layout = MultiArrayLayout.__new__(MultiArrayLayout)
+    layout._check_fields = CHECK
+    layout._dim = []
+    layout._data_offset = 0
+    msg = Float64MultiArray.__new__(Float64MultiArray)
+    msg._check_fields = CHECK
+    msg._layout = layout
+    msg._data = array("d", data)
+    return msg
