@@ -7,8 +7,10 @@ reader from discovery, which on a loaded machine can lag the request by seconds 
 endpoint announcement is repeated only at the next heartbeat), so a client that called as
 soon as it saw the service (``ros2 service call``, any user's rclpy client) sometimes never
 got its answer. A timed-out reply was not written, so sending it again cannot duplicate it:
-``install`` makes every response the orchestrator's ROS surface sends retry until the reader
-is matched, or ``GIVE_UP_S`` passes (then it is logged, naming the service).
+``install`` (called when a run's ROS surface starts) makes every service and action response
+of the process retry until the reader is matched, or ``GIVE_UP_S`` passes (then it is logged,
+naming what was dropped); in a process that runs cosim through ``orchestrator.api`` that
+includes the user's own servers, which gain the same guarantee.
 """
 
 from __future__ import annotations
