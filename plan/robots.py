@@ -98,12 +98,17 @@ def robot_of(node_name: str) -> str | None:
     return node_name.partition("@")[2] or None
 
 
+def ros_name_chars(text: str) -> str:
+    """``text`` with every character a ROS 2 node name may not hold replaced by '_'."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", text)
+
+
 def ros_identity(node_name: str) -> tuple[str, str]:
     """(name, namespace) of a cosim node as a ROS 2 node: 'control' -> ('control', '/'),
     'control@robot_3' -> ('control', '/robot_3'), as the robot's topics are namespaced.
     Characters a ROS 2 node name may not hold become '_'."""
     base, _, robot = node_name.partition("@")
-    name = re.sub(r"[^A-Za-z0-9_]", "_", base)
+    name = ros_name_chars(base)
     if name[:1].isdigit():
         name = f"_{name}"
     return name, f"/{robot}" if robot else "/"

@@ -116,4 +116,3 @@ def ros_node():
     executor.shutdown()
     destroy_node(node)  # with the action clients a test made on it
     rclpy.shutdown(context=context)
-

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ValidationError
@@ -113,20 +114,18 @@ class NodeParameters:
         self.node.destroy_node()
 
 
-def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl,
-                    into: list[NodeParameters] | None = None) -> list[NodeParameters]:
+def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, control: RunControl
+                    ) -> Iterator[NodeParameters]:
     """A NodeParameters for every cosim node of the run (not foreign programs, not the
-    external node), appended to ``into`` as each is made (so that the caller can remove
-    those made when a later one fails)."""
+    external node), each as it is made (so that the caller holds those made before one
+    fails, to remove them)."""
     from nodes.registry import load_class
 
-    made = [] if into is None else into
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
     for plan in scenario.nodes.values():
         if plan.role.runs_step_runtime:
-            made.append(NodeParameters(context, plan, load_class(plan.class_ref), arrivals,
-                                       control, period))
-    return made
+            yield NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control,
+                                 period)
 
 
 def describe(model: type[BaseModel], name: str, runtime: bool) -> ParameterDescriptor:

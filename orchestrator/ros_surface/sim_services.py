@@ -85,7 +85,7 @@ class SimServices:
         except Exception:  # noqa: BLE001 - the run goes on without its ROS 2 interfaces
             log.exception("the run's ROS 2 interfaces could not start")
             self.executor = None
-            self._remove_half_built()
+            self._remove_servers()
             return
         finally:
             self._built.set()
@@ -94,21 +94,20 @@ class SimServices:
         except ExternalShutdownException:
             pass
 
-    def _remove_half_built(self) -> None:
-        """Shut down the context of servers that failed to start: servers left without an
-        executor would be found by clients (of this run and of later runs in the same process)
-        and never answer them."""
+    def _remove_servers(self) -> None:
+        """Destroy every node of the servers (those built so far, when building failed) and
+        shut their context down: the participant lives while any node of it does, and servers
+        left without an executor would be found by clients (of this run and of later runs in
+        the same process) and never answer them."""
         import rclpy
 
         context = getattr(self, "context", None)
         if context is None:
             return
-        # the participant lives while any node of it does: shutting the context down is not
-        # enough
         for params in getattr(self, "parameters", []):
             params.destroy()
         if getattr(self, "node", None) is not None:
-            destroy_node(self.node)
+            destroy_node(self.node)  # its action servers too
         if context.ok():
             rclpy.shutdown(context=context)
 
@@ -163,7 +162,8 @@ class SimServices:
         if self.navigate is not None:
             self.local_actions["/navigate_to_pose"] = self.navigate.local_action()
         self.parameters = []
-        parameter_nodes(self.context, scenario, arrivals, self.control, into=self.parameters)
+        for params in parameter_nodes(self.context, scenario, arrivals, self.control):
+            self.parameters.append(params)
         executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:
             executor.add_node(node)
@@ -182,8 +182,6 @@ class SimServices:
         active goal ends with a terminal status and why), let the answers and results go
         out (the executor sends an action's result after its callback returns), then
         remove the servers."""
-        import rclpy
-
         self.control.finished("the orchestrator stopped the run")
         self._built.wait(BUILD_WAIT_S)
         if self.executor is None:
@@ -198,10 +196,7 @@ class SimServices:
             time.sleep(0.05)
         self.executor.shutdown(timeout_sec=5.0)
         self.thread.join(timeout=5.0)
-        for params in self.parameters:
-            params.destroy()
-        destroy_node(self.node)  # its action servers too
-        rclpy.shutdown(context=self.context)
+        self._remove_servers()
 
     def _answering(self, handler):
         """``handler`` counted while it serves (close waits for it) and timed."""

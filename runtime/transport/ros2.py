@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import re
 from pathlib import Path
 
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from plan.robots import ros_name_chars
 from runtime.transport.base import Publisher, Received, Subscription, Transport
 
 PROFILE = Path(__file__).with_name("fastdds_profile.xml")
@@ -86,7 +86,7 @@ class Ros2Subscription(Subscription):
 def ros_node_name(participant: str) -> str:
     """A valid ROS 2 node name for a participant: 'control@robot_3' -> 'control_robot_3';
     a long one (a packed process of many nodes) keeps its start and a hash of the whole."""
-    name = re.sub(r"[^A-Za-z0-9_]", "_", participant)
+    name = ros_name_chars(participant)
     if len(name) > 120:
         name = f"{name[:100]}_{hashlib.sha256(participant.encode()).hexdigest()[:12]}"
     return name
