@@ -32,3 +32,29 @@ macro(cosim_fix_wheel_python_includes)
     endif()
   endforeach()
 endmacro()
+
+# cosim_generate_interfaces(<rosidl_generate_interfaces arguments>): rosidl_generate_interfaces
+# for rclpy only, compiled in fewer translation units. Call after the last find_package().
+#
+# rclpy needs of an interface package only its C type supports (the dispatcher
+# <pkg>__rosidl_typesupport_c, Fast DDS's <pkg>__rosidl_typesupport_fastrtps_c, which rmw_zenoh
+# uses too, and the introspection C library) and its Python bindings; the C++ generators and type
+# supports are nearly half of the compile and nothing in a pip-only install loads them. rosidl_generate_interfaces runs every
+# extension registered, and the wheels' exported dependencies register the C++ ones whatever the
+# package asks for, so they are filtered out of that list (as rosidlcpp does). The introspection C
+# type support stays: rmw_fastrtps_cpp builds each type's DDS TypeObject from it when a publisher
+# or subscription registers the type (without it the second registration of a type fails as
+# "incompatible").
+#
+# A generated file's compile is mostly the parsing of headers, so the targets whose generated
+# files can share one translation unit are unity builds (each file still compiled once, with the
+# same flags). rosidl_generator_c's files cannot: each defines the same static names.
+macro(cosim_generate_interfaces)
+  list(FILTER AMENT_EXTENSIONS_rosidl_generate_idl_interfaces EXCLUDE REGEX
+    "^rosidl_(generator_cpp|typesupport_cpp|typesupport_fastrtps_cpp|typesupport_introspection_cpp):")
+  rosidl_generate_interfaces(${ARGN})
+  foreach(_cosim_generator rosidl_typesupport_fastrtps_c rosidl_typesupport_introspection_c
+      rosidl_typesupport_c rosidl_generator_py)
+    set_target_properties(${PROJECT_NAME}__${_cosim_generator} PROPERTIES UNITY_BUILD ON)
+  endforeach()
+endmacro()

@@ -2,10 +2,17 @@
 camera gives one digest whichever kernels OpenBLAS is told to use (OPENBLAS_CORETYPE) and with
 numpy's CPU dispatch cut back to its baseline (NPY_DISABLE_CPU_FEATURES), in-process and
 multi-process. Every run is a real cosim-orchestrate process, so the variables are read
-where they take effect: at the start of the interpreters that load numpy and OpenBLAS."""
+where they take effect: at the start of the interpreters that load numpy and OpenBLAS.
+
+OpenBLAS runs a forced kernel whether or not the CPU has its instructions (an AVX-512 kernel on
+a CPU without AVX-512 dies with SIGILL), so only the kernels this CPU can run are compared: read
+from the CPU's feature flags, at least two on any x86-64 (Prescott needs only SSE3)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import pytest
 import yaml
 
 from tests.helpers import nav_without_camera_doc, orchestrate
@@ -13,6 +20,40 @@ from tests.helpers import nav_without_camera_doc, orchestrate
 # numpy's dispatch targets above its x86-64 baseline; names it does not know are ignored
 # with a warning on a machine without them, so this works on any x86-64.
 NPY_BASELINE_ONLY = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
+
+# OpenBLAS's x86-64 core types, newest first, with the CPU flags (/proc/cpuinfo) each kernel's
+# instructions need (OpenBLAS's own cpuid checks: driver/others/dynamic.c).
+OPENBLAS_KERNELS = (
+    ("SkylakeX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})),
+    ("Haswell", frozenset({"avx2", "fma"})),
+    ("Sandybridge", frozenset({"avx"})),
+    # SSE3 ("pni" in /proc/cpuinfo); numpy's OpenBLAS runs its generic SSE kernel (Katmai) for it
+    ("Prescott", frozenset({"pni"})),
+)
+
+
+def cpu_flags(cpuinfo: str) -> frozenset[str]:
+    """The feature flags of the first CPU in a /proc/cpuinfo text."""
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "flags":
+            return frozenset(value.split())
+    return frozenset()
+
+
+def runnable_kernels(flags: frozenset[str]) -> list[str]:
+    """The OpenBLAS core types whose instructions a CPU with these flags has, newest first."""
+    return [name for name, needs in OPENBLAS_KERNELS if needs <= flags]
+
+
+def test_runnable_kernels_leave_out_what_the_cpu_lacks():
+    """An AVX2 machine without AVX-512 (an AMD Zen 2/3 laptop, an older Intel server) gets no
+    SkylakeX; an AVX-512 machine gets all four; a plain SSE3 machine gets Prescott."""
+    zen3 = cpu_flags("processor\t: 0\nflags\t\t: fpu sse2 pni ssse3 fma avx avx2 bmi2\n")
+    assert runnable_kernels(zen3) == ["Haswell", "Sandybridge", "Prescott"]
+    skx = zen3 | {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}
+    assert runnable_kernels(skx) == ["SkylakeX", "Haswell", "Sandybridge", "Prescott"]
+    assert runnable_kernels(frozenset({"sse2", "pni"})) == ["Prescott"]
 
 
 def nav_without_camera(tmp_path, duration: str = "1s"):
@@ -24,15 +65,18 @@ def nav_without_camera(tmp_path, duration: str = "1s"):
 
 
 def test_one_digest_whatever_blas_kernels_and_numpy_cpu_features(tmp_path):
+    cpuinfo = Path("/proc/cpuinfo")
+    if not cpuinfo.is_file():
+        pytest.fail("this test reads the CPU's features from /proc/cpuinfo (Linux x86-64)")
+    kernels = runnable_kernels(cpu_flags(cpuinfo.read_text()))
+    assert len(kernels) >= 2, f"an x86-64 CPU runs at least two OpenBLAS kernels, got {kernels}"
+    newest, oldest = kernels[0], kernels[-1]
     scenario = nav_without_camera(tmp_path)
-    runs = {
-        "Haswell": ({"OPENBLAS_CORETYPE": "Haswell"}, ["--in-process"]),
-        "SkylakeX": ({"OPENBLAS_CORETYPE": "SkylakeX"}, ["--in-process"]),
-        "Sandybridge, numpy baseline": ({"OPENBLAS_CORETYPE": "Sandybridge",
-                                         "NPY_DISABLE_CPU_FEATURES": NPY_BASELINE_ONLY},
-                                        ["--in-process"]),
-        "SkylakeX, multi-process": ({"OPENBLAS_CORETYPE": "SkylakeX"}, []),
-    }
+    runs = {kernel: ({"OPENBLAS_CORETYPE": kernel}, ["--in-process"]) for kernel in kernels}
+    runs[f"{oldest}, numpy baseline"] = ({"OPENBLAS_CORETYPE": oldest,
+                                          "NPY_DISABLE_CPU_FEATURES": NPY_BASELINE_ONLY},
+                                         ["--in-process"])
+    runs[f"{newest}, multi-process"] = ({"OPENBLAS_CORETYPE": newest}, [])
     digests = {}
     for label, (env, args) in runs.items():
         done = orchestrate(scenario, tmp_path / "runs", "--quiet", *args, env=env)

@@ -39,6 +39,7 @@ import subprocess
 import sys
 import sysconfig
 import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from functools import cache
 from pathlib import Path
 
@@ -267,13 +268,37 @@ def build(pkg: str, wanted: str) -> str:
         unlink(pkg)
         shutil.rmtree(prefix)
     env = build_env()
-    jobs = os.environ.get(JOBS_ENV, "2")
+    jobs = os.environ.get(JOBS_ENV, str(os.cpu_count() or 2))
     run_step("cmake configure", ["cmake", "-S", str(SOURCES / pkg), "-B", str(build_dir),
                                  *cmake_args(pkg)], pkg, log, env)
     run_step("make", ["make", "-C", str(build_dir), f"-j{jobs}", "install"], pkg, log, env)
     link(pkg)
     (prefix / STAMP_NAME).write_text(wanted + "\n")
     return f"built in {time.monotonic() - started:.1f} s"
+
+
+def build_all(stale: list[str], wanted: dict[str, str]) -> None:
+    """Build the stale packages side by side (none depends on another), printing a line per
+    package as it finishes; raise one BuildError naming every package that failed.
+
+    Most of a package's build is serial (cmake configure, the Python generators, linking), so
+    building them at once keeps both cores of a small machine busy where one at a time left one
+    idle; the largest starts first."""
+    if not stale:
+        return
+    print(f"interfaces: building {', '.join(stale)} (the ROS messages PyPI lacks; once, then"
+          " only on change)", flush=True)
+    by_size = sorted(stale, key=lambda p: -sum(1 for _ in (SOURCES / p).rglob("*.*")))
+    failures = []
+    with ThreadPoolExecutor(max_workers=len(by_size)) as pool:
+        futures = {pool.submit(build, pkg, wanted[pkg]): pkg for pkg in by_size}
+        for future in as_completed(futures):
+            try:
+                print(f"interfaces: {futures[future]} {future.result()}", flush=True)
+            except BuildError as exc:
+                failures.append(str(exc))
+    if failures:
+        raise BuildError("\n\n".join(failures))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -305,10 +330,9 @@ def main(argv: list[str] | None = None) -> int:
             if stale:
                 check_prerequisites(stale)
             for pkg in todo:
-                if pkg in stale:
-                    print(f"interfaces: {pkg} {build(pkg, wanted[pkg])}", flush=True)
-                else:
+                if pkg not in stale:
                     link(pkg)  # cheap; repairs links removed by hand
+            build_all(stale, wanted)
         except BuildError as exc:
             print(f"build_interfaces: {exc}", file=sys.stderr)
             return 1
