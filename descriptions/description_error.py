@@ -5,13 +5,15 @@ from __future__ import annotations
 
 class DescriptionError(ValueError):
     """A description that cannot be loaded: the file, the link or joint (when one is to
-    blame), the path tried (a mesh, a package), what is wrong and the fix. The scenario
-    layer turns it into a ScenarioError (exit 2) before anything starts."""
+    blame), the xacro argument (``arg``: one the scenario gives), the path tried (a mesh, a
+    package), what is wrong and the fix. The scenario layer turns it into a ScenarioError
+    (exit 2) before anything starts."""
 
     def __init__(self, description: str, problem: str, *, link: str | None = None,
-                 joint: str | None = None, path: str | None = None, fix: str = ""):
+                 joint: str | None = None, path: str | None = None, fix: str = "",
+                 arg: str | None = None):
         self.description, self.problem, self.fix = str(description), problem, fix
-        self.link, self.joint, self.path = link, joint, path
+        self.link, self.joint, self.path, self.arg = link, joint, path, arg
         where = self.description
         if link:
             where += f", link {link!r}"

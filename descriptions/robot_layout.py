@@ -56,7 +56,8 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
         try:
             robot = layout_robot(description, urdf).model
         except DescriptionError as exc:
-            raise scenario_error(exc, path, "robots.description") from None
+            key = f"robots.urdf.args.{exc.arg}" if exc.arg else "robots.description"
+            raise scenario_error(exc, path, key) from None
         footprint, base_body = robot.footprint_radius, robot.base_link
     else:
         if spec.urdf is not None:

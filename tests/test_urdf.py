@@ -107,6 +107,21 @@ def test_xacro_error_carries_xacros_message(tmp_path):
     assert str(path) in str(exc.value)
 
 
+def test_an_argument_the_xacro_does_not_declare_is_refused_naming_those_it_does(tmp_path):
+    with pytest.raises(DescriptionError, match="'wheel_raduis' is not declared by the "
+                       "description.*declares: lidar_samples, with_camera, with_imu") as exc:
+        expand(BOT, {"wheel_raduis": "0.08"}, PackageResolver(PACKAGES, {}))
+    assert exc.value.arg == "wheel_raduis"
+    # an argument read by $(arg) without a declaration is xacro's command-line kind: taken
+    path = tmp_path / "r.urdf.xacro"
+    path.write_text('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                    '<xacro:arg name="size" default="1"/>'
+                    '<link name="$(arg prefix)base"/></robot>')
+    assert '<link name="p_base"/>' in expand(path, {"prefix": "p_", "size": "2"}).urdf
+    with pytest.raises(DescriptionError, match="'sise', 'prefx' are not declared.*: size$"):
+        expand(path, {"prefix": "p_", "sise": "2", "prefx": "q_"})
+
+
 def test_unknown_package_in_find_names_it():
     with pytest.raises(DescriptionError, match=r"\$\(find mybot_description\).*packages:"):
         expand(BOT, {}, PackageResolver({}, {}))

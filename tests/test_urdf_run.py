@@ -114,6 +114,9 @@ def test_a_urdf_robot_without_an_imu_is_named_in_the_physics_params(tmp_path):
      "robots.description", "joint 'imu_joint'.*fixed: it does not turn"),
     (lambda d: d["robots"]["urdf"].update(sensors={"lidar": "laser"}), "robots.description",
      "link 'laser'.*not in the description"),
+    (lambda d: d["robots"]["urdf"]["args"].update(wheel_raduis=0.08),
+     "robots.urdf.args.wheel_raduis",
+     "'wheel_raduis' is not declared.*declares: lidar_samples, with_camera, with_imu"),
     (lambda d: d["robots"].update(description=str(ROOT / "scenarios/worlds/robot.xml")),
      "robots.urdf", "not a URDF or xacro"),
 ])
