@@ -31,9 +31,13 @@ $(JS_STAMP): $(JS)/package.json $(JS)/package-lock.json
 run: install
 	$(BIN)/cosim-orchestrate scenarios/nav.yaml
 
+# Test files run side by side, one pytest-xdist worker per core (TEST_WORKERS=0: one at a time,
+# in pytest's own process): most of a test waits on processes starting and discovering each
+# other. Every test's time is kept in build/test-times.xml (tools/slowest_tests.py reads it).
+TEST_WORKERS ?= auto
 test: install
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile --junitxml=build/test-times.xml
 
 # The documentation site into build/site (open build/site/index.html); --strict: a dead link or
 # a page missing from the nav fails the build. The reference pages are generated from the code.

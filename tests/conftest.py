@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import gc
 import os
-import random
 import time
 
 import psutil
@@ -14,8 +13,24 @@ import pytest
 import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from tests.leftovers import alive, become_subreaper, mark_this_session, session_processes
 
-# One domain per test run, chosen before anything imports rclpy; children inherit it.
-DOMAIN = os.environ.get("COSIM_TEST_DOMAIN") or str(random.SystemRandom().randint(1, 100))
+
+def _test_domain() -> str:
+    """COSIM_TEST_DOMAIN, else a domain id leased for as long as this process lives (a held
+    lock, as a run's own: orchestrator.domains), so that test processes side by side (pytest-xdist
+    workers, two checkouts' suites) and the runs they start unpinned never share one."""
+    if os.environ.get("COSIM_TEST_DOMAIN"):
+        return os.environ["COSIM_TEST_DOMAIN"]
+    from orchestrator.domains import DomainLease
+
+    lease = DomainLease(wait_s=60)
+    domain = lease.__enter__()
+    _HELD.append(lease)  # released when this process ends, however it ends
+    return str(domain)
+
+
+_HELD: list = []
+# One domain per test process, chosen before anything imports rclpy; children inherit it.
+DOMAIN = _test_domain()
 os.environ["ROS_DOMAIN_ID"] = DOMAIN
 # Discovery on this machine only, as cosim-orchestrate keeps a run's: a client on the default
 # range (SUBNET) was not found by, nor found, a busy LOCALHOST run's services here
