@@ -281,7 +281,8 @@ def _write_picture_safely(scenario: Scenario, outcome: RunOutcome) -> Path | Non
         from orchestrator.outputs.picture import write_report_png
         from orchestrator.outputs.swarm_picture import write_swarm_png
 
-        write = write_swarm_png if scenario.robots is not None else write_report_png
+        swarm = scenario.robots is not None and len(scenario.robots.robots) > 1
+        write = write_swarm_png if swarm else write_report_png  # one robot: nav's report
         return write(scenario, outcome.run_dir, outcome.bag, outcome)
     except Exception as exc:  # noqa: BLE001 - the run's data stays; only the picture is lost
         log.error("could not draw report.png: %s", exc)

@@ -10,9 +10,11 @@ was recorded, not what a node believed. Runs with ``/odom`` get the navigation p
 * right, over sim time: forward speed and turn rate (odometry and the ``/cmd_vel``
   commands), distance to the goal and the nearest lidar return.
 
-Runs without ``/odom`` (protocol tests, custom nodes) get the messages received per topic
-over sim time. Figures are built on the Agg canvas directly: no pyplot, no display, no
-global matplotlib state touched in the caller's process.
+A scenario with one robot in a ``robots:`` section gets the same picture from its robot's
+topics (``orchestrator.outputs.lone_robot``). Runs without ``/odom`` (protocol tests, custom
+nodes) get the messages received per topic over sim time. Figures are built on the Agg
+canvas directly: no pyplot, no display, no global matplotlib state touched in the caller's
+process.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
 from orchestrator.outputs.arm_picture import JOINT_STATES, joint_figure, joint_goal_of
+from orchestrator.outputs.lone_robot import lone_robot, robot_goal, topics_of
 from plan.poses import yaw_of
 from plan.run_paths import RunPaths
 
@@ -80,24 +83,37 @@ def write_report_png(scenario: Scenario, run_dir: Path, bag: Path | None, outcom
     """
     if bag is None or not Path(bag).exists():
         return None
-    arm = joint_goal_of(scenario) is not None
-    data = read_bag(Path(bag), NAV_TOPICS + ((JOINT_STATES,) if arm else ()))
-    if not any(data.counts.values()):
+    fig = report_figure(scenario, Path(bag), outcome)
+    if fig is None:
         return None
-    if arm and data.messages.get(JOINT_STATES):
-        fig = joint_figure(scenario, data, outcome, title(scenario, outcome))
-    elif data.messages.get("/odom"):
-        fig = nav_figure(scenario, data, outcome)
-    else:
-        fig = counts_figure(scenario, data, outcome)
     path = RunPaths(Path(run_dir)).report
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=DPI)
     return path
 
 
-def read_bag(bag: Path, decode: tuple[str, ...]) -> BagData:
-    """Log times of every topic, and the messages of the ``decode`` topics, from a bag."""
+def report_figure(scenario: Scenario, bag: Path, outcome=None) -> Figure | None:
+    """The picture of a run (one robot, an arm or neither) from its bag; None when the bag
+    is empty."""
+    arm = joint_goal_of(scenario) is not None
+    topics = topics_of(scenario, NAV_TOPICS)  # nav's name -> the run's
+    data = read_bag(bag, tuple(topics.values()) + ((JOINT_STATES,) if arm else ()),
+                    odom=topics["/odom"])
+    if not any(data.counts.values()):
+        return None
+    for name, topic in topics.items():  # the robot's topics, under nav's names
+        if topic != name and topic in data.messages:
+            data.messages[name] = data.messages.pop(topic)
+    if arm and data.messages.get(JOINT_STATES):
+        return joint_figure(scenario, data, outcome, title(scenario, outcome))
+    if data.messages.get("/odom"):
+        return nav_figure(scenario, data, outcome)
+    return counts_figure(scenario, data, outcome)
+
+
+def read_bag(bag: Path, decode: tuple[str, ...], odom: str = "/odom") -> BagData:
+    """Log times of every topic, and the messages of the ``decode`` topics, from a bag
+    (only those when it has odometry on ``odom``)."""
     from orchestrator.outputs.bag import BagReader
 
     data = BagData()
@@ -105,7 +121,7 @@ def read_bag(bag: Path, decode: tuple[str, ...]) -> BagData:
         data.counts = reader.counts
         stamps: dict[str, list[int]] = {topic: [] for topic in data.counts}
         # the nav picture: skip images and the rest, count them
-        chosen = [t for t in decode if t in data.counts] if data.counts.get("/odom") else None
+        chosen = [t for t in decode if t in data.counts] if data.counts.get(odom) else None
         last: dict[str, tuple[bytes, object]] = {}
         for topic, stamp, raw in reader.raw(chosen):
             stamps[topic].append(stamp)
@@ -174,6 +190,19 @@ def load_world(path: Path | None, laser_frame: str = "laser") -> World:
     return world
 
 
+def robots_world(scenario: Scenario, laser_frame: str) -> World:
+    """The static obstacles of a ``robots:`` scenario's arena (the robots are not static)
+    and where its robot's laser (``laser_frame``, a site of the robot's) sits on it."""
+    from descriptions.swarm_world import swarm_model
+    from descriptions.world_geometry import site_offset
+
+    world = World()
+    model = swarm_model(scenario.world, scenario.robots)
+    add_obstacles(world, model)
+    world.laser = site_offset(model, laser_frame)
+    return world
+
+
 def add_obstacles(world: World, model) -> None:
     """Add a compiled world's visible static obstacles to the picture's ``world``."""
     from descriptions.world_geometry import static_obstacles
@@ -208,7 +237,8 @@ def nav_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     track = odom_track(data.messages["/odom"])
     scans = data.messages.get("/scan", [])
     laser_frame = scans[0][1].header.frame_id if scans else "laser"
-    world = load_world(getattr(scenario, "world", None), laser_frame or "laser")
+    world = (robots_world(scenario, laser_frame) if lone_robot(scenario)
+             else load_world(getattr(scenario, "world", None), laser_frame or "laser"))
     snaps = snapshot_scans(scans)
     fig = Figure(figsize=(15, 9.5))
     left = fig.add_gridspec(1, 1, left=0.05, right=0.5, top=0.89, bottom=0.2)
@@ -369,9 +399,9 @@ def draw_start_goal(ax, scenario: Scenario, track: Track) -> None:
 
 
 def scenario_goal(scenario: Scenario):
-    """The scenario's goal, or None."""
+    """The scenario's goal (its lone robot's in a ``robots:`` section), or None."""
     model = getattr(scenario, "model", None)
-    return getattr(model, "goal", None)
+    return getattr(model, "goal", None) or robot_goal(scenario)
 
 
 def map_limits(world: World, track: Track, scenario: Scenario):
