@@ -26,6 +26,7 @@ from sensor_msgs.msg import LaserScan
 import nodes  # noqa: F401 - provides the node kinds to the plan (plan.kinds)
 from descriptions.load import load_scenario
 from nodes.contract import Tick
+from plan.timeutil import tick_at_ns
 from runtime.build import make_node
 
 
@@ -67,7 +68,7 @@ class ControlAsRosNode(Node):
     def step(self, msg: LaserScan) -> None:
         """Step the controller with the latest odometry and this scan, and publish."""
         now = self.get_clock().now()
-        tick = Tick(now.nanoseconds // self.tick_ns, now.nanoseconds)
+        tick = Tick(tick_at_ns(now.nanoseconds, self.tick_ns), now.nanoseconds)
         out = self.controller.step(tick, {"/odom": self.odom, "/scan": msg})
         for text in self.controller.take_notes():  # why it stands still, when it does
             self.get_logger().warning(text)

@@ -17,11 +17,13 @@ from pydantic import BaseModel, ConfigDict
 
 from descriptions.robot_model import RobotModel
 from plan.robots import RobotsLayout
+from plan.timeutil import Ns
 
 
 @dataclass(frozen=True)
 class Tick:
-    """One exchange period: index ``k`` and its exact time ``k * tick_ns`` in nanoseconds."""
+    """One exchange period: index ``k`` and its time in whole nanoseconds, ``k * tick_ns``
+    rounded half up once (``plan.timeutil.tick_time_ns``; exact for a whole-ns tick)."""
 
     index: int
     time_ns: int
@@ -33,8 +35,8 @@ class NodeConfig:
 
     name: str
     params: BaseModel
-    tick_ns: int
-    period_ns: int
+    tick_ns: Ns  # exact, a Fraction where not whole ns (30 Hz: period 100000000/3)
+    period_ns: Ns
     world: Path | None = None
     goal: dict[str, float] | None = None
     joint_goal: dict[str, Any] | None = None  # {positions: {joint: rad}, tolerance: rad}

@@ -266,8 +266,10 @@ def main(argv: list[str] | None = None) -> int:
     for warning in warnings:
         print(f"cosim-orchestrate: warning: {warning}", file=sys.stderr)
     if domain is not None and not args.quiet:
-        for line in domain.lines(scenario.model.transport):
-            print(f"cosim-orchestrate: {line}", file=sys.stderr)
+        head, *commands = domain.lines(scenario.model.transport)
+        print(f"cosim-orchestrate: {head}", file=sys.stderr)
+        for command in commands:  # alone on its line: to paste as it is
+            print(f"  {command}", file=sys.stderr)
     if recorded is not None:
         print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
               f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)

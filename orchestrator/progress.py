@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import time
 
+from plan.timeutil import Ns, tick_time_ns
+
 REDRAW_S = 0.1
 
 
 class Progress:
     """Shows progress on a terminal; silent when quiet or not attached to a terminal."""
 
-    def __init__(self, total_ticks: int, tick_ns: int, enabled: bool, console=None):
+    def __init__(self, total_ticks: int, tick_ns: Ns, enabled: bool, console=None):
         self.total_ticks = max(total_ticks, 1)
         self.tick_ns = tick_ns
         self.enabled = enabled
@@ -58,13 +60,13 @@ class Progress:
 
     def _fields(self, tick: int, now: float | None) -> dict[str, str]:
         """The text columns for the last finished tick."""
-        total_s = (self.total_ticks - 1) * self.tick_ns / 1e9
-        sim_s = max(tick, 0) * self.tick_ns / 1e9
+        total_s = tick_time_ns(self.total_ticks - 1, self.tick_ns) / 1e9
+        sim_s = tick_time_ns(max(tick, 0), self.tick_ns) / 1e9
         fields = {"sim": f"sim {sim_s:7.2f} / {total_s:.2f} s",
                   "ticks": f"tick {tick + 1}/{self.total_ticks}", "rtf": "", "eta": ""}
         rate = self._rate(tick, now)
         if rate:
-            fields["rtf"] = f"{rate * self.tick_ns / 1e9:6.2f}x real time"
+            fields["rtf"] = f"{rate * float(self.tick_ns) / 1e9:6.2f}x real time"
             fields["eta"] = f"ETA {format_s((self.total_ticks - tick - 1) / rate)}"
         return fields
 

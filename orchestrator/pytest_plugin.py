@@ -186,6 +186,7 @@ class GoldenStore:
             read_manifest,
             run_dir_entries,
         )
+        from plan.timeutil import tick_text
 
         entries = self.entries(file)
         manifest = read_manifest(result.run_dir)
@@ -193,7 +194,8 @@ class GoldenStore:
             found = run_dir_entries(result.run_dir)[0] if result.bag else []
             entries[key] = {"digest": result.digest, "scenario": result.scenario.name,
                             "seed": result.scenario.model.seed,
-                            "tick_ns": result.scenario.tick_ns, "messages": fingerprint(found),
+                            "tick_ns": tick_text(result.scenario.tick_ns),
+                            "messages": fingerprint(found),
                             "digest_without_rendered": manifest.get("digest_without_rendered"),
                             "rendered_topics": manifest.get("rendered_topics", []),
                             "versions": manifest.get("digest_versions", {})}

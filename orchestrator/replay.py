@@ -23,6 +23,7 @@ from plan.errors import ScenarioError
 from plan.roles import NodeRole
 from plan.run_paths import RunPaths
 from plan.scenario import Scenario
+from plan.timeutil import parse_tick_ns, tick_time_ns
 
 
 @dataclass
@@ -71,7 +72,8 @@ def load_recorded(run_dir: Path, extra_overrides: dict | None = None) -> Recorde
     planned = int(entry.get("planned_ticks") or 0)
     if 1 < ticks < planned:
         # stopped from outside (or at the goal, where the replay stops anyway): the same end
-        overrides["duration"] = f"{(ticks - 1) * int(manifest['tick_ns'])}ns"
+        end_ns = tick_time_ns(ticks - 1, parse_tick_ns(manifest["tick_ns"]))
+        overrides["duration"] = f"{end_ns}ns"
     scenario = load_scenario(file, overrides)
     if scenario.sha256 != entry.get("sha256"):
         raise ScenarioError(file, "(file)", "the scenario file changed since the run was "
@@ -94,5 +96,6 @@ def read_arrivals(bag: Path, scenario: Scenario) -> dict[int, dict[str, Any]]:
             return out
         for recorded, stamp_ns, raw in reader.raw(topics):
             topic = external_topic(recorded)
-            out.setdefault(stamp_ns // scenario.tick_ns, {})[topic] = decode(raw, classes[topic])
+            out.setdefault(scenario.schedule.tick_at(stamp_ns), {})[topic] = decode(
+                raw, classes[topic])
     return out

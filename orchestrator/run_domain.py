@@ -6,13 +6,18 @@ machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless that variable is se
 multi-process run also claims its domain for as long as it goes: a held ``flock`` on
 ``$TMPDIR/cosim-ros-domains/<id>.run`` whose text says which run holds it, so that a second
 run pinned to the same domain is refused at start, naming the first (two runs on one domain
-hear each other's topics and both stop).
+hear each other's topics and both stop). The claim's second line is what a tool needs to join
+the run (its ROS_DOMAIN_ID and discovery range): ``cosim-ros2`` reads it (``going``) to find
+a run by itself.
 """
 
 from __future__ import annotations
 
 import fcntl
 import os
+import shlex
+import shutil
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -40,16 +45,41 @@ class RunDomain:
     local_only: bool
 
     def lines(self, transport: str) -> list[str]:
-        """What the command prints about it."""
+        """What the command prints about it: a line that says which domain, then (over ROS 2)
+        the commands that list its topics from another shell, each to paste as it is."""
         how = (f"pinned by {self.pinned_by}" if self.pinned_by
                else "this run's own; pin one with --domain N or ROS_DOMAIN_ID=N")
         where = ("discovery on this machine only" if self.local_only
                  else f"discovery range {os.environ.get(RANGE_VAR, 'SUBNET')}")
-        # a tool on the default range (SUBNET) does not always find a LOCALHOST run
-        local = f"{RANGE_VAR}=LOCALHOST " if self.local_only else ""
-        tool = (f": {local}ROS_DOMAIN_ID={self.domain} ros2 topic list" if transport == "ros2"
-                else "")
-        return [f"ROS domain {self.domain} ({how}; {where}){tool}"]
+        head = f"ROS domain {self.domain} ({how}; {where})"
+        if transport != "ros2":
+            return [head]
+        env = tool_environment(self.domain)
+        return [f"{head}; its topics from another shell:",
+                f"{env} {tool_command('cosim-ros2')} topic list", f"{env} ros2 topic list"]
+
+
+def tool_environment(domain: int) -> str:
+    """The variables a ROS 2 tool in another shell needs to join a run on ``domain`` of this
+    process: its domain and discovery range (a tool on the default range, SUBNET, does not
+    always find a LOCALHOST run)."""
+    parts = [f"{name}={shlex.quote(os.environ[name])}"
+             for name in (RANGE_VAR, "ROS_LOCALHOST_ONLY") if os.environ.get(name)]
+    return " ".join([*parts, f"ROS_DOMAIN_ID={domain}"])
+
+
+def tool_command(name: str) -> str:
+    """How a user's shell starts cosim's command ``name``: by its name when it is on PATH,
+    else the path of the one installed beside this Python (``.venv/bin/cosim-ros2``)."""
+    if shutil.which(name):
+        return name
+    beside = Path(sys.executable).parent / name
+    if not beside.exists():
+        return name
+    try:
+        return shlex.quote(str(beside.absolute().relative_to(Path.cwd())))
+    except ValueError:
+        return shlex.quote(str(beside.absolute()))
 
 
 def parse_domain(text: str, source: str) -> int:
@@ -114,7 +144,7 @@ def claim(domain: int, what: str) -> None:
         fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError:
         handle.seek(0)
-        holder = handle.read().strip() or "a cosim run starting"
+        holder = handle.readline().strip() or "a cosim run starting"
         handle.close()
         raise DomainInUse(f"ROS domain {domain} is in use by another cosim run: {holder}. "
                           "Two runs on one domain hear each other's topics and both stop: "
@@ -141,10 +171,74 @@ def describe(more: str) -> None:
 
 
 def _write(handle, what: str) -> None:
+    domain = int(Path(handle.name).stem)
     handle.seek(0)
     handle.truncate()
-    handle.write(f"{what} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n")
+    handle.write(f"{what} (pid {os.getpid()}, since {time.strftime('%H:%M:%S')})\n"
+                 f"{tool_environment(domain)}\n")
     handle.flush()
+
+
+@dataclass
+class Claim:
+    """A cosim run going on this machine, as its claim says: its domain, who holds it (the
+    command, process id and run directory), what a tool needs to join it, and since when."""
+
+    domain: int
+    holder: str
+    environment: dict[str, str]
+    since: float  # when the claim was last written (the run started or named its directory)
+
+
+def going() -> list[Claim]:
+    """The runs going on this machine (their claims held by another process), newest first."""
+    folder = Path(tempfile.gettempdir()) / "cosim-ros-domains"
+    held = _held_files()
+    claims = []
+    for path in folder.glob("*.run"):
+        try:
+            stat = path.stat()
+            if not path.stem.isdigit() or int(path.stem) in _claims:
+                continue
+            if held is not None and (stat.st_dev, stat.st_ino) not in held:
+                continue
+            if held is None and not _locked(path):
+                continue
+            first, _, rest = path.read_text().partition("\n")
+        except OSError:
+            continue
+        env = dict(part.split("=", 1) for part in rest.split() if "=" in part)
+        env.setdefault("ROS_DOMAIN_ID", path.stem)
+        claims.append(Claim(int(path.stem), first.strip() or "a cosim run starting", env,
+                            stat.st_mtime))
+    return sorted(claims, key=lambda c: c.since, reverse=True)
+
+
+def _held_files() -> set[tuple[int, int]] | None:
+    """(device, inode) of every file with a flock held, from /proc/locks (None: unreadable)."""
+    try:
+        text = Path("/proc/locks").read_text()
+    except OSError:
+        return None
+    held = set()
+    for line in text.splitlines():
+        fields = line.split()
+        if "->" in fields or len(fields) < 6 or fields[1] != "FLOCK":
+            continue  # a waiter, or another kind of lock
+        major, minor, inode = fields[5].split(":")
+        held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
+    return held
+
+
+def _locked(path: Path) -> bool:
+    """Whether another process holds ``path``'s flock (where /proc/locks cannot say)."""
+    with open(path) as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        return False
 
 
 def release(domain: int) -> None:

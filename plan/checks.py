@@ -16,7 +16,7 @@ from plan.model import NodeSpec, ScenarioModel
 from plan.roles import NodeRole
 from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
-from plan.timeutil import NS_PER_S, exact_rate_text, format_ns, format_rate
+from plan.timeutil import NS_PER_S, Ns, exact_rate_text, format_ns, format_rate, gcd_ns
 from plan.twin import twin_problems
 from plan.validation import describe_validation_error
 from plan.world_reader import WorldReader
@@ -183,26 +183,32 @@ class ScenarioChecks:
                             "world that MuJoCo loads; USD colliders must be Cube, Sphere, "
                             "Cylinder, Capsule, Z-axis Plane or Mesh prims.") from None
 
-    def tick_ns(self) -> int:
-        """The tick: given, or the gcd of all node periods; every period a whole number of ticks."""
+    def tick_ns(self) -> Ns:
+        """The tick: given, or the gcd of all node periods (exact: 1/150 s for 30 Hz with
+        50 Hz); every period a whole number of ticks."""
         periods = [spec.period_ns for spec in self.model.nodes]
-        tick = self.model.tick or math.gcd(*periods)
+        tick = self.model.tick or gcd_ns(periods)
         for i, spec in enumerate(self.model.nodes):
             if spec.period_ns % tick:
                 raise self.fail(self.node_key(i, "rate"),
                                 f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
                                 f"{format_ns(spec.period_ns)}, not a whole number of "
                                 f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick,
-                                                                 math.gcd(*periods)))
+                                                                 gcd_ns(periods)))
+        if tick < 1:
+            raise self.fail("nodes", f"the rates give a tick of {format_ns(tick)}, shorter than "
+                            "1 ns: ticks would share a time stamp.",
+                            "rates whose periods have a common divisor of at least 1 ns.")
         return tick
 
-    def last_tick(self, tick_ns: int) -> int:
+    def last_tick(self, tick_ns: Ns) -> int:
         """The index of the last tick; the duration must be a whole number of ticks."""
         if self.model.duration % tick_ns:
+            whole = Fraction(tick_ns).numerator  # the shortest whole-ns run of whole ticks
             raise self.fail("duration", f"{format_ns(self.model.duration)} is not a whole number "
                             f"of {format_ns(tick_ns)} ticks.", "a multiple of the tick, e.g. "
-                            f"{format_ns((self.model.duration // tick_ns + 1) * tick_ns)}.")
-        return self.model.duration // tick_ns
+                            f"{format_ns((self.model.duration // whole + 1) * whole)}.")
+        return int(self.model.duration // tick_ns)
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
         """An ungated foreign program (no gate serves it, ``plan.gates``: not Python and

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
@@ -12,11 +13,16 @@ from plan.timeutil import parse_duration_ns, rate_to_period_ns
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
 """A duration given as '30s', '10ms', '250us', '100ns' or seconds, held as integer ns."""
 
-PeriodNs = Annotated[int, BeforeValidator(rate_to_period_ns)]
-"""A rate given in Hz, held as its period in integer ns."""
+PeriodNs = Annotated[int | Fraction, BeforeValidator(rate_to_period_ns)]
+"""A rate given in Hz, held as its exact period in ns (a Fraction where not whole: 30 Hz)."""
 
-RATE_HELP = "a rate in Hz whose period is a whole number of ns and of ticks, e.g. 10, 50, 100"
+RATE_HELP = ("a rate in Hz greater than zero whose period is a whole number of ticks, e.g. "
+             "10, 15, 30, 50, 100")
 DURATION_HELP = "a duration greater than zero such as '30s', '10ms', '250us' or 30"
+TICK_HELP = ("; default: the gcd of the periods, exact even where not whole ns (30 Hz with "
+             "50 Hz: 1/150 s); tick k is at k * tick rounded half up to whole ns, once, and "
+             "/clock and every header stamp carry that time (a 30 Hz message n: "
+             "round(n * 1e9 / 30) ns, so 0, 33333333, 66666667, 100000000, ...)")
 
 Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")]
 Topic = Annotated[str, Field(pattern=r"^/[A-Za-z0-9_/]*[A-Za-z0-9_]$")]
@@ -234,7 +240,7 @@ class ScenarioModel(Strict):
     name: Name = Field(description="letters, digits and _, starting with a letter")
     seed: int = Field(0, ge=0, description="a whole number >= 0")
     duration: DurationNs = Field(description=DURATION_HELP)
-    tick: DurationNs | None = Field(None, description=DURATION_HELP + "; default: gcd of periods")
+    tick: DurationNs | None = Field(None, description=DURATION_HELP + TICK_HELP)
     transport: Literal["ros2", "zenoh"] = Field("ros2", description="ros2 or zenoh")
     zenoh: ZenohSpec = Field(default_factory=ZenohSpec)
     world: str | None = Field(None, description="path of the world file, relative to this file")

@@ -17,6 +17,7 @@ from plan.model import NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout
 from plan.roles import NodeRole
 from plan.schedule import Schedule
+from plan.timeutil import Ns
 
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
 
@@ -87,7 +88,7 @@ class Scenario:
 
     file: Path
     model: ScenarioModel
-    tick_ns: int
+    tick_ns: Ns  # exact: a Fraction where not whole ns (plan.timeutil)
     nodes: dict[str, NodePlan]
     schedule: Schedule
     world: Path | None

@@ -1,6 +1,8 @@
 """The schedule: a pure function of the scenario saying who acts when and on which samples.
 
-Time is integer nanoseconds; tick ``k`` is at ``k * tick_ns``. A node with a period of
+Time is counted in ticks; ``tick_ns`` is exact (an int, or a Fraction such as 1/150 s for
+30 Hz with 50 Hz) and tick ``k`` is at ``time_ns(k)``, ``k * tick_ns`` rounded to whole
+nanoseconds once (``plan.timeutil.tick_time_ns``). A node with a period of
 ``p`` ticks acts at every ``k`` with ``k % p == 0``. An input edge is ``same_tick`` (the
 consumer waits for the producer's sample at or before ``k``) or ``delayed`` (the latest
 sample strictly before ``k``: a zero-order hold that breaks algebraic loops).
@@ -11,7 +13,10 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import cached_property
+
+from plan.timeutil import Ns, tick_at_ns, tick_time_ns
 
 SAME_TICK = "same_tick"
 DELAYED = "delayed"
@@ -84,9 +89,11 @@ PIPELINE_WINDOW = 16
 class Schedule:
     """Who acts at each tick, in which order, and which producer tick each input consumes."""
 
-    def __init__(self, tick_ns: int, last_tick: int, periods: dict[str, int], edges: list[Edge]):
-        if not _is_int(tick_ns) or not _is_int(last_tick) or tick_ns <= 0 or last_tick < 0:
-            raise ValueError("tick_ns must be a positive int and last_tick a non-negative int")
+    def __init__(self, tick_ns: Ns, last_tick: int, periods: dict[str, int], edges: list[Edge]):
+        if (not (_is_int(tick_ns) or isinstance(tick_ns, Fraction)) or not _is_int(last_tick)
+                or tick_ns <= 0 or last_tick < 0):
+            raise ValueError("tick_ns must be a positive int or Fraction and last_tick a "
+                             "non-negative int")
         for name, period in periods.items():
             if not _is_int(period) or period <= 0:
                 raise ValueError(f"period of {name} must be a positive whole number of ticks")
@@ -138,8 +145,12 @@ class Schedule:
         return math.lcm(*self.periods.values())
 
     def time_ns(self, tick: int) -> int:
-        """The time of a tick in nanoseconds."""
-        return tick * self.tick_ns
+        """The time of a tick in whole nanoseconds (``plan.timeutil.tick_time_ns``)."""
+        return tick_time_ns(tick, self.tick_ns)
+
+    def tick_at(self, ns: int) -> int:
+        """The last tick whose time is at or before ``ns`` (a /clock value back to its tick)."""
+        return tick_at_ns(ns, self.tick_ns)
 
     def is_due(self, node: str, tick: int) -> bool:
         """Whether the node acts at this tick."""

@@ -1,12 +1,18 @@
-"""Exact conversions between user-facing times/rates and integer nanoseconds (no floats)."""
+"""Exact conversions between user-facing times/rates and nanoseconds (no floats).
+
+Periods and the tick are exact: an int number of ns, or a Fraction where they are not
+whole (30 Hz). The time of tick ``k`` is ``tick_time_ns``: rounded to whole ns once."""
 
 from __future__ import annotations
 
+import math
 import re
 from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 
 NS_PER_S = 1_000_000_000
+Ns = int | Fraction
+"""An exact time in ns: an int, or a Fraction where a period is not whole (30 Hz)."""
 _UNITS = {"s": NS_PER_S, "ms": 1_000_000, "us": 1_000, "ns": 1}
 _DURATION = re.compile(r"^\s*([+-]?[0-9]*\.?[0-9]+)\s*(s|ms|us|ns)?\s*$")
 
@@ -43,30 +49,57 @@ def parse_duration_ns(value: object) -> int:
     return int(ns)
 
 
-def rate_to_period_ns(rate_hz: object) -> int:
-    """The period of a rate in Hz as whole nanoseconds; refuses rates whose period is fractional."""
+def rate_to_period_ns(rate_hz: object) -> Ns:
+    """The exact period of a rate in Hz in ns: an int when whole (50 Hz: 20000000), else a
+    Fraction (30 Hz: 100000000/3); the schedule counts it in ticks, never rounded."""
     rate = _exact(rate_hz)
     if rate <= 0:
         raise ValueError(f"{rate_hz!r} Hz must be greater than zero")
     period = NS_PER_S / rate
-    if period.denominator != 1:
-        raise ValueError(f"{rate_hz!r} Hz has a period of {float(period):.3f} ns, not a whole "
-                         f"number of nanoseconds; rates near it that fit: "
-                         f"{', '.join(nearby_whole_rates(rate))} Hz")
-    return int(period)
+    if period < 1:
+        raise ValueError(f"{rate_hz!r} Hz has a period shorter than 1 ns; rates up to "
+                         f"{NS_PER_S} Hz fit")
+    return exact_ns(period)
 
 
-def nearby_whole_rates(rate: Fraction, count: int = 2) -> list[str]:
-    """Rates in Hz near ``rate`` whose period is a whole number of ns, as decimal text.
+def exact_ns(value: Fraction | int) -> Ns:
+    """A time in ns as an int when it is whole, else as its exact Fraction."""
+    value = Fraction(value)
+    return value.numerator if value.denominator == 1 else value
 
-    Those are the divisors of 1e9 (1, 2, 4, 5, 8, 10, ...) and their reciprocals (0.5, 0.25, ...).
+
+def gcd_ns(values: list[Ns]) -> Ns:
+    """The greatest common divisor of exact times in ns (the longest tick that divides each)."""
+    den = math.lcm(*(Fraction(v).denominator for v in values))
+    return exact_ns(Fraction(math.gcd(*(int(v * den) for v in values)), den))
+
+
+def tick_time_ns(tick: int, tick_ns: Ns) -> int:
+    """The time of tick ``tick`` in whole ns: ``tick * tick_ns`` rounded half up, once, in
+    integer arithmetic. Exact (no rounding) when the tick is a whole number of ns. Every
+    /clock value, header stamp and bag time comes from here, so they agree in every process.
     """
-    divisors = [2**i * 5**j for i in range(10) for j in range(10)]
-    small = {Fraction(1, d) for d in divisors if d <= 1000}
-    rates = sorted({Fraction(d) for d in divisors} | small)
-    below = [r for r in rates if r < rate][-count:]
-    above = [r for r in rates if r > rate][:count]
-    return [exact_rate_text(r) for r in below + above]
+    t = Fraction(tick_ns)
+    return (2 * tick * t.numerator + t.denominator) // (2 * t.denominator)
+
+
+def tick_at_ns(ns: int, tick_ns: Ns) -> int:
+    """The last tick whose time (``tick_time_ns``) is at or before ``ns``: the inverse of
+    ``tick_time_ns`` on its values, and ``ns // tick_ns`` for a whole-ns tick."""
+    t = Fraction(tick_ns)
+    # tick_time_ns(k) <= ns  <=>  k * t < ns + 1/2: the largest such k, with integers only
+    return -(-(2 * ns + 1) * t.denominator // (2 * t.numerator)) - 1
+
+
+def tick_text(tick_ns: Ns) -> int | str:
+    """The tick as JSON holds it (manifest, foreign gate): an int, or 'numerator/denominator'."""
+    t = exact_ns(tick_ns)
+    return t if isinstance(t, int) else f"{t.numerator}/{t.denominator}"
+
+
+def parse_tick_ns(value: int | str) -> Ns:
+    """The tick that ``tick_text`` wrote (an int, or 'numerator/denominator' ns)."""
+    return exact_ns(Fraction(str(value)))
 
 
 def exact_rate_text(value: Fraction) -> str:
@@ -76,8 +109,11 @@ def exact_rate_text(value: Fraction) -> str:
     return format(Decimal(value.numerator) / Decimal(value.denominator), "f")
 
 
-def format_ns(ns: int) -> str:
-    """A duration in ns as text in the largest unit that divides it ('10ms', '1500ms')."""
+def format_ns(ns: Ns) -> str:
+    """A duration in ns as text in the largest unit that divides it ('10ms', '1500ms'); a
+    fractional one as an exact fraction of a second ('1/30s')."""
+    if isinstance(ns, Fraction) and ns.denominator != 1:
+        return f"{ns / NS_PER_S}s"
     for unit in ("s", "ms", "us"):
         scale = _UNITS[unit]
         if ns % scale == 0:
@@ -88,7 +124,7 @@ def format_ns(ns: int) -> str:
     return f"{ns}ns"
 
 
-def format_rate(period_ns: int) -> str:
+def format_rate(period_ns: Ns) -> str:
     """The rate in Hz of a period, as text ('100', '33.3333')."""
     rate = Fraction(NS_PER_S, period_ns)
     if rate.denominator == 1:

@@ -215,7 +215,7 @@ class LockstepRuntime:
         self.timing.add("wait", waited)
         for rec in received:
             if rec.topic == CLOCK_TOPIC:
-                self.clocks.append(decode_clock(rec.data) // self.scenario.tick_ns)
+                self.clocks.append(self.sched.tick_at(decode_clock(rec.data)))
                 continue
             if rec.topic == COMMAND_TOPIC:
                 self.on_command(decode_command(rec.data))

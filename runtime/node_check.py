@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from nodes.contract import NodeConfig, StepNode, Tick
-from plan.timeutil import rate_to_period_ns
+from plan.timeutil import rate_to_period_ns, tick_time_ns
 from runtime.cdr.decode import decode
 from runtime.cdr.encode import encode
 from runtime.message_diff import serialized_difference
@@ -255,7 +255,8 @@ def _trial(node_class, params, world, goal, inputs, seed, steps, rate, tick_rate
                         joint_goal=dict(joint_goal) if joint_goal is not None else None,
                         scenario_dir=Path(scenario_dir or Path.cwd()).resolve(),
                         render_warm_up=False)
-    ticks = [Tick(k * (period_ns // tick_ns), k * period_ns) for k in range(max(steps, 2))]
+    per = int(period_ns // tick_ns)
+    ticks = [Tick(k * per, tick_time_ns(k * per, tick_ns)) for k in range(max(steps, 2))]
     try:
         feed = _feed(node_class, checked, inputs, ticks)
     except Exception as exc:  # noqa: BLE001 - the inputs are the user's too

@@ -89,14 +89,15 @@ class RealtimeRuntime:
         start = time.monotonic_ns()
         k = 0
         while not self.stop_requested:
-            due_at = start + int(k * self.tick_ns / self.rtf)
+            due_at = start + int(self.sched.time_ns(k) / self.rtf)
             while (left := due_at - time.monotonic_ns()) > 0 and not self.stop_requested:
                 self._receive(min(left, POLL_NS))
             if self.control is not None and not self.control.may_tick(k):
                 self._receive(PAUSED_POLL_NS)
-                start = time.monotonic_ns() - int(k * self.tick_ns / self.rtf)  # no catching up
+                # no catching up
+                start = time.monotonic_ns() - int(self.sched.time_ns(k) / self.rtf)
                 continue
-            clock = encode_clock(k * self.tick_ns)
+            clock = encode_clock(self.sched.time_ns(k))
             self.clock_pub.publish(clock)
             if self.observe is not None:
                 self.observe(CLOCK_TOPIC, clock)
@@ -109,7 +110,7 @@ class RealtimeRuntime:
             now = self._receive(POLL_NS)
             if now is None:
                 continue
-            due = now // self.tick_ns
+            due = self.sched.tick_at(now)
             due -= due % self.period
             if due > self.served:
                 self._step(due)
@@ -128,7 +129,7 @@ class RealtimeRuntime:
         return newest
 
     def _step(self, k: int) -> None:
-        tick = Tick(k, k * self.tick_ns)
+        tick = Tick(k, self.sched.time_ns(k))
         self.latest.update({self.own_topic[g][0]: msg for g, msg in self.inbox.take(k).items()})
         if missing := [i.graph_topic for i in self.plan.inputs
                        if i.mode == "same_tick" and i.topic not in self.latest]:

@@ -11,14 +11,14 @@ from typing import Any
 
 from std_srvs.srv import SetBool, Trigger
 
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, Ns, tick_time_ns
 from runtime.live.endpoints import ServiceUnavailable
 
 
 class RealtimeControl:
     """The pause state of a paced realtime loop (thread-safe)."""
 
-    def __init__(self, tick_ns: int):
+    def __init__(self, tick_ns: Ns):
         self.tick_ns = tick_ns
         self.paused = False
         self.steps = 0
@@ -59,5 +59,5 @@ class RealtimeControl:
 
     def _state(self) -> str:
         word = "paused" if self.paused else "running"
-        ns = self.tick * self.tick_ns
+        ns = tick_time_ns(self.tick, self.tick_ns)
         return f"{word} at tick {self.tick} (sim time {ns // NS_PER_S}.{ns % NS_PER_S:09d} s)"

@@ -5,10 +5,11 @@ commands of its tutorials run as written.
 A tutorial marks what the reader types as a ```console block of ``$ command`` lines. Each
 block is run here with bash, in a directory that holds the repository's files, the cosim
 commands standing for the installed ones: a ``$ command &`` runs in the background for the
-rest of the block and is stopped (SIGINT) after it. A cosim run that finishes with its goal
-not met (exit 1: a tutorial's runs are short) counts as run; any other failure fails the
-test. A block that cannot run here says why in the comment before it:
-``<!-- test: skip: REASON -->``.
+rest of the block and is stopped (SIGINT) after it. Every command exits 0, unless the comment
+before the block says ``<!-- test: exit N -->``: then each cosim run of the block (a
+cosim-orchestrate or cosim-sweep command) exits N, and the paragraph after the block says so
+("exit N" or "exits N") where the reader sees it. A block that cannot run here says why in
+the comment before it: ``<!-- test: skip: REASON -->``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ DOCS = ROOT / "docs"
 TUTORIALS = ["getting-started.md", *sorted(p.relative_to(DOCS).as_posix()
                                           for p in (DOCS / "tutorials").glob("*.md")),
              "concepts/digest.md"]
-RUNS_TO_THE_END = ("cosim-orchestrate", "cosim-sweep")  # exit 1: finished, goal not met
+RUNS = ("cosim-orchestrate", "cosim-sweep")  # what a block's exit code is about
 
 
 def test_site_builds_with_no_warning(tmp_path):
@@ -74,6 +75,23 @@ def test_the_readme_is_short_and_leads_into_the_docs():
     assert not missing, f"README.md links to files that do not exist: {missing}"
 
 
+def test_the_readme_and_getting_started_name_every_command():
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    for page in (ROOT / "README.md", DOCS / "getting-started.md"):
+        text = page.read_text()
+        missing = [name for name in scripts if f"`{name}`" not in text]
+        assert not missing, f"{page.relative_to(ROOT)} does not name {missing}"
+
+
+def test_the_index_and_the_readme_lead_to_every_page():
+    pages = {p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*.md")} - {"index.md"}
+    index = set(re.findall(r"\]\(([^)#]+\.md)", (DOCS / "index.md").read_text()))
+    readme = {link.removeprefix("docs/") for link in
+              re.findall(r"\]\(([^)#]+\.md)", (ROOT / "README.md").read_text())}
+    assert not pages - index, f"docs/index.md leaves out {sorted(pages - index)}"
+    assert not pages - readme, f"README.md leaves out {sorted(pages - readme)}"
+
+
 def test_the_readme_lists_every_exit_code_of_cosim_orchestrate():
     from tools.gen_reference import exit_codes
 
@@ -95,6 +113,8 @@ class Block:
     line: int
     commands: list[str]
     skip: str | None
+    exit: int = 0  # what each cosim run of the block exits with, as the page says
+    after: str = ""  # the paragraph after the block
 
     @property
     def id(self) -> str:
@@ -112,6 +132,7 @@ def console_blocks(page: str) -> list[Block]:
             continue
         before = lines[i - 1].strip() if i else ""
         skip = re.match(r"<!-- test: skip: (.+) -->$", before)
+        code = re.match(r"<!-- test: exit (\d+) -->$", before)
         start, commands, i = i + 1, [], i + 1
         while lines[i].strip() != "```":
             line = lines[i].strip()
@@ -120,11 +141,25 @@ def console_blocks(page: str) -> list[Block]:
             elif commands and commands[-1].endswith("\\"):
                 commands[-1] = commands[-1][:-1] + " " + line
             i += 1
-        blocks.append(Block(page, start, commands, skip.group(1) if skip else None))
+        after = []
+        for line in lines[i + 1:]:
+            if not line.strip() and after:
+                break
+            after.append(line.strip())
+        blocks.append(Block(page, start, commands, skip.group(1) if skip else None,
+                            int(code.group(1)) if code else 0, " ".join(after)))
     return blocks
 
 
 BLOCKS = [b for page in TUTORIALS for b in console_blocks(page)]
+
+
+def test_a_block_whose_runs_do_not_exit_0_says_so_after_it():
+    for block in BLOCKS:
+        if block.exit:
+            assert re.search(rf"\bexits? {block.exit}\b", block.after), (
+                f"docs/{block.id}: its runs exit {block.exit}, and the paragraph after it "
+                f"does not say so: {block.after!r}")
 
 
 def test_every_tutorial_has_commands_the_suite_runs():
@@ -142,11 +177,12 @@ def test_tutorial_commands_run_as_written(block, tmp_path):
         if command.endswith("&"):  # its output to a file: the block's pipes close at its end
             script.append(f"{command[:-1].rstrip()} > background-{n}.log 2>&1 &")
             continue
-        allowed = 1 if command.split()[0].split("=")[-1] in RUNS_TO_THE_END or any(
-            f" {c} " in f" {command} " for c in RUNS_TO_THE_END) else 0
+        run = command.split()[0].split("=")[-1] in RUNS or any(
+            f" {c} " in f" {command} " for c in RUNS)
+        expected = block.exit if run else 0
         script += [command, "rc=$?",
-                   f"if [ $rc -gt {allowed} ]; then echo \"exit $rc: {_quoted(command)}\" >&2;"
-                   " exit $rc; fi"]
+                   f"if [ $rc -ne {expected} ]; then echo \"exit $rc (the page says "
+                   f"{expected}): {_quoted(command)}\" >&2; exit 1; fi"]
     proc = subprocess.Popen(["bash", "-c", "\n".join(script)], cwd=work, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env={**os.environ, "PATH": f"{work / 'bin'}:{os.environ['PATH']}"},

@@ -1,21 +1,24 @@
 """cosim-ros2, ros2cli's everyday verbs on a pip-only install, as a user types them: against
 a standalone realtime physics node (topic list, info, echo, hz, pub moving the robot) and a
 paused interactive run (service list and call, param get and set, action list and
-send_goal, and the service call that stops the run)."""
+send_goal, and the service call that stops the run); in a fresh shell (no ROS_DOMAIN_ID) it
+finds the run going on this machine by itself, and the lines a run prints paste as they are."""
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 import yaml
 
 from orchestrator.ros2cli.messages import fill, interface_class, parse_values, to_plain
-from tests.helpers import ROOT
+from tests.helpers import ORCHESTRATE, ROOT
 from tests.live_helpers import cosim_node, finish, orchestrate
 
 ROS2 = [sys.executable, "-m", "orchestrator.ros2cli"]
@@ -158,3 +161,100 @@ def test_a_swarms_nodes_serve_their_parameters_under_their_robots_namespace(tmp_
     code, err = quit_run(run)
     assert code in (0, 1), err
     assert "could not start" not in err
+
+
+def fresh_shell(tmp: Path) -> dict[str, str]:
+    """The environment of a new shell of this user: no ROS domain, no discovery range, and
+    ``tmp`` as its TMPDIR (where runs claim their domains: the runs of other tests, elsewhere,
+    stay out of sight)."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")}
+    tmp.mkdir(exist_ok=True)
+    return {**env, "TMPDIR": str(tmp)}
+
+
+def ros2_in(env: dict[str, str], *args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    """cosim-ros2 with ``args`` in the shell of ``env``."""
+    return subprocess.run([*ROS2, *args], capture_output=True, text=True, timeout=timeout,
+                          cwd=ROOT, env=env)
+
+
+def test_a_fresh_shell_attaches_to_the_run_going_and_its_printed_lines_paste(tmp_path):
+    shell = fresh_shell(tmp_path / "tmp")
+    run = subprocess.Popen([*ORCHESTRATE, NAV, "--paused", "--set", "interactive=true", "--out",
+                            str(tmp_path / "out")], cwd=ROOT, env=shell, text=True,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        said = []  # what the run says before it waits (warnings first, if any)
+        while not said or "ROS domain" not in said[-1]:
+            said.append(run.stderr.readline())
+            assert said[-1], "".join(said)
+        head = said[-1]
+        domain = re.search(r"ROS domain (\d+) \(this run's own", head).group(1)
+        pasted = [run.stderr.readline().strip() for _ in range(2)]
+        env = f"ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID={domain}"
+        assert head.rstrip().endswith("its topics from another shell:"), head
+        assert re.fullmatch(rf"{env} (\.venv/bin/)?cosim-ros2 topic list", pasted[0]), pasted
+        assert pasted[1] == f"{env} ros2 topic list"
+        quoted = [re.sub(r"\S*cosim-ros2 ", ".venv/bin/cosim-ros2 ", line.strip()).replace(
+            f"ROS domain {domain} ", "ROS domain 42 ").replace(f"_ID={domain} ", "_ID=42 ")
+            for line in (f"cosim-orchestrate: {head.split('cosim-orchestrate: ', 1)[1]}",
+                         *pasted)]
+        for page in ("README.md", "docs/concepts/topics.md"):  # what they quote is so
+            lines = [line.strip() for line in (ROOT / page).read_text().splitlines()]
+            assert all(line in lines for line in quoted), (page, quoted)
+
+        features = ros2_in(shell, "service", "call", "/get_simulator_features",
+                           "simulation_interfaces/srv/GetSimulatorFeatures")
+        assert features.returncode == 0, features.stderr
+        assert (f"cosim-ros2: attached to ROS domain {domain}, the cosim run going on this "
+                f"machine: cosim-orchestrate {NAV}, outputs in {tmp_path / 'out'}"
+                ) in features.stderr
+        # the printed line as it is, in a shell that could not find the run by itself
+        elsewhere = fresh_shell(tmp_path / "elsewhere")
+        for _ in range(3):  # a topic list discovers for a second: a loaded machine may need more
+            listed = subprocess.run(["bash", "-c", pasted[0]], capture_output=True, text=True,
+                                    timeout=60, cwd=ROOT, env=elsewhere)
+            if "/odom" in listed.stdout.splitlines():
+                break
+        assert {"/clock", "/odom", "/scan"} <= set(listed.stdout.splitlines()), listed.stderr
+        assert "attached" not in listed.stderr
+        stop = ros2_in(shell, "service", "call", "/set_simulation_state",
+                       "simulation_interfaces/srv/SetSimulationState", "{state: {state: 3}}")
+        assert stop.returncode == 0, stop.stderr
+        code, _, err = finish(run, timeout=60)
+    finally:
+        interrupt(run)
+    assert code in (0, 1), err
+
+
+def test_with_several_runs_going_it_takes_the_newest_and_names_the_others(tmp_path):
+    shell = fresh_shell(tmp_path / "tmp")
+    alone = ros2_in(shell, "topic", "list", "--spin-time", "0.2")
+    assert alone.returncode == 0 and "cosim-ros2:" not in alone.stderr  # none: domain 0
+    holders = []
+    try:
+        for domain, name in ((230, "run A"), (231, "run B")):  # two runs' claims, held
+            holders.append(subprocess.Popen(
+                [sys.executable, "-c", "from orchestrator.run_domain import claim; "
+                 f"claim({domain}, {name!r}); print('held', flush=True); "
+                 "import time; time.sleep(120)"],
+                cwd=ROOT, env=shell, stdout=subprocess.PIPE, text=True))
+            assert holders[-1].stdout.readline() == "held\n"
+            time.sleep(0.05)
+        both = ros2_in(shell, "topic", "list", "--spin-time", "0.2")
+        assert both.returncode == 0, both.stderr
+        assert ("cosim-ros2: 2 cosim runs are going on this machine; attached to the newest, "
+                "ROS domain 231: run B (pid") in both.stderr
+        assert "The others: ROS domain 230: run A (pid" in both.stderr
+        assert "Choose one with --domain ID (or ROS_DOMAIN_ID=ID)" in both.stderr
+        for chosen in (ros2_in(shell, "topic", "list", "--spin-time", "0.2", "--domain", "230"),
+                       ros2_in({**shell, "ROS_DOMAIN_ID": "230"}, "topic", "list",
+                               "--spin-time", "0.2")):
+            assert chosen.returncode == 0 and "cosim-ros2:" not in chosen.stderr
+    finally:
+        for holder in holders:
+            holder.kill()
+            holder.wait()
+    gone = ros2_in(shell, "topic", "list", "--spin-time", "0.2")
+    assert "cosim-ros2:" not in gone.stderr  # their claims are no longer held

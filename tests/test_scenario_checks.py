@@ -6,12 +6,14 @@ are used, so no world file is needed.
 """
 
 import textwrap
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
 
 from descriptions.load import load_scenario
 from plan.errors import ScenarioError
+from plan.timeutil import NS_PER_S
 
 VALID = """
 name: pair
@@ -204,10 +206,20 @@ def test_non_positive_times_refused(tmp_path, old, new, key, problem):
     assert "greater than zero" in err.accepted or "rate in Hz" in err.accepted
 
 
-def test_rate_with_fractional_period_says_which_rates_fit(tmp_path):
-    err = refused(tmp_path, VALID.replace("rate: 50", "rate: 30"))
-    check(err, "nodes[1] (b).rate", "30 Hz", "not a whole number of nanoseconds",
-          "rates near it that fit: 20, 25, 32, 40 Hz", accepted=("rate in Hz",))
+def test_rate_with_fractional_period_gets_an_exact_tick(tmp_path):
+    """30 Hz has a period of 1/30 s, not whole ns: the tick is the exact gcd, 1/300 s with
+    100 Hz, and each period a whole number of such ticks."""
+    scenario = load_scenario(write(tmp_path, VALID.replace("rate: 50", "rate: 30")))
+    assert scenario.tick_ns == Fraction(NS_PER_S, 300)
+    assert scenario.schedule.periods == {"a": 3, "b": 10}
+    assert scenario.schedule.n_ticks == 301
+
+
+def test_duration_not_a_multiple_of_a_fractional_tick(tmp_path):
+    err = refused(tmp_path, VALID.replace("rate: 50", "rate: 30").replace("duration: 1s",
+                                                                          "duration: 1005ms"))
+    check(err, "duration", "1005ms", "not a whole number of 1/300s ticks",
+          accepted=("multiple of the tick", "1010ms"))
 
 
 def test_rate_not_a_whole_number_of_ticks_says_which_rates_fit(tmp_path):
@@ -431,8 +443,8 @@ def test_override_naming_no_node(tmp_path):
 
 
 def test_override_with_a_bad_value_says_it_came_from_the_override(tmp_path):
-    err = refused(tmp_path, VALID, {"nodes.b.rate": 30})
-    check(err, "nodes[1] (b).rate", "30 Hz", "override nodes.b.rate=30",
+    err = refused(tmp_path, VALID, {"nodes.b.rate": -30})
+    check(err, "nodes[1] (b).rate", "-30 Hz", "override nodes.b.rate=-30",
           accepted=("rate in Hz",))
 
 
@@ -483,7 +495,8 @@ def test_physics_period_not_a_whole_number_of_timesteps_is_bad_input(tmp_path):
     from tests.helpers import SCENARIOS, orchestrate
 
     nav = SCENARIOS.parent.parent / "scenarios" / "nav.yaml"
-    for args in (["--set", "nodes.physics.rate=1000000000"], ["--set", "nodes.physics.rate=400"]):
+    for args in (["--set", "nodes.physics.rate=1000000000"], ["--set", "nodes.physics.rate=400"],
+                 ["--set", "nodes.physics.rate=30"]):  # 1/30 s: no whole number of 2 ms steps
         proc = orchestrate(nav, tmp_path / "runs", *args, "--duration", "1s")
         assert proc.code == 2, proc.stderr
         assert "nodes[0] (physics).rate" in proc.stderr and "2000000 ns" in proc.stderr

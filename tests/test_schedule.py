@@ -1,6 +1,7 @@
 """The schedule: who acts when, in which order, and which producer sample each input consumes."""
 
 import math
+from fractions import Fraction
 
 import pytest
 from hypothesis import given, settings
@@ -15,6 +16,7 @@ from plan.schedule import (
     Schedule,
     find_same_tick_cycle,
 )
+from plan.timeutil import NS_PER_S
 
 BOUNDED = settings(max_examples=100, deadline=None)
 
@@ -52,6 +54,22 @@ def test_time_is_integer_nanoseconds():
     assert s.time_ns(3) == 30_000_000
     assert type(s.time_ns(3)) is int
     assert s.time_ns(10**12) == 10**19  # no float rounding, however long the run
+
+
+def test_ros_sensor_rates_count_in_ticks_of_a_150th_of_a_second():
+    """Camera 30 Hz, lidar 15 Hz, physics 50 Hz: every 5th, 10th and 3rd tick of 1/150 s;
+    each tick's time rounded to whole ns once, every period exact in ticks."""
+    edges = [Edge("camera", "physics", "/cosim/world_state", SAME_TICK),
+             Edge("lidar", "physics", "/cosim/world_state", SAME_TICK)]
+    s = Schedule(Fraction(NS_PER_S, 150), 300, {"physics": 3, "camera": 5, "lidar": 10}, edges)
+    assert s.due(0) == ("physics", "camera", "lidar")
+    assert s.due(5) == ("camera",) and s.due(15) == ("physics", "camera")
+    assert [s.time_ns(k) for k in (0, 1, 2, 3, 5, 10, 150, 300)] == [
+        0, 6_666_667, 13_333_333, 20_000_000, 33_333_333, 66_666_667, NS_PER_S, 2 * NS_PER_S]
+    assert all(type(s.time_ns(k)) is int for k in range(301))
+    assert [s.tick_at(s.time_ns(k)) for k in range(301)] == list(range(301))
+    assert s.input_tick(edges[0], 5) == 3  # the camera at 1/30 s renders physics at 20 ms
+    assert s.activations("camera") == 61 and s.activations("lidar") == 31
 
 
 def test_input_ticks_same_tick_and_delayed():
@@ -104,6 +122,7 @@ def test_long_chain_has_no_recursion_limit():
 @pytest.mark.parametrize(("tick_ns", "last_tick", "periods", "words"), [
     (0, 10, {"a": 1}, "tick_ns"),
     (1.0, 10, {"a": 1}, "tick_ns"),
+    (Fraction(-1, 3), 10, {"a": 1}, "tick_ns"),
     (10, -1, {"a": 1}, "last_tick"),
     (10, 2.0, {"a": 1}, "last_tick"),
     (10, 10, {"a": 0}, "period of a"),

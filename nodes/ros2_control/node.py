@@ -217,7 +217,7 @@ class ControllerManagerNode(StepNode):
         rate = read(params).update_rate
         if period_ns * rate != NS_PER_S:
             return [("rate", f"the controllers file says update_rate: {rate}, the node "
-                     f"runs at {NS_PER_S / period_ns:g} Hz.", f"rate: {rate}.")]
+                     f"runs at {float(NS_PER_S / period_ns):g} Hz.", f"rate: {rate}.")]
         return []
 
     def setup(self) -> None:
@@ -241,7 +241,7 @@ class ControllerManagerNode(StepNode):
         self.command: dict[str, float] = {}
         self.last_taken: dict[str, Any] = {}
         self.first = True
-        self.dt = self.config.period_ns / NS_PER_S
+        self.dt = float(self.config.period_ns / NS_PER_S)  # a Fraction at 30 Hz
         for note in self.file.notes:
             self.note(note)
 

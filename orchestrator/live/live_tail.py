@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from plan.timeutil import Ns, tick_time_ns
 from runtime.protocol import CLOCK_TOPIC, encode_clock
 from runtime.recording import decode_records
 
@@ -74,7 +75,7 @@ class PartFollower:
 class PartsTail:
     """Follows every node's part file in a thread and offers each record (and /clock)."""
 
-    def __init__(self, parts: dict[str, Path], topics: set[str], tick_ns: int,
+    def __init__(self, parts: dict[str, Path], topics: set[str], tick_ns: Ns,
                  offer: Callable[[str, bytes], None]):
         self.followers = [PartFollower(path, topics) for path in parts.values()]
         self.tick_ns = tick_ns
@@ -118,5 +119,6 @@ class PartsTail:
                 time.sleep(0)  # let the master's thread have the interpreter
             while self.clock_tick < tick:
                 self.clock_tick += 1
-                self.offer(CLOCK_TOPIC, encode_clock(self.clock_tick * self.tick_ns))
+                self.offer(CLOCK_TOPIC, encode_clock(tick_time_ns(self.clock_tick,
+                                                                  self.tick_ns)))
             self.offer(topic, data)

@@ -23,6 +23,7 @@ from typing import Any
 
 from plan.ros_types import message_class
 from plan.run_paths import RunPaths
+from plan.timeutil import Ns, parse_tick_ns, tick_at_ns, tick_time_ns
 from runtime.message_diff import field_difference
 
 CLOCK_TOPIC = "/clock"
@@ -41,35 +42,36 @@ class Difference:
     tick: int
     topic: str
     kind: str  # differs | missing (only in the reference) | extra (only in this run)
-    tick_ns: int | None = None
+    tick_ns: Ns | None = None
     occurrence: int = 0  # which message of this topic at this tick (0: the first)
     field: str | None = None  # where two messages differ: 'angular.x: 6.91e-310 vs 6.95e-310'
 
     def describe(self) -> str:
         """'topic /odom at tick 37 (t = 0.740 s): pose.pose.position.x: 1.25 vs 1.5' (the
         reference run's value first), or '...: the message differs' when no field is named."""
-        when = f" (t = {self.tick * self.tick_ns / 1e9:.3f} s)" if self.tick_ns else ""
+        when = (f" (t = {tick_time_ns(self.tick, self.tick_ns) / 1e9:.3f} s)" if self.tick_ns
+                else "")
         what = {"differs": self.field or "the message differs",
                 "missing": "the reference run has a message here, this run has none",
                 "extra": "this run has a message here, the reference run has none"}[self.kind]
         return f"topic {self.topic} at tick {self.tick}{when}: {what}"
 
 
-def bag_entries(bag: Path, tick_ns: int) -> list[Entry]:
+def bag_entries(bag: Path, tick_ns: Ns) -> list[Entry]:
     """Every message of a rosbag2 directory but /clock as (tick, topic, sha256), sorted."""
     from orchestrator.outputs.bag import BagReader
 
     with BagReader(Path(bag)) as reader:
-        entries = [(stamp // tick_ns, topic, hashlib.sha256(raw).digest())
+        entries = [(tick_at_ns(stamp, tick_ns), topic, hashlib.sha256(raw).digest())
                    for topic, stamp, raw in reader.raw(exclude=[CLOCK_TOPIC])]
     entries.sort(key=lambda e: (e[0], e[1]))
     return entries
 
 
-def run_dir_entries(run_dir: Path) -> tuple[list[Entry], int]:
+def run_dir_entries(run_dir: Path) -> tuple[list[Entry], Ns]:
     """A run directory's messages (see ``bag_entries``) and its tick in ns, from the manifest."""
     manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
-    tick_ns = int(manifest["tick_ns"])
+    tick_ns = parse_tick_ns(manifest["tick_ns"])
     return bag_entries(run_bag(run_dir), tick_ns), tick_ns
 
 
@@ -80,7 +82,7 @@ def run_bag(run_dir: Path) -> Path:
 
 
 def first_difference(reference: Iterable[Entry], actual: Iterable[Entry],
-                     tick_ns: int | None = None) -> Difference | None:
+                     tick_ns: Ns | None = None) -> Difference | None:
     """The first (tick, topic) where two sorted entry lists differ; None when they agree.
 
     Hashes of different lengths (a fingerprint's prefix against a full hash) are compared on
@@ -116,15 +118,15 @@ def with_field(diff: Difference, reference_bag: Path, bag: Path) -> Difference:
     return replace(diff, field=found.describe())
 
 
-def message_at(bag: Path, topic: str, tick: int, tick_ns: int, occurrence: int = 0) -> Any:
+def message_at(bag: Path, topic: str, tick: int, tick_ns: Ns, occurrence: int = 0) -> Any:
     """The ``occurrence``-th message of ``topic`` at ``tick`` in a bag, decoded (as the
     rclpy class its type names, else as a rosbags object); None when there is none."""
     from orchestrator.outputs.bag import BagReader
     from runtime.cdr.decode import decode
 
     with BagReader(Path(bag)) as reader:
-        found = [raw for _, _, raw in reader.raw([topic], start=tick * tick_ns,
-                                                 stop=(tick + 1) * tick_ns)]
+        found = [raw for _, _, raw in reader.raw([topic], start=tick_time_ns(tick, tick_ns),
+                                                 stop=tick_time_ns(tick + 1, tick_ns))]
         if len(found) <= occurrence:
             return None
         raw = found[occurrence]

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from plan.run_paths import RunPaths
+from plan.timeutil import parse_tick_ns, tick_at_ns
 
 _UINT8 = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}
 _FLOAT32 = {"32FC1": 1}
@@ -109,8 +110,8 @@ def _frames(run_dir: Path, topic: str) -> dict[int, object]:
 
     manifest = json.loads(RunPaths(Path(run_dir)).manifest.read_text())
     bag = Path(run_dir) / (manifest.get("outputs", {}).get("bag") or "bag")
-    tick_ns = int(manifest["tick_ns"])
+    tick_ns = parse_tick_ns(manifest["tick_ns"])
     with BagReader(bag) as reader:
         if topic not in reader.counts:
             return {}
-        return {stamp // tick_ns: msg for stamp, msg in reader.messages(topic)}
+        return {tick_at_ns(stamp, tick_ns): msg for stamp, msg in reader.messages(topic)}

@@ -15,6 +15,7 @@ from orchestrator.outputs.swarm import swarm_entry
 from orchestrator.outputs.topic_digests import digest_of_topics, digest_versions, topic_digests
 from plan.gates import FOREIGN_OUTPUT_RULE
 from plan.run_paths import RunPaths
+from plan.timeutil import tick_text, tick_time_ns
 from runtime.timing import read_summary
 
 log = logging.getLogger("cosim")
@@ -163,7 +164,7 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
     """The manifest as a dict."""
     result = outcome.result
     ticks = result.ticks if result else 0
-    sim_s = max(ticks - 1, 0) * scenario.tick_ns / 1e9
+    sim_s = tick_time_ns(max(ticks - 1, 0), scenario.tick_ns) / 1e9
     metrics = {k: v for m in (result.metrics.values() if result else []) for k, v in m.items()}
     nodes = {name: node_entry(stats, proc) for name, (stats, proc) in outcome.node_stats.items()}
     if options.in_process and not nodes:
@@ -180,7 +181,7 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
                     "metrics": metrics, "stopped_early": bool(result and result.stopped_early),
                     "metrics_by_node": result.metrics if result else {}},
         "ticks": ticks,
-        "tick_ns": scenario.tick_ns,
+        "tick_ns": tick_text(scenario.tick_ns),
         "sim_time_s": sim_s,
         "wall_time_s": round(outcome.wall_s, 3),
         "start_s": round(outcome.start_s, 3) if outcome.start_s is not None else None,

@@ -23,6 +23,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+from plan.timeutil import Ns, tick_at_ns
+
 CLOCK_TOPIC = "/clock"
 RENDERER_PROBE_TIMEOUT_S = 60
 _PROBE = """
@@ -36,7 +38,7 @@ ctx.free()
 """
 
 
-def topic_digests(bag: Path, tick_ns: int) -> dict[str, str]:
+def topic_digests(bag: Path, tick_ns: Ns) -> dict[str, str]:
     """{topic: sha256 hex} over every message but /clock of a rosbag2 directory, each topic's
     messages folded as (tick, length, bytes) in the order they were logged."""
     from orchestrator.outputs.bag import BagReader
@@ -45,7 +47,7 @@ def topic_digests(bag: Path, tick_ns: int) -> dict[str, str]:
     with BagReader(Path(bag)) as reader:
         for topic, stamp, raw in reader.raw(exclude=[CLOCK_TOPIC]):
             h = hashes.setdefault(topic, hashlib.sha256())
-            h.update(struct.pack("<qQ", stamp // tick_ns, len(raw)))
+            h.update(struct.pack("<qQ", tick_at_ns(stamp, tick_ns), len(raw)))
             h.update(raw)
     return {topic: h.hexdigest() for topic, h in sorted(hashes.items())}
 

@@ -15,6 +15,7 @@ geometry, joints, actuators, camera) under the default prim, e.g. ``/World/base_
 from __future__ import annotations
 
 from collections.abc import Iterator
+from fractions import Fraction
 from pathlib import Path
 
 import mujoco
@@ -22,7 +23,7 @@ import numpy as np
 
 from descriptions.swarm_world import swarm_spec
 from descriptions.worldfile import compile_world, is_usd, load_world_spec, open_stage
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, Ns, tick_at_ns
 
 WORLD_STATE = "/cosim/world_state"
 
@@ -72,9 +73,9 @@ def _stage_for(world: Path, spec: mujoco.MjSpec):
     return stage, samples
 
 
-def _set_timing(stage, samples, tick_ns: int, ticks: list[int]) -> None:
+def _set_timing(stage, samples, tick_ns: Ns, ticks: list[int]) -> None:
     """Time code = tick index; rate = ticks per second (both layers agree: no retiming)."""
-    rate = NS_PER_S / tick_ns
+    rate = float(NS_PER_S / Fraction(tick_ns))
     root = stage.GetRootLayer()
     for layer in (root, samples):
         layer.timeCodesPerSecond = rate
@@ -85,7 +86,7 @@ def _set_timing(stage, samples, tick_ns: int, ticks: list[int]) -> None:
                           f"k = tick k = {tick_ns} ns * k of sim time.")
 
 
-def world_states(bag: Path, tick_ns: int, nq: int) -> Iterator[tuple[int, np.ndarray]]:
+def world_states(bag: Path, tick_ns: Ns, nq: int) -> Iterator[tuple[int, np.ndarray]]:
     """(tick, qpos) of every /cosim/world_state message in the bag, in order."""
     from orchestrator.outputs.bag import BagReader
 
@@ -96,4 +97,4 @@ def world_states(bag: Path, tick_ns: int, nq: int) -> Iterator[tuple[int, np.nda
             if not dims or dims[0].label != "qpos" or dims[0].size != nq:
                 raise ValueError(f"{bag}: {WORLD_STATE} at {stamp} ns does not carry the "
                                  f"world's qpos ({nq} values first)")
-            yield stamp // tick_ns, np.asarray(msg.data[:nq], dtype=np.float64)
+            yield tick_at_ns(stamp, tick_ns), np.asarray(msg.data[:nq], dtype=np.float64)

@@ -43,6 +43,7 @@ from plan.packing import ProcessLayout
 from plan.robots import robot_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import DELAYED, Schedule
+from plan.timeutil import tick_text
 
 __all__ = ["ack_topic", "clock_topic", "feed_prefix", "feed_topic", "foreign_argv",
            "foreign_env", "gate_config", "gate_of", "is_python", "missing_program",
@@ -108,8 +109,9 @@ def gate_config(plan: NodePlan, schedule: Schedule, readers: list[int] | None = 
         if edge.mode == DELAYED:
             entry["first"] = period  # the first activation with an earlier sample
         inputs.append(entry)
-    return {"prefix": feed_prefix(plan.name), "node": plan.name, "tick_ns": schedule.tick_ns,
-            "period": period, "start": 0, "inputs": inputs, "reliable_clock": True,
+    return {"prefix": feed_prefix(plan.name), "node": plan.name,
+            "tick_ns": tick_text(schedule.tick_ns), "period": period, "start": 0,
+            "inputs": inputs, "reliable_clock": True,
             "callback_order": "inputs", "outputs": plan.gated_outputs,
             **({"readers": readers} if readers else {})}
 

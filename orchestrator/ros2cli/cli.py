@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from orchestrator.ros2cli import action, param, service, topic
+from orchestrator.ros2cli.attach import domain_to_use
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 GROUPS = {"topic": topic, "service": service, "action": action, "param": param}
@@ -15,7 +16,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line interface: cosim-ros2 GROUP VERB ..., as ros2 GROUP VERB ..."""
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--domain", type=int, metavar="ID",
-                        help="the ROS domain (default: ROS_DOMAIN_ID, else 0)")
+                        help="the ROS domain (default: ROS_DOMAIN_ID; without it, the "
+                             "domain of the cosim run going on this machine, else 0)")
     p = argparse.ArgumentParser(
         prog="cosim-ros2",
         description="ros2cli's everyday verbs for a pip-only install (the ROS 2 wheels have "
@@ -37,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
 
         ensure_own_libraries()
     args = build_parser().parse_args(argv)
+    args.domain = domain_to_use(args.domain)
     try:
         return args.func(args)
     except ValueError as exc:

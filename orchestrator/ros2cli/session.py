@@ -1,6 +1,6 @@
 """The rclpy node a cosim-ros2 verb works through: its own context on the run's ROS domain
-(ROS_DOMAIN_ID, or --domain), hidden from node lists as ros2cli's are, and the graph
-queries the verbs share."""
+(--domain, ROS_DOMAIN_ID, or the run going on this machine: ``orchestrator.ros2cli.attach``),
+hidden from node lists as ros2cli's are, and the graph queries the verbs share."""
 
 from __future__ import annotations
 

@@ -34,7 +34,7 @@ from rclpy.qos import QoSProfile
 from orchestrator.ros_surface.local_goals import LocalAction
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.poses import pose_of
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, Ns, tick_time_ns
 from runtime.arrivals import Arrivals
 
 FRAMES = ("map", "odom")
@@ -56,7 +56,7 @@ class NavigateServer:
     accepted, so a client that asks while the run is paused knows the tick it enters at."""
 
     def __init__(self, node, group, control: RunControl, arrivals: Arrivals, navigator: str,
-                 goal_topic: str, tick_ns: int, counted=None):
+                 goal_topic: str, tick_ns: Ns, counted=None):
         self.control = control
         self.arrivals = arrivals
         self.navigator = navigator
@@ -167,23 +167,26 @@ class NavigateServer:
         """The robot's speed (m/s): its travel from the oldest report within the last
         0.3 s (at least the previous one) to the newest; drops older reports."""
         now = track[-1][0]
-        while len(track) > 2 and (now - track[1][0]) * self.tick_ns >= SPEED_WINDOW_NS:
+        while len(track) > 2 and self._ns(now) - self._ns(track[1][0]) >= SPEED_WINDOW_NS:
             track.popleft()
         (t0, x0, y0), (t1, x1, y1) = track[0], track[-1]
         if t1 == t0:
             return 0.0
-        return math.hypot(x1 - x0, y1 - y0) / ((t1 - t0) * self.tick_ns / 1e9)
+        return math.hypot(x1 - x0, y1 - y0) / ((self._ns(t1) - self._ns(t0)) / 1e9)
+
+    def _ns(self, tick: int) -> int:
+        return tick_time_ns(tick, self.tick_ns)
 
     def _feedback(self, tick: int, started: int, recoveries: float,
                   m: dict[str, float], speed: float) -> NavigateToPose.Feedback:
         fb = NavigateToPose.Feedback()
         pose = fb.current_pose
         pose.header.frame_id = "odom"
-        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(tick * self.tick_ns, NS_PER_S)
+        pose.header.stamp.sec, pose.header.stamp.nanosec = divmod(self._ns(tick), NS_PER_S)
         pose.pose.position.x, pose.pose.position.y = m["nav_x"], m["nav_y"]
         pose.pose.orientation.z = math.sin(m["nav_yaw"] / 2)
         pose.pose.orientation.w = math.cos(m["nav_yaw"] / 2)
-        elapsed = (tick - started) * self.tick_ns
+        elapsed = self._ns(tick) - self._ns(started)
         fb.navigation_time.sec, fb.navigation_time.nanosec = divmod(elapsed, NS_PER_S)
         fb.number_of_recoveries = int(m.get("recoveries", 0.0) - recoveries)
         fb.distance_remaining = float(m["nav_distance_remaining"])

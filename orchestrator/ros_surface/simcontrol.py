@@ -12,7 +12,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, Ns, tick_time_ns
 
 PLAYING, PAUSED, STOPPED = "playing", "paused", "stopped"
 POLL_S = 0.05
@@ -34,7 +34,7 @@ class Outcome:
 class RunControl:
     """The requests, and what the master has done, shared between threads."""
 
-    def __init__(self, tick_ns: int, paused: bool = False, cannot_reset: str | None = None):
+    def __init__(self, tick_ns: Ns, paused: bool = False, cannot_reset: str | None = None):
         self.tick_ns = tick_ns
         self.cannot_reset = cannot_reset
         self.state = PAUSED if paused else PLAYING
@@ -57,7 +57,7 @@ class RunControl:
 
     def at(self) -> str:
         """'tick 12 (sim time 0.240000000 s)': the next tick to run."""
-        ns = self.boundary * self.tick_ns
+        ns = tick_time_ns(self.boundary, self.tick_ns)
         return f"tick {self.boundary} (sim time {ns // NS_PER_S}.{ns % NS_PER_S:09d} s)"
 
     # -- the master's side ------------------------------------------------------------------

@@ -63,7 +63,7 @@ Configuration comes from the ``COSIM_GATE`` environment variable (JSON)::
 
     {"prefix": "/cosim/feed/ctl/",   # private topic prefix (absolute)
      "node": "ctl",                  # cosim name of the program (naming only)
-     "tick_ns": 10000000,            # duration of one tick
+     "tick_ns": 10000000,            # duration of one tick (or "20000000/3")
      "period": 1,                    # program fed at ticks start + k*period
      "start": 0,                     # first tick fed
      "inputs": [                     # gated inputs, relative to prefix
@@ -99,6 +99,7 @@ import types
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 
 ENV_VAR = 'COSIM_GATE'
 READY_TICK = -1
@@ -128,7 +129,7 @@ class GateConfig:
 
     prefix: str
     node: str
-    tick_ns: int
+    tick_ns: int | Fraction  # exact; a Fraction where not whole ns (30 Hz with 50 Hz)
     period: int
     start: int
     inputs: tuple[InputSpec, ...]
@@ -189,7 +190,7 @@ class GateConfig:
             inputs.append(InputSpec(topic, ip, int(item.get('phase', start)),
                                     int(item.get('first', 0))))
         return cls(prefix=prefix, node=str(raw.get('node', 'program')),
-                   tick_ns=int(raw.get('tick_ns', 0)), period=period, start=start,
+                   tick_ns=Fraction(str(raw.get('tick_ns', 0))), period=period, start=start,
                    inputs=tuple(inputs),
                    reliable_clock=bool(raw.get('reliable_clock', True)),
                    callback_order=order,
