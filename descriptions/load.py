@@ -13,8 +13,11 @@ from typing import Any
 import mujoco
 
 from descriptions.robot_layout import robots_layout
+from descriptions.robot_model import RobotModel
+from descriptions.robot_reader import RobotNames, world_robots
 from descriptions.swarm_world import swarm_model
 from descriptions.worldfile import check_world
+from plan.errors import WorldError
 from plan.load import read_scenario
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
@@ -35,6 +38,16 @@ class MujocoWorlds:
     def swarm_model(self, world: Path, layout: RobotsLayout) -> mujoco.MjModel:
         """The arena with every robot of the layout."""
         return swarm_model(world, layout)
+
+    def robot_models(self, world: Path, layout: RobotsLayout | None, names: dict[str, Any]
+                     ) -> tuple[RobotModel, ...]:
+        """The robots as the run reads them (``runtime.build.scenario_robots``: the same
+        call, cached per process); WorldError naming what the world lacks."""
+        robot_names = RobotNames.of(names)
+        try:
+            return world_robots(world, layout, robot_names)
+        except ValueError as exc:
+            raise WorldError(world, str(exc)) from None
 
 
 WORLDS = MujocoWorlds()

@@ -10,27 +10,30 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from plan.errors import ScenarioError, ScenarioNotice, WorldError
+from plan.errors import Problems, ScenarioError, ScenarioNotice, WorldError
 from plan.kinds import catalogue
 from plan.model import NodeSpec, ScenarioModel
+from plan.robots import RobotsLayout, merged_names, robot_of
 from plan.roles import NodeRole
 from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
 from plan.timeutil import NS_PER_S, Ns, exact_rate_text, format_ns, format_rate, gcd_ns
 from plan.twin import twin_problems
-from plan.validation import describe_validation_error
+from plan.validation import describe_validation_errors
 from plan.world_reader import WorldReader
 
 
 class ScenarioChecks:
     """The semantic checks of one scenario model that follow schema validation, each raising
-    a precise ScenarioError naming the file and key."""
+    a precise ScenarioError naming the file and key; a check of many independent things
+    keeps each one's problem in ``found`` and goes on."""
     def __init__(self, path: Path, model: ScenarioModel, origins: dict[str, int] | None = None,
-                 worlds: WorldReader | None = None):
+                 worlds: WorldReader | None = None, found: Problems | None = None):
         self.path = path
         self.model = model
         self.origins = origins or {}  # node name -> its entry's index in the file (templates)
         self.worlds = worlds  # the world loader's side (descriptions), for check_world
+        self.found = found if found is not None else Problems()
 
     def fail(self, key: str, problem: str, accepted: str = "") -> ScenarioError:
         """Build the error for this file."""
@@ -102,9 +105,11 @@ class ScenarioChecks:
             return cls.Params.model_validate(spec.params,
                                              context={"scenario_dir": self.path.parent})
         except ValidationError as exc:
-            key, problem, accepted = describe_validation_error(exc, spec.params, cls.Params)
-            raise self.fail(self.node_key(i, f"params.{key}" if key else "params"),
-                            problem, accepted) from None
+            raise ScenarioError.every([
+                self.fail(self.node_key(i, f"params.{key}" if key else "params"), problem,
+                          accepted)
+                for key, problem, accepted in describe_validation_errors(exc, spec.params,
+                                                                        cls.Params)]) from None
 
     def world_path(self, needed: bool) -> tuple[Path | None, object]:
         """The world file, resolved relative to the scenario file, which must exist, and its
@@ -127,10 +132,11 @@ class ScenarioChecks:
 
     def check_world_fit(self, classes: dict, params: dict, world_model) -> list[str]:
         """Each node's own check of the world (its robot there, start and goal placeable):
-        problems raise; what only deserves a word (a goal its map cannot reach) is
-        returned as warnings."""
+        problems are kept in ``found``; what only deserves a word (a goal its map cannot
+        reach) is returned as warnings."""
         goal = self.model.goal.model_dump() if self.model.goal else None
-        self.check_joint_goal(world_model)
+        with self.found.collecting():
+            self.check_joint_goal(world_model)
         for i, (_, cls) in classes.items():
             if not cls.needs_world or not hasattr(cls, "world_problems"):
                 continue
@@ -146,7 +152,10 @@ class ScenarioChecks:
                                                 self.model.nodes[i].period_ns)
             for key, problem, accepted in problems:
                 where = key if key.startswith("goal") else self.node_key(i, key)
-                raise self.fail(where, f"{problem} (world {self.model.world})", accepted)
+                self.found.add(self.fail(where, f"{problem} (world {self.model.world})",
+                                         accepted))
+        if self.found.errors:
+            return []  # a goal's reachability is judged in a world the nodes fit
         start = robot_start(params)
         warnings = []
         for i, (_, cls) in classes.items():
@@ -174,6 +183,35 @@ class ScenarioChecks:
                                 f"{', '.join(n for n in joints if n) or 'none'}.",
                                 "names of the robot's hinge or slide joints.")
 
+    def check_robot_needs(self, classes: dict, params: dict, world: Path,
+                          layout: RobotsLayout | None) -> None:
+        """What each node needs of the robot model the run gives it (a lidar to cast from, a
+        camera to render, the arm's joints: ``StepNode.robot_problems``), against that model,
+        read by the names the nodes' parameters give; a template's instances once (every
+        robot of a swarm has the one description), the world node for its first robot."""
+        given = [(self.model.nodes[i].name, getattr(cls, "description_names", dict)(params[i]))
+                 for i, (_, cls) in classes.items()]  # as the run reads it: every node's
+        try:
+            robots = self.worlds.robot_models(world, layout, merged_names(given))
+        except WorldError as exc:
+            raise self.fail("world", f"the robot cannot be read from it: {exc.reason}.",
+                            "a robot with the parts its nodes' parameters name.") from None
+        except ValueError as exc:
+            raise self.fail("nodes", f"{exc}.", "one name for each part of the robot, in "
+                            "every node that names it.") from None
+        errors, seen = [], set()
+        for i, (_, cls) in classes.items():
+            name = self.model.nodes[i].name
+            if not cls.needs_world or self.origins.get(name, i) in seen:
+                continue
+            seen.add(self.origins.get(name, i))
+            own = robot_of(name)
+            for robot in [r for r in robots if own is None or r.name == own][:1]:
+                errors += [self.fail(self.node_key(i, key), problem, accepted) for key, problem,
+                           accepted in getattr(cls, "robot_problems", _none)(params[i], robot)]
+        if errors:
+            raise ScenarioError.every(errors)
+
     def check_world(self, world: Path):
         """Load the world once here, so a file MuJoCo cannot load fails before any node starts."""
         try:
@@ -188,13 +226,14 @@ class ScenarioChecks:
         50 Hz); every period a whole number of ticks."""
         periods = [spec.period_ns for spec in self.model.nodes]
         tick = self.model.tick or gcd_ns(periods)
-        for i, spec in enumerate(self.model.nodes):
-            if spec.period_ns % tick:
-                raise self.fail(self.node_key(i, "rate"),
-                                f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
-                                f"{format_ns(spec.period_ns)}, not a whole number of "
-                                f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick,
-                                                                 gcd_ns(periods)))
+        errors = [self.fail(self.node_key(i, "rate"),
+                            f"a rate of {format_rate(spec.period_ns)} Hz has a period of "
+                            f"{format_ns(spec.period_ns)}, not a whole number of "
+                            f"{format_ns(tick)} ticks.", _rates_that_fit(spec.period_ns, tick,
+                                                                         gcd_ns(periods)))
+                  for i, spec in enumerate(self.model.nodes) if spec.period_ns % tick]
+        if errors:
+            raise ScenarioError.every(errors)
         if tick < 1:
             raise self.fail("nodes", f"the rates give a tick of {format_ns(tick)}, shorter than "
                             "1 ns: ticks would share a time stamp.",
@@ -245,8 +284,10 @@ class ScenarioChecks:
         external = {t: c for p in nodes.values() if p.role is NodeRole.ORCHESTRATOR
                     for t, c in p.outputs.items()}
         topics = {t: c for p in nodes.values() for t, c in p.outputs.items()}
-        for key, problem, accepted in twin_problems(self.model.twin, external, topics):
-            raise self.fail(key, problem, accepted)
+        errors = [self.fail(key, problem, accepted)
+                  for key, problem, accepted in twin_problems(self.model.twin, external, topics)]
+        if errors:
+            raise ScenarioError.every(errors)
 
     def check_cycles(self, edges: list[Edge]) -> None:
         """Refuse a cycle of same_tick edges, naming it."""
@@ -255,6 +296,11 @@ class ScenarioChecks:
             raise self.fail("nodes", f"the same_tick inputs form an algebraic loop "
                             f"{' -> '.join(cycle)} with no delay to break it.",
                             "mark at least one input on that cycle mode: delayed.")
+
+
+def _none(*_args) -> list:
+    """No problems: a node class without ``robot_problems``."""
+    return []
 
 
 def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:

@@ -8,6 +8,7 @@ reported as a ``ScenarioError`` naming the file, the key path and what is accept
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import sys
 from pathlib import Path
@@ -16,12 +17,12 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from plan.errors import ScenarioError
+from plan.errors import Problems, ScenarioError
 from plan.model import ScenarioModel
 from plan.overrides import apply_override, blame_override
 from plan.resolve import resolve
 from plan.scenario import Scenario
-from plan.validation import describe_validation_error
+from plan.validation import describe_validation_errors, unknown_keys
 from plan.world_reader import WorldReader
 
 
@@ -38,15 +39,48 @@ def read_scenario(path: str | Path, worlds: WorldReader,
     make_importable(path.parent, Path.cwd())
     overrides = dict(overrides or {})
     overridden = {key: apply_override(raw, key, value, path) for key, value in overrides.items()}
+    found = Problems()
     try:
-        try:
-            model = ScenarioModel.model_validate(raw)
-        except ValidationError as exc:
-            key, problem, accepted = describe_validation_error(exc, raw)
-            raise ScenarioError(path, key, problem, accepted) from None
-        return resolve(path, model, hashlib.sha256(text).hexdigest(), overrides, worlds)
+        model, schema_errors = _validate(path, raw)
+        found.errors += schema_errors
+        if model is not None:
+            with found.collecting():
+                scenario = resolve(path, model, hashlib.sha256(text).hexdigest(), overrides,
+                                   worlds)
+        found.raise_any()
+        return scenario
     except ScenarioError as exc:
         raise blame_override(exc, raw, overridden, overrides) from None
+
+
+def _validate(path: Path, raw: dict) -> tuple[ScenarioModel | None, list[ScenarioError]]:
+    """The schema's model of ``raw`` and every problem pydantic finds in it. When the only
+    problems are unknown keys, the model is that of the file without them: a key the schema
+    does not know changes nothing else, so the later checks still run and their problems
+    are reported with it. None when the schema refuses more than that."""
+    try:
+        return ScenarioModel.model_validate(raw), []
+    except ValidationError as exc:
+        errors = [ScenarioError(path, *found) for found in describe_validation_errors(exc, raw)]
+        unknown = unknown_keys(exc)
+        if len(unknown) < exc.error_count():
+            return None, errors
+        try:
+            return ScenarioModel.model_validate(_without(raw, unknown)), errors
+        except (ValidationError, LookupError, TypeError):
+            return None, errors
+
+
+def _without(raw: dict, locations: list[tuple]) -> dict:
+    """A copy of ``raw`` without the keys at ``locations`` (pydantic's locs; LookupError
+    or TypeError for one that is not a path in the data, as a union member's tag)."""
+    out = copy.deepcopy(raw)
+    for loc in locations:
+        target = out
+        for part in loc[:-1]:
+            target = target[part]
+        del target[loc[-1]]
+    return out
 
 
 def make_importable(*folders: Path) -> None:

@@ -73,7 +73,11 @@ def _node_index(nodes: list, part: str) -> int | None:
 
 def blame_override(exc: ScenarioError, raw: dict, overridden: dict[str, tuple],
                     overrides: dict[str, Any]) -> ScenarioError:
-    """Add which override set the value to an error about an overridden key."""
+    """Add which override set the value to an error about an overridden key (to each of
+    the problems of an error that names several)."""
+    if len(exc.errors) > 1:
+        return ScenarioError.every([blame_override(e, raw, overridden, overrides)
+                                    for e in exc.errors])
     for key, loc in overridden.items():
         shown = key_path(loc, raw)
         if _within(exc.key, shown) or _within(shown, exc.key):

@@ -1,12 +1,13 @@
 """Resolve a validated scenario model into a ``Scenario``: checks, classes, parameters,
-world, tick, topics and schedule, in the order their errors are reported."""
+world, the robot's model, tick, topics and schedule, in the order their errors are
+reported; every independent problem in one error."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from plan.checks import ScenarioChecks
-from plan.errors import ScenarioNotice
+from plan.errors import Problems, ScenarioNotice
 from plan.external_node import complete_model
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
@@ -22,44 +23,79 @@ from plan.world_reader import WorldReader
 def resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds: WorldReader
             ) -> Scenario:
     """The runnable scenario of a schema-valid model read from ``path``, its world files
-    read through ``worlds``; ScenarioError on the first thing wrong."""
+    read through ``worlds``; one ScenarioError naming every problem found: each check runs
+    when what it reads is right, whatever the others found."""
+    found = Problems()
+    with found.collecting():
+        scenario = _resolve(path, model, sha, overrides, worlds, found)
+    found.raise_any()
+    return scenario
+
+
+def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds: WorldReader,
+             found: Problems) -> Scenario:
+    """``resolve``'s stages; what a stage finds is kept in ``found``, and a stage that
+    needs an earlier one right raises what was found."""
     ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
                                                                   exclude={"nodes"}))
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
-    where = ScenarioChecks(path, model, origins, worlds)
-    classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
-    params = {i: where.node_params(i, spec, classes[i][1]) for i, spec in enumerate(model.nodes)}
-    for i in range(len(model.nodes)):
-        where.check_finite(where.node_key(i, "params"), params[i].model_dump())
+    where = ScenarioChecks(path, model, origins, worlds, found)
+    classes, params = {}, {}
+    for i, spec in enumerate(model.nodes):
+        with found.collecting():
+            classes[i] = where.node_class(i, spec)
+            params[i] = where.node_params(i, spec, classes[i][1])
+            where.check_finite(where.node_key(i, "params"), params[i].model_dump())
     needs_world = any(cls.needs_world for _, cls in classes.values())
-    world, world_model = where.world_path(needs_world and layout is None)
-    if needs_world and layout is not None:  # the arena was checked by robots_layout
-        world_model = worlds.swarm_model(world, layout)
+    world = world_model = None
+    with found.collecting():
+        world, world_model = where.world_path(needs_world and layout is None)
+        if needs_world and layout is not None:  # the arena was checked by robots_layout
+            world_model = worlds.swarm_model(world, layout)
     world_warnings = []
     if world_model is not None:
-        world_warnings = where.check_world_fit(classes, params, world_model)
-    tick_ns = where.tick_ns()
-    last_tick = where.last_tick(tick_ns)
-    outputs = {i: node_outputs(where, i, spec, classes[i][1], params[i])
-               for i, spec in enumerate(model.nodes)}
+        fit = {i: classes[i] for i in params}  # the nodes whose class and params are right
+        before = len(found.errors)
+        world_warnings = where.check_world_fit(fit, params, world_model)
+        if len(found.errors) == before and len(params) == len(model.nodes):
+            with found.collecting():  # the robot model is read by the names checked above
+                where.check_robot_needs(classes, params, world, layout)
+    tick_ns = last_tick = None
+    with found.collecting():
+        tick_ns = where.tick_ns()
+        last_tick = where.last_tick(tick_ns)
+    if len(params) < len(model.nodes):
+        found.raise_any()  # the topics of a node whose class or params are wrong are unknown
+    outputs = {}
+    for i, spec in enumerate(model.nodes):
+        with found.collecting():
+            outputs[i] = node_outputs(where, i, spec, classes[i][1], params[i])
+    if len(outputs) < len(model.nodes):
+        found.raise_any()  # an input's publisher may be the node whose outputs are wrong
     publishers = producers(where, outputs, {i: cls for i, (_, cls) in classes.items()})
+    inputs = {i: node_inputs(where, i, spec, classes[i][1], params[i], publishers)
+              for i, spec in enumerate(model.nodes)}
+    found.raise_any()  # what follows reads every node's inputs, the tick and the world
     nodes: dict[str, NodePlan] = {}
     edges: list[Edge] = []
     for i, spec in enumerate(model.nodes):
-        inputs = node_inputs(where, i, spec, classes[i][1], params[i], publishers)
-        edges += [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode) for inp in inputs]
+        edges += [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode) for inp in inputs[i]]
         nodes[spec.name] = NodePlan(
             name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
             period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
-            output_names=outputs[i][1], inputs=inputs, latched=outputs[i][2],
+            output_names=outputs[i][1], inputs=inputs[i], latched=outputs[i][2],
             role=role_of(spec, classes[i][0], getattr(params[i], "gate", "auto"),
                          catalogue().external))
-    where.check_cycles(edges)
+    with found.collecting():
+        where.check_cycles(edges)
+    with found.collecting():
+        where.check_foreign_counts(nodes, edges)
+    with found.collecting():
+        where.check_twin(nodes)
+    found.raise_any()  # a schedule has no cycle
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
-    where.check_foreign_counts(nodes, edges)
-    where.check_twin(nodes)
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)

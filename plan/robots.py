@@ -93,6 +93,21 @@ def per_robot(topics, robots: list[str] | None):
     return {namespaced(r, topic) for topic in topics for r in robots}
 
 
+def merged_names(given: list[tuple[str, dict]]) -> dict:
+    """The robot description's names that the nodes' parameters give, (node name, its
+    ``description_names``) each, merged; a ValueError naming both nodes where two name one
+    thing differently."""
+    merged: dict[str, tuple[str, object]] = {}
+    for node, names in given:
+        for key, value in names.items():
+            value = tuple(value) if isinstance(value, list) else value
+            if key in merged and merged[key][1] != value:
+                raise ValueError(f"nodes {merged[key][0]!r} and {node!r} name the robot's "
+                                 f"{key} differently: {merged[key][1]!r} and {value!r}")
+            merged.setdefault(key, (node, value))
+    return {key: value for key, (_, value) in merged.items()}
+
+
 def robot_of(node_name: str) -> str | None:
     """The robot of a node instance ('control@robot_3' -> 'robot_3'), None for others."""
     return node_name.partition("@")[2] or None

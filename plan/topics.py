@@ -90,32 +90,45 @@ def producers(where: ScenarioChecks, outputs: dict[int, tuple[dict[str, type], d
 
 def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params: BaseModel,
                 publishers: dict[str, Producer]) -> list[InputPlan]:
-    """The node's inputs resolved to producers; every input needs a publisher."""
+    """The node's inputs resolved to producers; every input needs a publisher. The
+    problems of each input are kept in ``where.found`` (the input left out), so that all
+    of them are reported."""
     accepted = per_robot(cls.accepted_inputs(params), spec.robots)
     plans, seen = [], set()
-    for j, inp in enumerate(spec.inputs):
-        key = where.node_key(i, f"inputs[{j}].topic")
-        if inp.topic in seen:
-            raise where.fail(key, f"input {inp.topic} is listed twice.", "each topic once.")
-        seen.add(inp.topic)
-        takes_params = cls.runtime_params and inp.topic == params_topic(spec.name)
-        if accepted is not None and inp.topic not in accepted and not takes_params:
-            raise where.fail(key, f"this node does not take {inp.topic}.",
-                             f"one of {', '.join(sorted(accepted))}.")
-        graph = spec.remap.get(inp.topic, inp.topic)
-        if graph not in publishers:
-            raise where.fail(key, f"no node publishes {graph}.",
-                             f"a published topic: {', '.join(sorted(publishers))}.")
-        source = publishers[graph]
-        if source.latched:
-            raise where.fail(key, f"{graph} is published once, latched, by node "
-                             f"{source.name!r} at its first activation; no tick's sample "
-                             "of it can be scheduled.", "a topic published at every "
-                             "activation (ROS tools and foreign programs read a latched "
-                             "topic with transient-local durability).")
-        check_input_type(where, i, inp.topic, cls, params, graph, source, spec.robots)
-        plans.append(InputPlan(inp.topic, graph, source.name, inp.mode, source.msg))
+    for j in range(len(spec.inputs)):
+        with where.found.collecting():
+            plans.append(_input_plan(where, i, j, spec, cls, params, publishers, accepted,
+                                     seen))
     return plans
+
+
+def _input_plan(where: ScenarioChecks, i: int, j: int, spec: NodeSpec, cls: type,
+                params: BaseModel, publishers: dict[str, Producer], accepted: set[str] | None,
+                seen: set[str]) -> InputPlan:
+    """Input ``j`` of node ``i`` resolved to its producer, or the ScenarioError saying why
+    it cannot be."""
+    inp = spec.inputs[j]
+    key = where.node_key(i, f"inputs[{j}].topic")
+    if inp.topic in seen:
+        raise where.fail(key, f"input {inp.topic} is listed twice.", "each topic once.")
+    seen.add(inp.topic)
+    takes_params = cls.runtime_params and inp.topic == params_topic(spec.name)
+    if accepted is not None and inp.topic not in accepted and not takes_params:
+        raise where.fail(key, f"this node does not take {inp.topic}.",
+                         f"one of {', '.join(sorted(accepted))}.")
+    graph = spec.remap.get(inp.topic, inp.topic)
+    if graph not in publishers:
+        raise where.fail(key, f"no node publishes {graph}.",
+                         f"a published topic: {', '.join(sorted(publishers))}.")
+    source = publishers[graph]
+    if source.latched:
+        raise where.fail(key, f"{graph} is published once, latched, by node "
+                         f"{source.name!r} at its first activation; no tick's sample "
+                         "of it can be scheduled.", "a topic published at every "
+                         "activation (ROS tools and foreign programs read a latched "
+                         "topic with transient-local durability).")
+    check_input_type(where, i, inp.topic, cls, params, graph, source, spec.robots)
+    return InputPlan(inp.topic, graph, source.name, inp.mode, source.msg)
 
 
 def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, params: BaseModel,

@@ -67,14 +67,31 @@ def inner_model(annotation: Any) -> type[BaseModel] | None:
 def describe_validation_error(exc: ValidationError, raw: Any,
                               model: type[BaseModel] | None = None) -> tuple[str, str, str]:
     """The first error of ``exc`` as (key path, problem, accepted)."""
+    extra = exc.error_count() - 1
+    more = f" ({extra} more error(s) after this one.)" if extra else ""
+    return _describe(exc.errors()[0], raw, model, more)
+
+
+def describe_validation_errors(exc: ValidationError, raw: Any,
+                               model: type[BaseModel] | None = None
+                               ) -> list[tuple[str, str, str]]:
+    """Every error of ``exc`` as (key path, problem, accepted), in pydantic's order."""
+    return [_describe(err, raw, model, "") for err in exc.errors()]
+
+
+def unknown_keys(exc: ValidationError) -> list[tuple]:
+    """The locations of the keys ``exc`` refuses as unknown (pydantic's extra_forbidden)."""
+    return [tuple(err["loc"]) for err in exc.errors() if err["type"] == "extra_forbidden"]
+
+
+def _describe(err: dict, raw: Any, model: type[BaseModel] | None, more: str
+              ) -> tuple[str, str, str]:
+    """One pydantic error as (key path, problem, accepted), ``more`` after the problem."""
     if model is None:
         from plan.model import ScenarioModel
         model = ScenarioModel
-    err = exc.errors()[0]
     loc = tuple(err["loc"])
     key = key_path(loc, raw)
-    extra = exc.error_count() - 1
-    more = f" ({extra} more error(s) after this one.)" if extra else ""
     kind = err["type"]
     if kind == "extra_forbidden":
         owner = _model_at(model, loc)

@@ -3,7 +3,9 @@ them (``descriptions.load.WORLDS``): plan/ itself never loads MuJoCo or USD.
 
 A compiled world is opaque here: plan/ hands it to the node classes' own world checks
 (``world_problems``, ``world_warnings``, ``period_problems``) and reads nothing out of it
-but the names of its joints (``ScenarioChecks.check_joint_goal``).
+but the names of its joints (``ScenarioChecks.check_joint_goal``). So are the robot models
+(``robot_models``): plan/ hands each to its nodes' ``robot_problems`` and reads only its
+``name``.
 """
 
 from __future__ import annotations
@@ -27,3 +29,10 @@ class WorldReader(Protocol):
 
     def swarm_model(self, world: Path, layout: RobotsLayout) -> Any:
         """The compiled swarm world: the arena with every robot of ``layout``."""
+
+    def robot_models(self, world: Path, layout: RobotsLayout | None, names: dict[str, Any]
+                     ) -> tuple[Any, ...]:
+        """The robot models of the world as the run gives them to its nodes, read by the
+        description names ``names`` (``StepNode.description_names``, merged); none in a
+        world without the robot. ``plan.errors.WorldError`` when the world does not have
+        what the names name."""

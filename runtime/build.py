@@ -3,14 +3,12 @@ process, realtime node, in-process reference, benchmarks) makes and resets a nod
 
 from __future__ import annotations
 
-from typing import Any
-
 from descriptions.robot_model import RobotModel
 from descriptions.robot_reader import RobotNames, world_robots
 from nodes.contract import NodeConfig, StepNode
 from nodes.registry import load_class
 from plan.options import RunOptions
-from plan.robots import robot_of
+from plan.robots import merged_names, robot_of
 from plan.scenario import Scenario
 
 
@@ -45,15 +43,9 @@ def scenario_robots(scenario: Scenario) -> tuple[RobotModel, ...]:
 def description_names(scenario: Scenario) -> RobotNames:
     """The description's names as the scenario's nodes give them; two nodes that name one
     thing differently are a ValueError naming both."""
-    given: dict[str, tuple[str, Any]] = {}
-    for plan in scenario.nodes.values():
-        for key, value in load_class(plan.class_ref).description_names(plan.params).items():
-            value = tuple(value) if isinstance(value, list) else value
-            if key in given and given[key][1] != value:
-                raise ValueError(f"nodes {given[key][0]!r} and {plan.name!r} name the "
-                                 f"robot's {key} differently: {given[key][1]!r} and {value!r}")
-            given.setdefault(key, (plan.name, value))
-    return RobotNames.of({key: value for key, (_, value) in given.items()})
+    return RobotNames.of(merged_names([
+        (plan.name, load_class(plan.class_ref).description_names(plan.params))
+        for plan in scenario.nodes.values()]))
 
 
 def make_node(scenario: Scenario, name: str, options: RunOptions | None = None) -> StepNode:

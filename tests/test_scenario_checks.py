@@ -229,7 +229,7 @@ def test_rate_not_a_whole_number_of_ticks_says_which_rates_fit(tmp_path):
 
 
 def test_rate_that_fits_no_tick_suggests_another_tick(tmp_path):
-    err = refused(tmp_path, VALID + "tick: 3ms\n")
+    err = refused(tmp_path, VALID[:VALID.index("  - name: b")] + "tick: 3ms\n")
     check(err, "nodes[0] (a).rate", "not a whole number of 3ms ticks",
           accepted=("change the tick", "10ms"))
 
@@ -505,3 +505,69 @@ def test_physics_period_not_a_whole_number_of_timesteps_is_bad_input(tmp_path):
     proc = orchestrate(Path("/dev/null"), tmp_path / "runs")
     assert proc.code == 2 and "the file is empty" in proc.stderr, proc.stderr
     assert not (tmp_path / "runs").exists()
+
+
+def refused_all(tmp_path, text) -> ScenarioError:
+    """Load the text; the ScenarioError naming every problem, one per numbered line."""
+    path = write(tmp_path, text)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    err = info.value
+    lines = str(err).splitlines()
+    assert lines[0] == f"{path}: {len(err.errors)} problems:", str(err)
+    for n, (line, one) in enumerate(zip(lines[1:], err.errors, strict=True), 1):
+        assert line == f"  {n}. {one.key}: {one.problem} Accepted: {one.accepted}"
+        assert one.file == str(path) and one.accepted
+    return err
+
+
+def test_independent_mistakes_are_all_reported_in_one_error(tmp_path):
+    err = refused_all(tmp_path, VALID.replace("seed: 3", "seed: 3\ncolour: red\nworld: "
+                                              "nowhere.xml\ntick: 20ms")
+                      .replace("{topic: /a,", "{topic: /nowhere,"))
+    assert [e.key for e in err.errors] == ["colour", "world", "nodes[0] (a).rate",
+                                           "nodes[1] (b).inputs[0].topic"]
+    words = ["unknown key 'colour'", "'nowhere.xml' does not exist",
+             "not a whole number of 20ms ticks", "no node publishes /nowhere"]
+    for one, word in zip(err.errors, words, strict=True):
+        assert word in one.problem, str(err)
+    assert err.key == "colour"  # the first, for callers that read one
+
+
+def test_every_wrong_parameter_and_input_of_a_node_is_reported(tmp_path):
+    err = refused_all(tmp_path, VALID.replace("gain: 2.0, initial: 0.5", "gain: x, initial: y")
+                      .replace("params: {output: /a, noise: 5}",
+                               "params: {output: /a, noise: 5, size: 1}"))
+    assert [e.key for e in err.errors] == ["nodes[0] (a).params.size",
+                                           "nodes[1] (b).params.gain",
+                                           "nodes[1] (b).params.initial"], str(err)
+    inputs = refused_all(tmp_path, VALID.replace(
+        "      - {topic: /a, mode: same_tick}",
+        "      - {topic: /x, mode: same_tick}\n      - {topic: /y, mode: same_tick}"))
+    assert [e.problem for e in inputs.errors] == ["no node publishes /x.",
+                                                  "no node publishes /y."]
+
+
+def test_a_mistake_is_not_reported_again_through_what_it_breaks(tmp_path):
+    # an unknown kind: the node's topics are unknown, so b's input from it is not blamed
+    err = refused(tmp_path, VALID.replace("kind: counter", "kind: countr"))
+    check(err, "nodes[0] (a).kind", "unknown node kind 'countr'")
+    assert len(err.errors) == 1
+
+
+def test_the_command_line_prints_every_problem_and_starts_nothing(tmp_path):
+    import subprocess
+
+    from tests.helpers import ORCHESTRATE, ROOT
+
+    path = write(tmp_path, VALID.replace("seed: 3", "seed: 3\ncolour: red\ntick: 20ms")
+                 .replace("{topic: /a,", "{topic: /nowhere,"))
+    out = tmp_path / "runs"
+    run = subprocess.run([*ORCHESTRATE, str(path), "--out", str(out)], capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 2, run.stderr
+    assert f"{path}: 3 problems:" in run.stderr
+    for line in ("  1. colour: unknown key 'colour'.", "  2. nodes[0] (a).rate: a rate of 100",
+                 "  3. nodes[1] (b).inputs[0].topic: no node publishes /nowhere."):
+        assert line in run.stderr, run.stderr
+    assert not out.exists()

@@ -130,6 +130,82 @@ def test_bad_urdf_settings_are_scenario_errors(tmp_path, change, key, words):
     assert run.returncode == 2 and key in run.stderr
 
 
+def without_the_lidar_tag(tmp_path) -> str:
+    """nav_urdf with mybot copied and its lidar's Gazebo tag taken out: base_scan is a link
+    with no sensor on it, as in a description written without Gazebo in mind."""
+    import re
+    import shutil
+
+    package = tmp_path / "mybot_description"
+    shutil.copytree(NAV_URDF.parent / "robots" / "mybot_description", package)
+    xacro = package / "urdf" / "mybot.urdf.xacro"
+    text, count = re.subn(r'<gazebo reference="base_scan">.*?</gazebo>', "",
+                          xacro.read_text(), flags=re.S)
+    assert count == 1
+    xacro.write_text(text)
+
+    def change(doc):
+        doc["robots"]["description"] = str(xacro)
+        doc["robots"]["urdf"]["packages"] = {"mybot_description": str(package)}
+        doc["robots"]["urdf"]["args"] = {}
+    return write_scenario(tmp_path, change)
+
+
+@pytest.mark.parametrize("mode", ["--in-process", "--pack=node"])
+def test_a_lidar_node_for_a_robot_without_a_lidar_is_refused_before_anything_starts(
+        tmp_path, mode):
+    path = without_the_lidar_tag(tmp_path)
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(path)
+    problems = {e.key: e for e in exc.value.errors}
+    assert set(problems) == {"nodes[1] (lidar@mybot).params.lidar", "nodes[2] (control@mybot)"}
+    for error in problems.values():
+        assert error.problem.startswith("the robot has no lidar")
+        assert "robots.urdf.sensors: {lidar: LINK}" in error.accepted
+        assert "Gazebo ray sensor tag" in error.accepted
+        assert "site" not in str(error) and "'laser'" not in str(error)  # cosim's MJCF names
+    out = tmp_path / "runs"
+    run = orchestrate(tmp_path / "bad.yaml", out, mode, "--quiet")
+    assert run.code == 2, run.stderr
+    assert "the robot has no lidar" in run.stderr and "internal error" not in run.stderr
+    assert not out.exists() or not any(out.iterdir())  # nothing started, nothing written
+    # the same robot with the lidar named in the scenario runs
+    doc = yaml.safe_load((tmp_path / "bad.yaml").read_text())
+    doc["robots"]["urdf"]["sensors"] = {"lidar": "base_scan"}
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(doc))
+    assert load_scenario(path).nodes["lidar@mybot"]
+
+
+@pytest.mark.parametrize("change,key,words", [
+    (lambda d: (d["robots"]["urdf"]["args"].update(with_camera="false"), d["nodes"].append(
+        {"name": "camera", "kind": "sensors", "for_each": "robot", "rate": 2,
+         "params": {"camera": {"width": 32, "height": 24}},
+         "inputs": [{"topic": "/cosim/world_state", "mode": "same_tick"}]})),
+     "nodes[3] (camera@mybot).params.camera", "the robot has no camera"),
+])
+def test_a_node_needing_what_the_urdf_robot_lacks_names_the_fix(tmp_path, change, key, words):
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(write_scenario(tmp_path, change))
+    assert exc.value.key == key and exc.value.problem.startswith(words), exc.value
+    assert "Gazebo camera sensor tag" in exc.value.accepted
+    assert "robots.urdf.sensors: {camera: LINK}" in exc.value.accepted
+
+
+def test_arm_targets_not_matching_the_urdf_arms_joints_are_refused(tmp_path):
+    doc = yaml.safe_load((ROOT / "scenarios" / "arm_urdf.yaml").read_text())
+    doc["world"] = str(ROOT / "scenarios" / "worlds" / "arena.xml")
+    doc["robots"]["description"] = str(ROOT / "scenarios" / doc["robots"]["description"])
+    doc["robots"]["urdf"]["packages"] = {
+        "myarm_description": str(ROOT / "scenarios" / "robots" / "myarm_description")}
+    doc["nodes"][1]["params"]["targets"][1] = [0.0, 0.6, 0.8]
+    path = tmp_path / "arm.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    run = orchestrate(path, tmp_path / "runs", "--in-process", "--quiet")
+    assert run.code == 2, run.stderr
+    assert "nodes[1] (arm@myarm).params.targets[1]: 3 positions for the 6 joints" in run.stderr
+    assert "shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3" in run.stderr
+
+
 def test_a_xacro_arg_reaches_the_lidar_through_the_gazebo_tag(tmp_path):
     from tests.test_arm import bag_messages
 

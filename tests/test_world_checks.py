@@ -46,6 +46,18 @@ def test_impossible_worlds_are_refused_naming_the_key(overrides, key, words):
     assert err.accepted
 
 
+def test_a_sensor_the_mjcf_robot_lacks_names_the_site_and_the_parameter():
+    err = refused({"nodes.lidar.params.lidar.site": "lidar_mount"})
+    problems = {e.key: e for e in err.errors}
+    assert set(problems) == {"nodes[1] (lidar).params.lidar", "nodes[3] (control)"}, str(err)
+    lidar = problems["nodes[1] (lidar).params.lidar"]
+    assert lidar.problem.startswith("the robot has no lidar") and "'lidar_mount'" in lidar.problem
+    assert "params.lidar.site" in lidar.accepted
+    camera = refused({"nodes.camera.params.camera.camera": "front"})
+    assert camera.key == "nodes[2] (camera).params.camera"
+    assert "no camera 'front'" in camera.problem and "params.camera.camera" in camera.accepted
+
+
 def test_a_world_without_the_robot_is_refused(tmp_path):
     world = write_world(tmp_path, '<geom name="wall" type="box" pos="0 2 0.3" size="1 0.1 0.3"/>')
     world.write_text(world.read_text().replace('<include file="robot.xml"/>', ""))

@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from descriptions.robot_model import RobotModel
 from nodes.contract import StepNode, Tick
 from nodes.physics.world import robots_of
 from plan.description_spec import is_urdf_description
@@ -92,15 +93,29 @@ class JointTargetsNode(StepNode):
                              "positions inside the joints' ranges.")]
         return []
 
+    @classmethod
+    def robot_problems(cls, params: JointTargetsParams, robot: RobotModel
+                       ) -> list[tuple[str, str, str]]:
+        """Without ``joints``, every target has one position per joint the robot commands
+        by position, in the robot model's order."""
+        if params.joints is not None:
+            return []
+        joints = commanded_joints(robot)
+        for n, target in enumerate(params.targets):
+            if len(target) != len(joints):
+                return [(f"params.targets[{n}]", f"{len(target)} positions for the "
+                         f"{len(joints)} joints the robot commands by position "
+                         f"({', '.join(joints) or 'none'}).",
+                         f"a list of {len(joints)} positions, one per joint in that order; or "
+                         "params.joints naming the joints the targets are for.")]
+        return []
+
     def setup(self) -> None:
         """The joints (given, or the robot model's), the commands, built once; the first
         target from time 0."""
         if self.params.joints is None:
             robots = robots_of(self.config, {})
-            joints = [a.joint for a in robots[0].actuated if a.interface == "position"
-                      ] if len(robots) == 1 else []
-            if joints and is_urdf_description(robots[0].source):  # its /joint_states carry
-                joints = [j.removeprefix(robots[0].prefix) for j in joints]  # the URDF's names
+            joints = commanded_joints(robots[0]) if len(robots) == 1 else []
             for n, target in enumerate(self.params.targets):
                 if len(target) != len(joints):
                     raise ValueError(f"target {n} has {len(target)} positions; the robot "
@@ -139,3 +154,12 @@ class JointTargetsNode(StepNode):
     def metrics(self) -> dict[str, float]:
         """Which target is being published (from 0), of how many."""
         return {"target": float(self.index), "targets": float(len(self.commands))}
+
+
+def commanded_joints(robot: RobotModel) -> list[str]:
+    """The joints ``robot`` commands by position, in its model's order, as its
+    /joint_states names them (a URDF robot's own names, without a swarm's prefix)."""
+    joints = [a.joint for a in robot.actuated if a.interface == "position"]
+    if is_urdf_description(robot.source):
+        joints = [j.removeprefix(robot.prefix) for j in joints]
+    return joints

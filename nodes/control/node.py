@@ -45,6 +45,8 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Path
 from pydantic import BaseModel, ConfigDict, Field
 
+from descriptions.robot_model import RobotModel
+from descriptions.robot_needs import missing_sensor
 from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
 from nodes.control import follow as f
@@ -164,6 +166,13 @@ class ControlNode(StepNode):
         """The base body and the lidar's site, where the parameters name them."""
         names = {"base_body": params.base_body, "laser_site": params.laser_site}
         return {key: value for key, value in names.items() if value is not None}
+
+    @classmethod
+    def robot_problems(cls, params: ControlParams, robot: RobotModel
+                       ) -> list[tuple[str, str, str]]:
+        """The controller reads the lidar's mount off the robot: the robot needs one."""
+        site = params.laser_site or RobotNames().laser_site
+        return missing_sensor(robot, "lidar", "", site, "params.laser_site")
 
     def setup(self) -> None:
         """Build the map, read the laser mount from the world and take the scenario goal."""

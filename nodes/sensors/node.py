@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 from sensor_msgs.msg import CameraInfo, Image, LaserScan, PointCloud2
 
 from descriptions.robot_model import RobotModel, Sensor
+from descriptions.robot_needs import missing_sensor
 from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
 from nodes.physics.world import robots_of
@@ -82,6 +83,21 @@ class SensorsNode(StepNode):
         if params.camera is not None:
             names.update(camera=params.camera.camera, camera_frame=params.camera.frame_id)
         return {key: value for key, value in names.items() if value is not None}
+
+    @classmethod
+    def robot_problems(cls, params: SensorsParams, robot: RobotModel
+                       ) -> list[tuple[str, str, str]]:
+        """A lidar or point cloud needs the robot's lidar, a camera its camera."""
+        names = RobotNames.of(cls.description_names(params))
+        problems = []
+        lidar = next((key for key in ("lidar", "point_cloud") if getattr(params, key)), None)
+        if lidar is not None:
+            problems += missing_sensor(robot, "lidar", f"params.{lidar}", names.laser_site,
+                                       f"params.{lidar}.site")
+        if params.camera is not None:
+            problems += missing_sensor(robot, "camera", "params.camera", names.camera,
+                                       "params.camera.camera")
+        return problems
 
     def setup(self) -> None:
         """Load the mirror and build the configured sensors, each at the robot model's site or

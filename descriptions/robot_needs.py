@@ -1,0 +1,36 @@
+"""What a node needs of the robot model, worded for the format the robot is described in: a
+URDF user adds a sensor with ``robots.urdf.sensors`` or a Gazebo ``<sensor>`` tag (cosim's
+MuJoCo names are no concern of theirs); an MJCF or USD user names the site or camera the
+sensor reads, as cosim's conventions or the node's parameters say."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from descriptions.robot_model import RobotModel, SensorKind
+from plan.description_spec import is_urdf_description
+
+GAZEBO_TYPES = {"lidar": "ray", "camera": "camera", "imu": "imu"}
+MJCF_OBJECTS = {"lidar": "site", "camera": "camera", "imu": "site"}
+
+
+def missing_sensor(robot: RobotModel, kind: SensorKind, key: str, mjcf_name: str,
+                   name_key: str) -> list[tuple[str, str, str]]:
+    """[(key, problem, accepted)] when ``robot`` has no ``kind`` sensor, else []: for a URDF
+    robot, the scenario entry or Gazebo tag that adds one; for another, the MJCF object
+    (``mjcf_name``, unscoped) the sensor is read by and the node parameter (``name_key``)
+    that names another."""
+    if robot.sensor(kind) is not None:
+        return []
+    source = Path(robot.source).name or "the world"
+    if is_urdf_description(robot.source):
+        gazebo = GAZEBO_TYPES[kind]
+        return [(key, f"the robot has no {kind}: {source} hangs none on a link (no Gazebo "
+                 f"{gazebo} sensor tag, no robots.urdf.sensors entry).",
+                 f"add robots.urdf.sensors: {{{kind}: LINK}} (the link it hangs on) or a "
+                 f"Gazebo {gazebo} sensor tag on that link (<gazebo reference=\"LINK\"><sensor "
+                 f"type=\"{gazebo}\">).")]
+    what = MJCF_OBJECTS[kind]
+    return [(key, f"the robot has no {kind}: {source} has no {what} {mjcf_name!r} on it.",
+             f"a {what} named {mjcf_name!r} on the robot where its {kind} is, or {name_key} "
+             f"naming the robot's {kind} {what}.")]
