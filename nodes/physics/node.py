@@ -46,6 +46,7 @@ from nodes.physics.urdf_rig import ROBOT_DESCRIPTION
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
 from plan.interactive import SET_POSE_TOPIC
 from plan.obstacles import place_problem
+from plan.timeutil import format_ns
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 
@@ -222,7 +223,8 @@ class PhysicsNode(StepNode):
         fits = [NS_PER_S // (k * step) for k in range(1, 1000)
                 if NS_PER_S % (k * step) == 0][:5]
         example = f", e.g. {', '.join(map(str, fits))} Hz" if fits else ""
-        return [("rate", f"the period {period_ns} ns is not a whole number of the world's "
+        period = f"{period_ns} ns" if isinstance(period_ns, int) else format_ns(period_ns)
+        return [("rate", f"the period {period} is not a whole number of the world's "
                  f"timesteps ({step} ns, <option timestep={model.opt.timestep!r}>): physics "
                  "integrates whole timesteps in each period.",
                  f"a rate whose period is a multiple of {step} ns{example}; or change "
