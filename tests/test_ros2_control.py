@@ -16,7 +16,7 @@ from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
 from controller_manager_msgs.srv import ListControllers, SwitchController
 from simulation_interfaces.msg import SimulationState
-from trajectory_msgs.msg import JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from descriptions.load import load_scenario
 from nodes.ros2_control.config import ControllersFileError, read_controllers_file
@@ -165,6 +165,20 @@ def trajectory_scenario(tmp_path_factory):
     path = tmp_path_factory.mktemp("arm") / "arm_trajectory.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
+
+
+def test_only_a_trajectory_a_client_sent_is_noted_as_refused(trajectory_scenario):
+    # until a client sends one, the external node publishes an empty trajectory: nobody sent
+    # it, so nothing was refused (every run with the trajectory controller active said so)
+    scenario = load_scenario(trajectory_scenario, {"duration": "300ms"})
+    partial = JointTrajectory(joint_names=JOINTS[:3], points=[
+        JointTrajectoryPoint(positions=[0.1] * 3, time_from_start=Duration(sec=1))])
+    topic = "/joint_trajectory_controller/joint_trajectory"
+    result = run_in_process(scenario, external=lambda k: {topic: partial} if k == 10 else {})
+    notes = [(n.node, n.tick, n.text) for n in result.notes]
+    assert notes == [("controller_manager", 10, "joint_trajectory_controller/joint_trajectory "
+                      "refused: joints ['wrist_1', 'wrist_2', 'wrist_3'] are missing and "
+                      "allow_partial_joints_goal is false")]
 
 
 def goal(points: list[tuple[float, list[float]]], joints=JOINTS, path_tolerance=None

@@ -334,7 +334,7 @@ class ControllerManagerNode(StepNode):
 
     def _trajectory_inputs(self, ctrl: TrajectoryController, inputs, now: int, state) -> None:
         topic = inputs.get(f"/{ctrl.spec.name}/joint_trajectory")
-        if self._fresh(f"/{ctrl.spec.name}/joint_trajectory", topic):
+        if self._fresh(f"/{ctrl.spec.name}/joint_trajectory", topic) and not _blank(topic):
             if ctrl.goal_state == 1:  # a topic message preempts an action goal
                 ctrl.goal_state, ctrl.error_code = 4, 0
                 ctrl.from_action = False
@@ -426,6 +426,12 @@ def position_joints(model) -> list[str]:
         if is_position:
             out.append(model.joint(int(model.actuator_trnid[a, 0])).name)
     return out
+
+
+def _blank(msg: JointTrajectory) -> bool:
+    """Whether ``msg`` is the external node's stand-in until a client sends a trajectory (a
+    default-constructed one: no joints, no points): nothing was sent, so nothing is refused."""
+    return not msg.joint_names and not msg.points and not msg.header.frame_id
 
 
 def _padded(values, names) -> list[float]:
