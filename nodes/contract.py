@@ -145,13 +145,14 @@ class StepNode:
         return []
 
     @classmethod
-    def robot_problems(cls, params: BaseModel, robot: RobotModel
+    def robot_problems(cls, params: BaseModel, robot: RobotModel, model: Any
                        ) -> list[tuple[str, str, str]]:
         """What this node needs of the robot model the run gives it (``robot``: the one it
-        serves, or a swarm's first) and the model lacks (a lidar to cast from, a camera),
-        checked when the scenario loads: (key, problem, accepted) as in ``world_problems``,
-        worded for the robot's description format (``descriptions.robot_needs``), a key ''
-        naming the node's entry. Nothing by default."""
+        serves, or a swarm's first) in the world ``model`` (a compiled MjModel) and they lack
+        (a lidar to cast from, a camera), checked when the scenario loads: (key, problem,
+        accepted) as in ``world_problems``, worded for the robot's description format
+        (``descriptions.robot_needs``), a key '' naming the node's entry. Nothing by
+        default."""
         return []
 
     @classmethod

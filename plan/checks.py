@@ -184,12 +184,12 @@ class ScenarioChecks:
                                 "names of the robot's hinge or slide joints.")
 
     def check_robot_needs(self, classes: dict, params: dict, world: Path,
-                          layout: RobotsLayout | None) -> None:
+                          layout: RobotsLayout | None, world_model) -> None:
         """What each node needs of the robot model the run gives it (a lidar to cast from, a
         camera to render, the arm's joints: ``StepNode.robot_problems``), against that model,
         read by the names the nodes' parameters give; a template's instances once (every
         robot of a swarm has the one description), the world node for its first robot."""
-        given = [(self.model.nodes[i].name, getattr(cls, "description_names", dict)(params[i]))
+        given = [(self.model.nodes[i].name, cls.description_names(params[i]))
                  for i, (_, cls) in classes.items()]  # as the run reads it: every node's
         try:
             robots = self.worlds.robot_models(world, layout, merged_names(given))
@@ -207,8 +207,9 @@ class ScenarioChecks:
             seen.add(self.origins.get(name, i))
             own = robot_of(name)
             for robot in [r for r in robots if own is None or r.name == own][:1]:
-                errors += [self.fail(self.node_key(i, key), problem, accepted) for key, problem,
-                           accepted in getattr(cls, "robot_problems", _none)(params[i], robot)]
+                errors += [self.fail(self.node_key(i, key), problem, accepted)
+                           for key, problem, accepted in cls.robot_problems(params[i], robot,
+                                                                            world_model)]
         if errors:
             raise ScenarioError.every(errors)
 
@@ -296,11 +297,6 @@ class ScenarioChecks:
             raise self.fail("nodes", f"the same_tick inputs form an algebraic loop "
                             f"{' -> '.join(cycle)} with no delay to break it.",
                             "mark at least one input on that cycle mode: delayed.")
-
-
-def _none(*_args) -> list:
-    """No problems: a node class without ``robot_problems``."""
-    return []
 
 
 def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:

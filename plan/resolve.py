@@ -61,7 +61,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         world_warnings = where.check_world_fit(fit, params, world_model)
         if len(found.errors) == before and len(params) == len(model.nodes):
             with found.collecting():  # the robot model is read by the names checked above
-                where.check_robot_needs(classes, params, world, layout)
+                where.check_robot_needs(classes, params, world, layout, world_model)
     tick_ns = last_tick = None
     with found.collecting():
         tick_ns = where.tick_ns()

@@ -56,6 +56,13 @@ def test_a_sensor_the_mjcf_robot_lacks_names_the_site_and_the_parameter():
     camera = refused({"nodes.camera.params.camera.camera": "front"})
     assert camera.key == "nodes[2] (camera).params.camera"
     assert "no camera 'front'" in camera.problem and "params.camera.camera" in camera.accepted
+    # the robot is read by the control node's name; the lidar node falls back to its own
+    control = refused({"nodes.control.params.laser_site": "lidar_mount"})
+    assert control.key == "nodes[3] (control)" and len(control.errors) == 1, str(control)
+    assert "no site 'lidar_mount'" in control.problem
+    both = refused({"nodes.control.params.laser_site": "lidar_mount",
+                    "nodes.lidar.params.lidar.site": "laser"})
+    assert both.key == "nodes" and "name the robot's laser_site differently" in both.problem
 
 
 def test_a_world_without_the_robot_is_refused(tmp_path):

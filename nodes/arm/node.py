@@ -94,7 +94,7 @@ class JointTargetsNode(StepNode):
         return []
 
     @classmethod
-    def robot_problems(cls, params: JointTargetsParams, robot: RobotModel
+    def robot_problems(cls, params: JointTargetsParams, robot: RobotModel, model: Any
                        ) -> list[tuple[str, str, str]]:
         """Without ``joints``, every target has one position per joint the robot commands
         by position, in the robot model's order."""

@@ -168,7 +168,7 @@ class ControlNode(StepNode):
         return {key: value for key, value in names.items() if value is not None}
 
     @classmethod
-    def robot_problems(cls, params: ControlParams, robot: RobotModel
+    def robot_problems(cls, params: ControlParams, robot: RobotModel, model: Any
                        ) -> list[tuple[str, str, str]]:
         """The controller reads the lidar's mount off the robot: the robot needs one."""
         site = params.laser_site or RobotNames().laser_site

@@ -85,18 +85,19 @@ class SensorsNode(StepNode):
         return {key: value for key, value in names.items() if value is not None}
 
     @classmethod
-    def robot_problems(cls, params: SensorsParams, robot: RobotModel
+    def robot_problems(cls, params: SensorsParams, robot: RobotModel, model: Any
                        ) -> list[tuple[str, str, str]]:
-        """A lidar or point cloud needs the robot's lidar, a camera its camera."""
+        """A lidar or point cloud needs the robot's lidar, a camera its camera (or the site
+        or camera its parameters or cosim's conventions name, which it falls back to)."""
         names = RobotNames.of(cls.description_names(params))
         problems = []
         lidar = next((key for key in ("lidar", "point_cloud") if getattr(params, key)), None)
         if lidar is not None:
             problems += missing_sensor(robot, "lidar", f"params.{lidar}", names.laser_site,
-                                       f"params.{lidar}.site")
+                                       f"params.{lidar}.site", model)
         if params.camera is not None:
             problems += missing_sensor(robot, "camera", "params.camera", names.camera,
-                                       "params.camera.camera")
+                                       "params.camera.camera", model)
         return problems
 
     def setup(self) -> None:
