@@ -68,13 +68,23 @@ def explain_gap(transport, topic: str, text: str) -> str:
 
 
 def graph_strangers(transport, topics: list[str]) -> list[str]:
-    """For each topic with publishers that are not the run's, what ``describe`` says."""
-    found = []
-    for topic in topics:
-        names = publisher_nodes(transport, topic)
-        if names is None:
-            return []
-        names = [n for n in names if not n.endswith("_NODE_NAME_UNKNOWN_")]
-        if strange := strangers(names):
-            found.append(describe(topic, strange))
-    return found
+    """For each topic with publishers that are not the run's, what ``describe`` says.
+
+    A publisher whose endpoint was discovered before its participant's node names arrived is
+    listed as _NODE_NAME_UNKNOWN_: the graph is asked again (for up to LOOK_S) until it names
+    it, rather than taking it for nobody (a teleop already running was missed so when the run
+    became ready quickly)."""
+    deadline = time.monotonic() + LOOK_S
+    while True:
+        found, unnamed = [], False
+        for topic in topics:
+            names = publisher_nodes(transport, topic)
+            if names is None:
+                return []
+            unnamed |= any(n.endswith("_NODE_NAME_UNKNOWN_") for n in names)
+            names = [n for n in names if not n.endswith("_NODE_NAME_UNKNOWN_")]
+            if strange := strangers(names):
+                found.append(describe(topic, strange))
+        if found or not unnamed or time.monotonic() >= deadline:
+            return found
+        time.sleep(0.05)

