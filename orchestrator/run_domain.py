@@ -140,9 +140,7 @@ def claim(domain: int, what: str) -> None:
     folder = Path(tempfile.gettempdir()) / "cosim-ros-domains"
     folder.mkdir(exist_ok=True)
     handle = open(folder / f"{domain}.run", "a+")  # noqa: SIM115 - held while the run goes
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
+    if not _lock_now(handle):
         handle.seek(0)
         holder = handle.readline().strip() or "a cosim run starting"
         handle.close()
@@ -152,6 +150,19 @@ def claim(domain: int, what: str) -> None:
                           "free domain of its own), or pin another one") from None
     _claims[domain], _whats[domain] = handle, what
     _write(handle, what)
+
+
+def _lock_now(handle) -> bool:
+    """Take ``handle``'s exclusive flock without waiting on a run that holds it; a few quick
+    tries, since a tool looking for runs (``going``) may hold it shared for an instant."""
+    for attempt in range(3):
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            if attempt < 2:
+                time.sleep(0.02)
+    return False
 
 
 def leased_here() -> int | None:
@@ -200,7 +211,7 @@ def going() -> list[Claim]:
             stat = path.stat()
             if not path.stem.isdigit() or int(path.stem) in _claims:
                 continue
-            if held is not None and (stat.st_dev, stat.st_ino) not in held:
+            if held is not None and stat.st_ino not in held:
                 continue
             if held is None and not _locked(path):
                 continue
@@ -214,8 +225,10 @@ def going() -> list[Claim]:
     return sorted(claims, key=lambda c: c.since, reverse=True)
 
 
-def _held_files() -> set[tuple[int, int]] | None:
-    """(device, inode) of every file with a flock held, from /proc/locks (None: unreadable)."""
+def _held_files() -> set[int] | None:
+    """The inode of every file with a flock held, from /proc/locks (None: unreadable). Inodes
+    only: the device /proc/locks names is the superblock's, which stat() does not give on
+    every file system (btrfs subvolumes, overlays)."""
     try:
         text = Path("/proc/locks").read_text()
     except OSError:
@@ -225,8 +238,7 @@ def _held_files() -> set[tuple[int, int]] | None:
         fields = line.split()
         if "->" in fields or len(fields) < 6 or fields[1] != "FLOCK":
             continue  # a waiter, or another kind of lock
-        major, minor, inode = fields[5].split(":")
-        held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
+        held.add(int(fields[5].rsplit(":", 1)[1]))
     return held
 
 

@@ -17,7 +17,16 @@ from plan.robots import RobotsLayout, merged_names, robot_of
 from plan.roles import NodeRole
 from plan.scenario import NodePlan
 from plan.schedule import Edge, find_same_tick_cycle
-from plan.timeutil import NS_PER_S, Ns, exact_rate_text, format_ns, format_rate, gcd_ns
+from plan.timeutil import (
+    NS_PER_S,
+    Ns,
+    exact_rate_text,
+    format_ns,
+    format_rate,
+    gcd_ns,
+    tick_at_ns,
+    tick_time_ns,
+)
 from plan.twin import twin_problems
 from plan.validation import describe_validation_errors
 from plan.world_reader import WorldReader
@@ -242,13 +251,16 @@ class ScenarioChecks:
         return tick
 
     def last_tick(self, tick_ns: Ns) -> int:
-        """The index of the last tick; the duration must be a whole number of ticks."""
-        if self.model.duration % tick_ns:
+        """The index of the last tick; the duration must be a whole number of ticks, or the
+        rounded time of one (``tick_time_ns``: what a replay of a run stopped early at a
+        fractional tick's stamp gives)."""
+        last = tick_at_ns(self.model.duration, tick_ns)
+        if tick_time_ns(last, tick_ns) != self.model.duration:
             whole = Fraction(tick_ns).numerator  # the shortest whole-ns run of whole ticks
             raise self.fail("duration", f"{format_ns(self.model.duration)} is not a whole number "
                             f"of {format_ns(tick_ns)} ticks.", "a multiple of the tick, e.g. "
                             f"{format_ns((self.model.duration // whole + 1) * whole)}.")
-        return int(self.model.duration // tick_ns)
+        return last
 
     def check_foreign_counts(self, nodes: dict[str, NodePlan], edges: list[Edge]) -> None:
         """An ungated foreign program (no gate serves it, ``plan.gates``: not Python and
@@ -310,7 +322,7 @@ def robot_start(params: dict[int, BaseModel]) -> dict[str, float] | None:
     return None
 
 
-def _rates_that_fit(period_ns: int, tick_ns: int, gcd_ns: int) -> str:
+def _rates_that_fit(period_ns: Ns, tick_ns: Ns, gcd_of_periods: Ns) -> str:
     """Rates near the given period whose period is a whole number of ticks, written exactly."""
     fits = []
     for m in range(1, 100_000):
@@ -325,7 +337,7 @@ def _rates_that_fit(period_ns: int, tick_ns: int, gcd_ns: int) -> str:
     if not below + above:
         return (f"no rate in Hz has a period that is a whole number of {format_ns(tick_ns)} "
                 f"ticks; change the tick, e.g. leave tick out to use the gcd of the periods "
-                f"({format_ns(gcd_ns)}).")
+                f"({format_ns(gcd_of_periods)}).")
     shown = ", ".join(exact_rate_text(Fraction(NS_PER_S, p)) for p in sorted(below + above))
     return f"rates whose period is a multiple of the {format_ns(tick_ns)} tick, e.g. {shown} Hz."
 

@@ -15,6 +15,7 @@ starts itself are not watched.
 from __future__ import annotations
 
 import datetime
+import gc
 import os
 import random
 import sys
@@ -330,6 +331,12 @@ def _watch(call: Callable[[], Any]) -> tuple[Watched, Any]:
     before_random, before_numpy = random.getstate(), np.random.get_state(legacy=False)
     previous = sys.getprofile()
     result = None
+    # Garbage the process made before (another test's objects, a library's) is collected
+    # now, not inside the call: finalizers and gc callbacks that a collection runs on this
+    # thread read clocks too, and were blamed on the node's step.
+    gc.collect()
+    collecting = gc.isenabled()
+    gc.disable()
     sys.setprofile(profile)
     try:
         result = call()
@@ -337,6 +344,8 @@ def _watch(call: Callable[[], Any]) -> tuple[Watched, Any]:
         watched.error = "raised " + _error(exc, traceback.extract_tb(exc.__traceback__)[-1:])
     finally:
         sys.setprofile(previous)
+        if collecting:
+            gc.enable()
     if random.getstate() != before_random:
         watched.randomness["the global random module (random.random(), random.randint(), "
                            "...)"] += 1

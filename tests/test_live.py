@@ -76,9 +76,17 @@ def test_foxglove_client_follows_nav_and_the_digest_is_unchanged(tmp_path):
 
 def stuck_rosbridge_client(port: int):
     """A rosbridge client that subscribes to both camera images and never reads again."""
+    import socket
+
     from websockets.sync.client import connect
 
-    ws = connect(f"ws://127.0.0.1:{port}")
+    # A small receive buffer: the kernel holds little of what the client does not read, so
+    # the server's queue fills however fast the machine drains the socket (a loaded machine
+    # absorbed a whole run's images in its buffers once: nothing dropped)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    ws = connect(f"ws://127.0.0.1:{port}", sock=sock, max_queue=1)
     for topic in (CAMERA, DEPTH):
         ws.send(json.dumps({"op": "subscribe", "topic": topic}))
     return ws

@@ -61,3 +61,20 @@ def test_30_and_15_hz_run_with_one_digest_and_rounded_stamps(tmp_path):
             assert stamps == want, topic
     assert [half_up(n, 30) for n in range(4)] == [0, 33_333_333, 66_666_667, 100_000_000]
     assert [half_up(n, 50) for n in range(3)] == [0, 20_000_000, 40_000_000]  # whole, as ever
+
+
+def test_a_duration_at_a_ticks_rounded_time_loads_as_that_tick(tmp_path):
+    """A replay of a run stopped early ends at its last tick's stamp, rounded to whole ns
+    (orchestrator.replay): with a 1/150 s tick that is rarely a multiple of anything, and it
+    must load as that tick; a time between two ticks' stamps is still refused."""
+    import pytest
+
+    from descriptions.load import load_scenario
+    from plan.errors import ScenarioError
+
+    path = ros_rates_scenario(tmp_path)
+    for k in (100, 101, 102):
+        scenario = load_scenario(path, {"duration": f"{half_up(k, 150)}ns"})
+        assert scenario.schedule.last_tick == k
+    with pytest.raises(ScenarioError, match="not a whole number of 1/150s ticks"):
+        load_scenario(path, {"duration": f"{half_up(101, 150) + 1}ns"})

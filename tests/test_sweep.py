@@ -172,7 +172,7 @@ def test_table_columns_keep_numbers_and_write_other_values_as_json():
 @pytest.mark.parametrize("args, expected", [
     (["--seeds", "5-1"], "--seeds"),
     (["--seeds", "1-2", "--set", "nodes.nope.rate=10,20"], "nope"),
-    (["--seeds", "1-2", "--set", "nodes.source.rate=100,30"], "rate"),
+    (["--seeds", "1-2", "--set", "nodes.source.rate=100,0"], "rate"),
     (["--seeds", "1", "--retry-failed"], "--resume"),
     (["--seeds", "1", "--ray", "nowhere"], "host:port"),
 ])

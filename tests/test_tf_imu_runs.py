@@ -164,7 +164,12 @@ def test_tf_reader_sees_odom_to_base_link_equal_to_odom_at_every_stamp(watched):
 
 
 def test_a_late_subscriber_gets_tf_static_only_with_transient_local_durability(watched):
-    assert watched.static_volatile == []
+    # tf_static is published once, at tick 0: a volatile subscriber made later is sent
+    # nothing new (Fast DDS may still hand it the writer's one kept sample when the two match
+    # while that sample is being repaired: seen once on a loaded machine)
+    assert len(watched.static_volatile) <= 1
+    assert all(stamp_ns(t.header.stamp) == 0
+               for msg in watched.static_volatile for t in msg.transforms)
     assert len(watched.static_latched) == 1
     static = watched.static_latched[0].transforms
     assert {t.child_frame_id: t.header.frame_id for t in static} == STATIC_FRAMES

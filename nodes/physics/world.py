@@ -13,7 +13,7 @@ from descriptions.swarm_world import swarm_model
 from descriptions.worldfile import load_world_model
 from nodes.contract import NodeConfig
 from plan.robots import RobotsLayout, robot_of
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, Ns, format_ns
 
 
 def load_model(world: Path | str, layout: RobotsLayout | None = None) -> mujoco.MjModel:
@@ -47,14 +47,14 @@ def timestep_ns(model: mujoco.MjModel, world: Path | str) -> int:
     return ns
 
 
-def substeps(model: mujoco.MjModel, world: Path | str, period_ns: int) -> int:
+def substeps(model: mujoco.MjModel, world: Path | str, period_ns: Ns) -> int:
     """How many world timesteps make one node period; a ValueError unless a whole number."""
     step = timestep_ns(model, world)
     if period_ns % step:
         raise ValueError(f"world {world}: timestep {step} ns does not divide the physics node "
-                         f"period {period_ns} ns; choose a rate whose period is a multiple of "
-                         f"{step} ns or change <option timestep> in the world")
-    return period_ns // step
+                         f"period {format_ns(period_ns)}; choose a rate whose period is a "
+                         f"multiple of {step} ns or change <option timestep> in the world")
+    return int(period_ns // step)
 
 
 def body_id(model: mujoco.MjModel, name: str) -> int:
