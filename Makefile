@@ -33,11 +33,14 @@ run: install
 
 # Test files run side by side, one pytest-xdist worker per core (TEST_WORKERS=0: one at a time,
 # in pytest's own process): most of a test waits on processes starting and discovering each
-# other. Every test's time is kept in build/test-times.xml (tools/slowest_tests.py reads it).
+# other. Then the tests marked `alone` (realtime, on wall time), one at a time. Every test's
+# time is kept in build/test-times*.xml (tools/slowest_tests.py reads them).
 TEST_WORKERS ?= auto
 test: install
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile --junitxml=build/test-times.xml
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not alone" \
+		--junitxml=build/test-times.xml
+	$(BIN)/python -m pytest -m alone --junitxml=build/test-times-alone.xml
 
 # The documentation site into build/site (open build/site/index.html); --strict: a dead link or
 # a page missing from the nav fails the build. The reference pages are generated from the code.

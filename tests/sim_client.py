@@ -98,8 +98,9 @@ class SimClient:
         request = SetSimulationState.Request(state=SimulationState(state=state))
         return self.call(SetSimulationState, self.ns + "set_simulation_state", request).result
 
-    def send_goal(self, action_type, name: str, goal) -> Goal:
-        """Send an action goal (accepted), collecting its feedback; ask for its result."""
+    def send_goal(self, action_type, name: str, goal, accepted: bool = True) -> Goal:
+        """Send an action goal, collecting its feedback; ask for its result. ``accepted``:
+        whether the server must accept it (False: it must reject it; no result is asked)."""
         client = self._actions.get(name)
         if client is None:
             client = self._actions[name] = ActionClient(
@@ -111,7 +112,11 @@ class SimClient:
             m.feedback))
         self.executor.spin_until_future_complete(future, timeout_sec=TIMEOUT_S)
         sent.handle = future.result()
-        assert sent.handle is not None and sent.handle.accepted, f"{name}: goal not accepted"
+        assert sent.handle is not None, f"{name}: no answer to the goal"
+        if not accepted:
+            assert not sent.handle.accepted, f"{name}: goal accepted, expected a rejection"
+            return sent
+        assert sent.handle.accepted, f"{name}: goal not accepted"
         sent.result = sent.handle.get_result_async()
         return sent
 

@@ -27,7 +27,7 @@ from orchestrator.outputs.bag import BagReader
 from plan.errors import ScenarioError
 from plan.ros_types import message_class
 from tests.helpers import ORCHESTRATE, ROOT
-from tests.sim_client import OK, SimClient, live_runs
+from tests.sim_client import OK, SimClient, live_runs, orchestrate
 
 ARM = ROOT / "scenarios" / "arm_control.yaml"
 JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
@@ -235,6 +235,9 @@ def session(sim: SimClient, checks: bool) -> tuple[int, list[float]]:
     assert sim.step(1).result == OK  # the switch enters at this tick
     after = sim.call(ListControllers, "/controller_manager/list_controllers",
                      ListControllers.Request()).controller
+    # a goal for a controller that is not running is rejected, as upstream's is (it was
+    # accepted and never answered)
+    sim.send_goal(FollowJointTrajectory, JTC, goal([(1.0, [0.0] * 6)]), accepted=False)
     assert sim.step(50).result == OK
     stop = sim.set_state(SimulationState.STATE_STOPPED)
     if checks:
@@ -290,6 +293,25 @@ def test_a_moveit_users_client_drives_the_arm_reproducibly(tmp_path, ros_node,
                              {"duration": f"{(stopped_at - 1) * 10}ms"})
     inputs = recorded_inputs(run_dir, scenario)
     assert run_in_process(scenario, external=lambda k: inputs.get(k, {})).digest == digest
+
+
+def test_a_goal_open_when_the_run_ends_gets_its_result(tmp_path, ros_node,
+                                                      trajectory_scenario):
+    """A MoveIt user's goal still executing when the run ends (here at its duration) is
+    answered, ABORTED with the reason, before the run's servers go: the client waited past
+    the run for a result that never came."""
+    sim = SimClient(ros_node)
+    with orchestrate(trajectory_scenario, tmp_path / "out", "--paused", "--duration",
+                     "500ms") as proc:
+        slow = sim.send_goal(FollowJointTrajectory, JTC, goal([(4.0, [-0.8] * 6)]))
+        assert sim.set_state(SimulationState.STATE_PLAYING).result == OK
+        sim.spin_until(lambda: slow.result.done(), timeout=120)
+        assert slow.result.done(), "no result for the goal open when the run ended"
+        outcome = slow.result.result()
+        proc.communicate(timeout=60)
+    sim.close()
+    assert outcome.status == ABORTED
+    assert "the run ended" in outcome.result.error_string, outcome.result.error_string
 
 
 def recorded_inputs(run_dir, scenario) -> dict[int, dict]:

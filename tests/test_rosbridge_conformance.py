@@ -175,12 +175,18 @@ def test_cases_on_a_lockstep_run(tmp_path, ros_node):
     port = free_port()
     received: list = []
     node, _ = ros_node
-    node.create_subscription(String, "/a_topic", received.append,
-                             QoSProfile(depth=NUM_MSGS, reliability=ReliabilityPolicy.RELIABLE))
+    listener = node.create_subscription(
+        String, "/a_topic", received.append,
+        QoSProfile(depth=NUM_MSGS, reliability=ReliabilityPolicy.RELIABLE))
     run = orchestrate(SCENARIO, tmp_path, "--paused", "--rosbridge", f"127.0.0.1:{port}")
     try:
         wait_listening(port, run)
         assert sim.state() == SimulationState.STATE_PAUSED  # the services are up
+        # the run's /a_topic publisher and this subscriber find each other before anything is
+        # published (a volatile subscriber gets nothing sent before that: on a loaded machine
+        # discovery outlasted the case's warm-up)
+        sim.spin_until(lambda: listener.get_publisher_count() > 0)
+        sim.spin(0.5)
 
         def tick(n: int) -> None:
             assert sim.step(n).result == Result.RESULT_OK

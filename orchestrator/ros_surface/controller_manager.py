@@ -40,7 +40,11 @@ RESULT_TEXT = {0: "", -1: "invalid goal", -2: "invalid joints", -3: "old header 
 class ControllerManagerServer:
     """list/switch controllers and the trajectory controllers' actions of one node."""
 
-    def __init__(self, node, group, control: RunControl, arrivals: Arrivals, plan):
+    def __init__(self, node, group, control: RunControl, arrivals: Arrivals, plan,
+                 answering=lambda handler: handler):
+        """``answering`` wraps the handlers that wait on the run (switch_controller, a goal's
+        execution) so that the end of the run waits for their answers before the servers go
+        (``SimServices.close``): a goal open when the run ends gets its result."""
         self.control = control
         self.arrivals = arrivals
         self.manager = plan.name
@@ -60,8 +64,8 @@ class ControllerManagerServer:
                             callback_group=group)
         node.create_service(ListControllerTypes, PREFIX + "list_controller_types", self._types,
                             callback_group=group)
-        node.create_service(SwitchController, PREFIX + "switch_controller", self._switch,
-                            callback_group=group)
+        node.create_service(SwitchController, PREFIX + "switch_controller",
+                            answering(self._switch), callback_group=group)
         self.actions = []
         self._active_handles: dict[str, object] = {}  # controller -> its executing goal
         for spec in self.file.controllers:
@@ -71,7 +75,7 @@ class ControllerManagerServer:
                     self._feedback(spec.name), QoSProfile(depth=10), callback_group=group)
                 self.actions.append(ActionServer(
                     node, FollowJointTrajectory, f"/{spec.name}/follow_joint_trajectory",
-                    self._executor(spec.name), callback_group=group,
+                    answering(self._executor(spec.name)), callback_group=group,
                     goal_callback=self._goal_callback(spec.name),
                     cancel_callback=self._cancel_callback(spec.name)))
         control.observers.append(self._observe)
@@ -149,6 +153,11 @@ class ControllerManagerServer:
     def _goal_callback(self, name: str):
         def on_goal(request) -> GoalResponse:
             with self._cond:
+                if not self.active[name]:  # as upstream: nothing would ever answer it
+                    log.warning("FollowJointTrajectory: goal for %s rejected at %s: the "
+                                "controller is not running (activate it with "
+                                "/controller_manager/switch_controller)", name, self.control.at())
+                    return GoalResponse.REJECT
                 self._sent += 1
                 replaced = self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"],
                                              _goal(request, f"{GOAL_ID}{self._sent}"))
@@ -262,12 +271,13 @@ def _finish(handle, how: str, code: int, text: str) -> FollowJointTrajectory.Res
 
 
 def controller_managers(node, group, scenario: Scenario, control: RunControl,
-                        arrivals: Arrivals | None) -> list[ControllerManagerServer]:
+                        arrivals: Arrivals | None, answering
+                        ) -> list[ControllerManagerServer]:
     """A server for every ros2_control node of the scenario, when the run's arrivals are
-    live (an interactive run)."""
+    live (an interactive run); ``answering``: see ``ControllerManagerServer``."""
     if arrivals is None:
         return []
-    return [ControllerManagerServer(node, group, control, arrivals, plan)
+    return [ControllerManagerServer(node, group, control, arrivals, plan, answering)
             for plan in scenario.nodes.values() if plan.class_ref == KINDS["ros2_control"]
             and any(inp.topic == SWITCH_TOPIC and inp.producer == EXTERNAL_NAME
                     for inp in plan.inputs)]

@@ -155,7 +155,7 @@ class SimServices:
         from orchestrator.ros_surface.controller_manager import controller_managers
 
         self.controller_managers = controller_managers(self.node, group, scenario,
-                                                       self.control, arrivals)
+                                                       self.control, arrivals, self._answering)
         # the same callbacks, for goals from the live endpoints (rosbridge's send_action_goal)
         self.local_actions = {self.prefix + "simulate_steps": LocalAction(
             SimulateSteps, None, self._simulate_steps)}
