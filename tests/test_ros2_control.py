@@ -308,10 +308,11 @@ def test_a_goal_open_when_the_run_ends_gets_its_result(tmp_path, ros_node,
         sim.spin_until(lambda: slow.result.done(), timeout=120)
         assert slow.result.done(), "no result for the goal open when the run ended"
         outcome = slow.result.result()
-        proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=60)
     sim.close()
     assert outcome.status == ABORTED
     assert "the run ended" in outcome.result.error_string, outcome.result.error_string
+    assert "never retrieved" not in err and "Traceback" not in err, err[-3000:]
 
 
 def recorded_inputs(run_dir, scenario) -> dict[int, dict]:
