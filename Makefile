@@ -31,11 +31,12 @@ $(JS_STAMP): $(JS)/package.json $(JS)/package-lock.json
 run: install
 	$(BIN)/cosim-orchestrate scenarios/nav.yaml
 
-# Test files run side by side, one pytest-xdist worker per core (TEST_WORKERS=0: one at a time,
-# in pytest's own process): most of a test waits on processes starting and discovering each
-# other. Then the tests marked `alone` (realtime, on wall time), one at a time. Every test's
-# time is kept in build/test-times*.xml (tools/slowest_tests.py reads them).
-TEST_WORKERS ?= auto
+# Test files run side by side, one pytest-xdist worker per core up to 4 (TEST_WORKERS=0: one at
+# a time, in pytest's own process): most of a test waits on processes starting and discovering
+# each other; more workers would mostly add DDS discovery traffic and load (some tests load
+# every core on purpose). Then the tests marked `alone` (realtime, on wall time), one at a time.
+# Every test's time is kept in build/test-times*.xml (tools/slowest_tests.py reads them).
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ "$$n" -gt 4 ] && n=4; echo $$n)
 test: install
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not alone" \
