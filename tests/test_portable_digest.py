@@ -6,13 +6,11 @@ where they take effect: at the start of the interpreters that load numpy and Ope
 
 OpenBLAS runs a forced kernel whether or not the CPU has its instructions (an AVX-512 kernel on
 a CPU without AVX-512 dies with SIGILL), so only the kernels this CPU can run are compared: read
-from the CPU's feature flags, at least two on any x86-64 (Prescott needs only SSE3)."""
+from numpy's own CPU detection (CPUID and the OS's support for the registers, as OpenBLAS checks
+them), at least two on any x86-64 (Prescott needs only SSE3)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import pytest
 import yaml
 
 from tests.helpers import nav_without_camera_doc, orchestrate
@@ -21,39 +19,39 @@ from tests.helpers import nav_without_camera_doc, orchestrate
 # with a warning on a machine without them, so this works on any x86-64.
 NPY_BASELINE_ONLY = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
 
-# OpenBLAS's x86-64 core types, newest first, with the CPU flags (/proc/cpuinfo) each kernel's
-# instructions need (OpenBLAS's own cpuid checks: driver/others/dynamic.c).
+# OpenBLAS's x86-64 core types, newest first, with the CPU features (numpy's names) each
+# kernel's instructions need (OpenBLAS's own checks: driver/others/dynamic.c).
 OPENBLAS_KERNELS = (
-    ("SkylakeX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})),
-    ("Haswell", frozenset({"avx2", "fma"})),
-    ("Sandybridge", frozenset({"avx"})),
-    # SSE3 ("pni" in /proc/cpuinfo); numpy's OpenBLAS runs its generic SSE kernel (Katmai) for it
-    ("Prescott", frozenset({"pni"})),
+    ("SkylakeX", frozenset({"AVX512F", "AVX512CD", "AVX512BW", "AVX512DQ", "AVX512VL"})),
+    ("Haswell", frozenset({"AVX2", "FMA3"})),
+    ("Sandybridge", frozenset({"AVX"})),
+    # SSE3; numpy's OpenBLAS runs its generic SSE kernel (Katmai) for it
+    ("Prescott", frozenset({"SSE3"})),
 )
 
 
-def cpu_flags(cpuinfo: str) -> frozenset[str]:
-    """The feature flags of the first CPU in a /proc/cpuinfo text."""
-    for line in cpuinfo.splitlines():
-        key, _, value = line.partition(":")
-        if key.strip() == "flags":
-            return frozenset(value.split())
-    return frozenset()
+def cpu_features() -> frozenset[str]:
+    """The features this CPU has and the OS enables, as numpy detected them at import."""
+    from numpy._core._multiarray_umath import __cpu_features__
+
+    return frozenset(name for name, present in __cpu_features__.items() if present)
 
 
-def runnable_kernels(flags: frozenset[str]) -> list[str]:
-    """The OpenBLAS core types whose instructions a CPU with these flags has, newest first."""
-    return [name for name, needs in OPENBLAS_KERNELS if needs <= flags]
+def runnable_kernels(features: frozenset[str]) -> list[str]:
+    """The OpenBLAS core types whose instructions a CPU with these features has, newest
+    first."""
+    return [name for name, needs in OPENBLAS_KERNELS if needs <= features]
 
 
 def test_runnable_kernels_leave_out_what_the_cpu_lacks():
     """An AVX2 machine without AVX-512 (an AMD Zen 2/3 laptop, an older Intel server) gets no
     SkylakeX; an AVX-512 machine gets all four; a plain SSE3 machine gets Prescott."""
-    zen3 = cpu_flags("processor\t: 0\nflags\t\t: fpu sse2 pni ssse3 fma avx avx2 bmi2\n")
+    zen3 = frozenset({"SSE", "SSE2", "SSE3", "SSSE3", "AVX", "F16C", "FMA3", "AVX2"})
     assert runnable_kernels(zen3) == ["Haswell", "Sandybridge", "Prescott"]
-    skx = zen3 | {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}
+    skx = zen3 | {"AVX512F", "AVX512CD", "AVX512BW", "AVX512DQ", "AVX512VL", "AVX512_SKX"}
     assert runnable_kernels(skx) == ["SkylakeX", "Haswell", "Sandybridge", "Prescott"]
-    assert runnable_kernels(frozenset({"sse2", "pni"})) == ["Prescott"]
+    assert runnable_kernels(frozenset({"SSE2", "SSE3"})) == ["Prescott"]
+    assert "SSE3" in cpu_features()  # every x86-64 numpy runs on has it
 
 
 def nav_without_camera(tmp_path, duration: str = "1s"):
@@ -65,10 +63,7 @@ def nav_without_camera(tmp_path, duration: str = "1s"):
 
 
 def test_one_digest_whatever_blas_kernels_and_numpy_cpu_features(tmp_path):
-    cpuinfo = Path("/proc/cpuinfo")
-    if not cpuinfo.is_file():
-        pytest.fail("this test reads the CPU's features from /proc/cpuinfo (Linux x86-64)")
-    kernels = runnable_kernels(cpu_flags(cpuinfo.read_text()))
+    kernels = runnable_kernels(cpu_features())
     assert len(kernels) >= 2, f"an x86-64 CPU runs at least two OpenBLAS kernels, got {kernels}"
     newest, oldest = kernels[0], kernels[-1]
     scenario = nav_without_camera(tmp_path)

@@ -226,6 +226,27 @@ class ZenohPublisher(Publisher):
         return count
 
 
+def _once_each(deliver):
+    """``deliver`` for an advanced subscriber, without a second copy of a cached sample: its
+    history query at declaration and its detection of the publisher a moment later can both
+    answer with the same sample (seen on a loaded machine). Samples of one publisher (its
+    zenoh entity id) come in order of its sequence numbers, so one already passed is a copy;
+    a publisher started again is another entity and starts afresh."""
+    last: dict[str, int] = {}  # publisher entity -> the last sequence number delivered
+    lock = threading.Lock()
+
+    def once(sample: zenoh.Sample) -> None:
+        info = sample.source_info
+        if info is not None and info.source_id is not None:
+            source = str(info.source_id)
+            with lock:
+                if source in last and info.source_sn <= last[source]:
+                    return
+                last[source] = info.source_sn
+        deliver(sample)
+    return once
+
+
 class ZenohSubscription(Subscription):
     """A zenoh subscriber delivering into its participant's queue."""
 
@@ -244,13 +265,15 @@ class ZenohSubscription(Subscription):
                          number(attachment.to_bytes(), "little")
                          if attachment is not None else None))
 
-        key, handler = topic_key(topic, msg_type), zenoh.handlers.Callback(deliver, indirect=False)
+        key = topic_key(topic, msg_type)
         if latched:  # also asks latched (advanced) publishers for what they cached
+            handler = zenoh.handlers.Callback(_once_each(deliver), indirect=False)
             self._sub = zenoh.ext.declare_advanced_subscriber(
                 transport.session, key, handler,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
         else:
-            self._sub = transport.session.declare_subscriber(key, handler)
+            self._sub = transport.session.declare_subscriber(
+                key, zenoh.handlers.Callback(deliver, indirect=False))
         self._token = transport.session.liveliness().declare_token(
             liveliness_key("sub", topic, transport.participant))
 
