@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import threading
 import time
@@ -93,9 +94,14 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
     log = open(tmp_path / "standin.log", "w")  # noqa: SIM115 - closed below
     robot = standin(port, log)
     driver = Driver(ros_node)
+    # The twin reaches the robot over rosbridge only: on a domain of its own, its mirrored
+    # /odom (stamped from zero, as the stand-in's) never mixes with the robot's in what the
+    # rclpy user keeps (it did, and the user's queue then dropped the robot's at load)
+    own_domain = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}
     twin = subprocess.Popen([*ORCHESTRATE, str(TWIN), "--twin", f"ws://127.0.0.1:{port}",
                              "--duration", "20s", "--quiet", "--out", str(tmp_path / "twin")],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=own_domain)
     try:
         said = Lines(twin)
         said.wait_for("twin: connected to the robot", twin)
