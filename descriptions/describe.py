@@ -109,8 +109,10 @@ def account(loaded: LoadedUrdf, options: UrdfOptions) -> str:
         info = urdf.links[link]
         mass = "no inertial" if info.mass is None else f"{info.mass:g} kg"
         how = "" if joint is None else f"  <- {joint.kind} joint {joint.name}"
-        lines.append(f"  {'  ' * depth}{link}  [{mass}, {len(info.collisions)} collision, "
-                     f"{len(info.visuals)} visual]{how}")
+        what = (f"{mass}, {len(info.collisions)} collision, {len(info.visuals)} visual"
+                if link != "world" or joint else "the world where the robot is placed: a "
+                "site, not a body")
+        lines.append(f"  {'  ' * depth}{link}  [{what}]{how}")
         for child in urdf.children(link):
             tree(child.child, depth + 1)
 

@@ -112,6 +112,7 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
                                "the robot to the world, so it cannot be a mobile robot",
                                link="world", fix="drop the world link and its joint, or use "
                                "base: fixed")
+    base_link = _base_link(urdf, description)
     converted = convert(urdf, expanded.urdf, description, resolver, path.parent, free)
     notes = [f"xacro: {w}" for w in expanded.warnings] + converted.notes
     spec = converted.spec
@@ -131,18 +132,34 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
     mujoco.mj_kinematics(model, data)
     drive = None if wheels is None else _drive(model, data, wheels, options, description, notes)
     collision = [g for g in range(model.ngeom) if model.geom_group[g] == COLLISION_GROUP]
-    root_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, urdf.root)
+    root_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base_link)
     robot = RobotModel(
-        name="", prefix="", base_link=urdf.root, mobile=free,
+        name="", prefix="", base_link=base_link, mobile=free,
         footprint_radius=round(geo.footprint_radius(model, data, root_id, collision), 6),
         drive=drive, actuated=tuple(actuated), sensors=tuple(sensors),
-        links=tuple(Link(name, name, None if name == "world" else name)
-                    for name in urdf.links),
+        # the link 'world' is no body: MuJoCo's world body holds the robot, and the link's
+        # frame is a site where the robot is placed (urdf_to_mjcf.WORLD_SITE)
+        links=tuple(Link(name, name, name) for name in urdf.links),
         joints=tuple(Joint(j.name, j.kind, j.parent, j.child,
                            JointLimits(j.lower, j.upper, j.effort, j.velocity))
                      for j in urdf.joints.values()),
         source=description, notes=tuple(notes))
     return LoadedUrdf(expanded.urdf, spec, urdf, robot, notes)
+
+
+def _base_link(urdf: Urdf, description: str) -> str:
+    """The robot's base link: its root link, or, where the root is the link ``world`` (how
+    UR, Franka and most arm descriptions fix the arm where it stands), the link the world
+    holds. DescriptionError when the world holds nothing or more than one link."""
+    if urdf.root != "world":
+        return urdf.root
+    held = urdf.children("world")
+    if len(held) != 1:
+        raise DescriptionError(
+            description, f"the root link 'world' holds {len(held)} links "
+            f"({', '.join(j.child for j in held) or 'none'}): cosim places one robot base",
+            link="world", fix="one joint from 'world' to the robot's base link")
+    return held[0].child
 
 
 def guess_wheels(urdf: Urdf) -> tuple[str, str] | None:

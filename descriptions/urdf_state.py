@@ -16,6 +16,7 @@ from descriptions.robot_model import RobotModel
 
 BODY = mujoco.mjtObj.mjOBJ_BODY
 JOINT = mujoco.mjtObj.mjOBJ_JOINT
+SITE = mujoco.mjtObj.mjOBJ_SITE
 
 
 @dataclass(frozen=True)
@@ -38,11 +39,30 @@ class JointStates:
     effort: tuple[float, ...]
 
 
-def _relative(data: mujoco.MjData, parent: int, child: int) -> tuple[tuple, tuple]:
-    rp = data.xmat[parent].reshape(3, 3)
-    pos = rp.T @ (data.xpos[child] - data.xpos[parent])
+def _frame(model: mujoco.MjModel, link) -> tuple[bool, int] | None:
+    """Where a link's frame is read: (True, site id) for a link whose site is on the world
+    body (the link ``world`` of a fixed arm: a site where the robot is placed), else (False,
+    body id); None when the world has neither."""
+    sid = -1 if link.site is None else mujoco.mj_name2id(model, SITE, link.site)
+    if sid >= 0 and int(model.site_bodyid[sid]) == 0:
+        return True, sid
+    bid = mujoco.mj_name2id(model, BODY, link.body)
+    return (False, bid) if bid >= 0 else None
+
+
+def _pose(data: mujoco.MjData, frame: tuple[bool, int]) -> tuple[np.ndarray, np.ndarray]:
+    site, i = frame
+    if site:
+        return data.site_xpos[i], data.site_xmat[i].reshape(3, 3)
+    return data.xpos[i], data.xmat[i].reshape(3, 3)
+
+
+def _relative(data: mujoco.MjData, parent: tuple[bool, int], child: tuple[bool, int]
+              ) -> tuple[tuple, tuple]:
+    (pp, rp), (pc, rc) = _pose(data, parent), _pose(data, child)
+    pos = rp.T @ (pc - pp)
     quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, (rp.T @ data.xmat[child].reshape(3, 3)).ravel())
+    mujoco.mju_mat2Quat(quat, (rp.T @ rc).ravel())
     if quat[0] < 0:
         quat = -quat
     return tuple(float(v) for v in pos), tuple(float(v) for v in quat)
@@ -53,14 +73,12 @@ class UrdfFrames:
     compiled world: ids looked up once, values read per state."""
 
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, odom_frame: str = "odom"):
-        # a URDF link named 'world' is MuJoCo's world body (the robot is fixed to it)
-        body = {k.name: 0 if k.name == robot.prefix + "world" else
-                mujoco.mj_name2id(model, BODY, k.body) for k in robot.links}
-        missing = [name for name, bid in body.items() if bid < 0]
+        body = {k.name: _frame(model, k) for k in robot.links}
+        missing = [name for name, bid in body.items() if bid is None]
         if missing:
             raise KeyError(f"links without a body in the world: {missing}")
         self.robot, self.odom_frame = robot, odom_frame
-        self.root = body[robot.base_link]
+        self.root = body[robot.base_link][1]
         pairs = [(j, body[j.parent], body[j.child]) for j in robot.joints]
         self._fixed = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind == "fixed"]
         self._moving = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind != "fixed"]

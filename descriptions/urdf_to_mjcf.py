@@ -17,7 +17,10 @@ geom group 3 and visuals to group 4 (so cosim's lidar and cameras, which see gro
 not see the robot itself, as with cosim's own robot), Gazebo ``<mu1>`` becomes the geom's
 sliding friction, every link gets a site of its own name at its frame (sensor and footprint
 frames never vanish), a mobile robot's root link a free joint, and every two links a joint
-connects a contact exclusion (adjacent links never collide; other pairs do).
+connects a contact exclusion (adjacent links never collide; other pairs do). A root link
+named ``world`` (UR and Franka descriptions) is MuJoCo's world body, not a body of the robot:
+the link it holds is fixed where the robot is placed, and its frame is a site ``world``
+there.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ COLLISION_GROUP = 3
 VISUAL_GROUP = 4
 SITE_GROUP = 5
 MIN_MASS = 1e-6
+WORLD_SITE = "world"  # the frame of a root link named 'world' (a fixed arm's placement)
 COMPILER = {"fusestatic": "false", "discardvisual": "false", "inertiafromgeom": "false",
             "strippath": "false", "angle": "radian"}
 
@@ -176,6 +180,12 @@ def convert(urdf: Urdf, text: str, description: str, resolver: PackageResolver,
             continue
         _name_geoms(body, urdf.friction.get(body.name))
         site = body.add_site(name=body.name, size=[0.01, 0.01, 0.01], group=SITE_GROUP)
+        site.rgba = [1, 0.5, 0, 1]
+    if urdf.root == "world":
+        # the URDF's world frame is where the robot stands: a site on the world body that
+        # moves with the robot's placement (MuJoCo's compiler made the link the world body)
+        site = spec.worldbody.add_site(name=WORLD_SITE, size=[0.01, 0.01, 0.01],
+                                       group=SITE_GROUP)
         site.rgba = [1, 0.5, 0, 1]
     if free_base:
         spec.body(urdf.root).add_freejoint(name=f"{urdf.root}_free")

@@ -343,7 +343,7 @@ def test_a_world_root_link_is_the_world(tmp_path):
                       '<parent link="world"/><child link="base"/><origin xyz="0 0 0.5"/>'
                       f'</joint><link name="base">{INERTIAL}</link>')
     loaded = load_urdf(path)
-    assert not loaded.model.mobile and loaded.model.links[0].site is None
+    assert not loaded.model.mobile and loaded.model.base_link == "base"
     model = loaded.spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
