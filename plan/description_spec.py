@@ -10,6 +10,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 URDF_SUFFIXES = (".urdf", ".xacro")
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
 class Strict(BaseModel):
@@ -21,6 +22,12 @@ class Strict(BaseModel):
 def is_urdf_description(path: str) -> bool:
     """True for a URDF or xacro description (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
     return path.lower().endswith(URDF_SUFFIXES)
+
+
+def is_usd_description(path: str) -> bool:
+    """True for a robot described in OpenUSD (``.usd``, ``.usda``, ``.usdc``) when it is a
+    ``robots.description`` (UsdPhysics bodies, joints and drives: descriptions/usd_robot.py)."""
+    return path.lower().endswith(USD_SUFFIXES)
 
 
 class GainsSpec(Strict):
@@ -55,3 +62,27 @@ class UrdfSpec(Strict):
         "description's <ros2_control> block does not command")
     gains: dict[str, GainsSpec] = Field(default_factory=dict, description="joint name, or "
                                         "wheel / position / velocity / effort -> {kp, kv}")
+
+
+class UsdSpec(Strict):
+    """A robot described in OpenUSD (UsdPhysics bodies, joints, drives): how cosim reads it
+    (docs/tutorials/usd-robot.md). Names are the prims' names, not their paths."""
+
+    base: Literal["auto", "free", "fixed"] = Field("auto", description="free: a mobile robot; "
+                                                   "fixed: fixed to the world; auto: fixed when "
+                                                   "a joint holds the robot to the world (Isaac's "
+                                                   "root_joint), else free")
+    wheels: tuple[str, str] | None = Field(None, description="[left, right] drive wheel joints")
+    wheel_radius: float | None = Field(None, gt=0, description="m; default: from the wheels' "
+                                       "collision geometry")
+    wheel_separation: float | None = Field(None, gt=0, description="m; default: from the "
+                                           "wheels' positions")
+    sensors: dict[Literal["lidar", "camera", "imu"], str] = Field(
+        default_factory=dict, description="sensor kind -> the link or frame prim (by name) it "
+        "hangs on, e.g. {lidar: base_scan}; UsdGeom.Camera prims add cameras")
+    interfaces: dict[str, Literal["position", "velocity", "effort"]] = Field(
+        default_factory=dict, description="joint -> command interface, for joints without a "
+        "PhysicsDriveAPI (urdf-usd-converter's layout) or to override a drive's")
+    gains: dict[str, GainsSpec] = Field(default_factory=dict, description="joint name, or "
+                                        "wheel / position / velocity / effort -> {kp, kv}; "
+                                        "over the drive's stiffness and damping")

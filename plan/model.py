@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
-from plan.description_spec import UrdfSpec
+from plan.description_spec import UrdfSpec, UsdSpec
 from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
@@ -136,7 +136,7 @@ class RobotsSpec(Strict):
     start mirrored through the region's centre), or ``named`` robots, each with its start
     and goal."""
 
-    description: str | None = Field(None, description="the MJCF, URDF or xacro of one robot "
+    description: str | None = Field(None, description="the MJCF, URDF, xacro or USD of one robot "
                                     "(like worlds/robot.xml), relative to this file; its names get "
                                     "the prefix ROBOT/; default: the one a USD stage's robot "
                                     "prims name (cosim:robot:mjcf)")
@@ -144,6 +144,9 @@ class RobotsSpec(Strict):
     urdf: UrdfSpec | None = Field(None, description="how a URDF or xacro description is read "
                                   "(xacro args, packages, wheels, sensors, ...; "
                                   "docs/tutorials/own-robot.md)")
+    usd: UsdSpec | None = Field(None, description="how a USD robot description (.usd, .usda, "
+                                ".usdc with UsdPhysics bodies and joints) is read (base, "
+                                "wheels, sensors, interfaces, gains; docs/tutorials/usd-robot.md)")
     count: int | None = Field(None, ge=1, le=1024, description="this many robots, placed by "
                               "the scenario seed in region (instead of named)")
     name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")
