@@ -7,8 +7,11 @@ masses the URDF gives (none invented from geometry). Before it reads the documen
 
 - every mesh URI (``package://``, ``file://``, relative) becomes an absolute path, and a
   missing package or file is a DescriptionError naming the link and the path tried;
-- a COLLADA (``.dae``) visual, which MuJoCo cannot read, is replaced by the link's collision
-  geometry (a note says so); a collision mesh MuJoCo cannot read is an error;
+- an ASCII STL or COLLADA (``.dae``) mesh, which MuJoCo cannot read, is converted to binary
+  STL (descriptions/mesh_convert.py; a COLLADA visual keeps its colours, one geom per
+  colour); a visual that does not convert, or in another format MuJoCo cannot read, is
+  replaced by the link's collision geometry (a note says so), such a collision mesh is an
+  error;
 - a moving link (the child of a non-fixed joint, or the root of a mobile robot) whose
   welded mass is zero is an error naming the link and the fix.
 
@@ -25,6 +28,7 @@ there.
 
 from __future__ import annotations
 
+import copy
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +36,7 @@ from pathlib import Path
 import mujoco
 
 from descriptions.description_error import DescriptionError
+from descriptions.mesh_convert import MeshError, MeshPart, mujoco_meshes
 from descriptions.packages import PackageNotFound, PackageResolver
 from descriptions.urdf_parse import Urdf
 
@@ -120,6 +125,24 @@ def resolve_meshes(root: ET.Element, description: str, resolver: PackageResolver
                     raise DescriptionError(description, f"{role} mesh {uri!r} does not exist",
                                            link=name, path=str(path),
                                            fix="correct the filename or add the file")
+                try:
+                    parts = mujoco_meshes(path, whole=role == "collision")
+                except MeshError as exc:
+                    if role == "collision":
+                        raise DescriptionError(description, f"{role} mesh {uri!r}: {exc}",
+                                               link=name, path=str(path),
+                                               fix="re-export it as binary STL or OBJ") from None
+                    link.remove(el)
+                    replaced.append(f"{uri} ({exc})")
+                    continue
+                if parts is not None:
+                    _use_parts(link, el, parts)
+                    meshes[uri] = parts[0].path
+                    kind = "COLLADA" if path.suffix.lower() == ".dae" else "ASCII STL"
+                    split = f" ({len(parts)} parts, one per colour)" if len(parts) > 1 else ""
+                    notes.append(f"link {name!r}: {role} mesh {uri!r} ({kind}) converted to "
+                                 f"binary STL{split}")
+                    continue
                 if path.suffix.lower() not in MESH_FORMATS:
                     if role == "collision":
                         raise DescriptionError(
@@ -127,7 +150,7 @@ def resolve_meshes(root: ET.Element, description: str, resolver: PackageResolver
                             "which MuJoCo cannot read", link=name, path=str(path),
                             fix="convert it to STL or OBJ (e.g. with meshlab or trimesh)")
                     link.remove(el)
-                    replaced.append(uri)
+                    replaced.append(f"{uri} (MuJoCo cannot read {path.suffix} files)")
                     continue
                 mesh.set("filename", str(path))
                 meshes[uri] = str(path)
@@ -137,9 +160,25 @@ def resolve_meshes(root: ET.Element, description: str, resolver: PackageResolver
                 for child in col:
                     visual.append(child)
             drawn = "its collision geometry" if link.findall("collision") else "nothing"
-            notes.append(f"link {name!r}: visual mesh {', '.join(replaced)} is not STL or OBJ "
-                         f"(MuJoCo cannot read it): drawn with {drawn} instead")
+            notes.append(f"link {name!r}: visual mesh {', '.join(replaced)} not drawn: "
+                         f"drawn with {drawn} instead")
     return notes, meshes
+
+
+def _use_parts(link: ET.Element, el: ET.Element, parts: list[MeshPart]) -> None:
+    """Point ``el`` (a visual or collision) at the converted mesh; a visual of several
+    coloured parts becomes one visual per part, each with its part's colour."""
+    position = list(link).index(el)
+    for i, part in enumerate(parts):
+        target = el if i == 0 else copy.deepcopy(el)
+        _mesh_of(target).set("filename", part.path)
+        if part.rgba is not None and el.tag == "visual":
+            for old in target.findall("material"):
+                target.remove(old)
+            material = ET.SubElement(target, "material")
+            ET.SubElement(material, "color", rgba=" ".join(f"{c:g}" for c in part.rgba))
+        if i:
+            link.insert(position + i, target)
 
 
 def _compiler(root: ET.Element) -> list[str]:

@@ -83,3 +83,99 @@ def test_a_world_rooted_arm_runs_with_one_digest_and_its_own_frames(tmp_path):
     moving = {(t.header.frame_id, t.child_frame_id)
               for t in bag_messages(inproc.run_dir, "/tf")[-1].transforms}
     assert ("ur/base_link", "ur/shoulder_link") in moving
+
+
+# -- ASCII STL and COLLADA meshes ------------------------------------------------------
+
+MESHBOT = ROBOTS / "meshbot_description" / "urdf" / "meshbot.urdf"
+MESHBOT_PACKAGES = {"meshbot_description": str(ROBOTS / "meshbot_description")}
+MESHBOT_RUN = ROOT / "tests" / "scenarios" / "meshbot.yaml"
+
+
+def _extent(model, data, geom: int):
+    from descriptions.urdf_geometry import geom_points
+
+    pts = geom_points(model, data, geom)
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def test_ascii_stl_and_collada_meshes_load_as_rviz_draws_them(tmp_path, monkeypatch):
+    from descriptions import mesh_convert
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    mesh_convert._converted.cache_clear()
+    loaded = load_urdf(MESHBOT, UrdfOptions(packages=MESHBOT_PACKAGES, env={}))
+    assert sum("converted to binary STL" in n for n in loaded.notes) == 4
+    model = loaded.spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    geoms = {model.geom(g).name: g for g in range(model.ngeom)}
+    assert set(geoms) == {"base_link_visual_0", "base_link_collision_0", "turret_link_visual_0",
+                          "turret_link_visual_1", "turret_link_collision_0"}
+    assert all(model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH for g in geoms.values())
+    # the ASCII STL box, 0.2 x 0.2 x 0.1 m about base_link
+    lo, hi = _extent(model, data, geoms["base_link_collision_0"])
+    assert lo == pytest.approx([-0.1, -0.1, -0.05]) and hi == pytest.approx([0.1, 0.1, 0.05])
+    # the COLLADA turret in millimetres, on the joint 0.05 m up: a red body 60 x 60 x 120 mm
+    # and a blue 20 mm cap on it, each part its own visual with its own colour
+    red, blue = geoms["turret_link_visual_0"], geoms["turret_link_visual_1"]
+    # (trimesh keeps a material's colour in bytes: within 1/255)
+    assert model.geom_rgba[red] == pytest.approx([0.8, 0.1, 0.1, 1.0], abs=1 / 255)
+    assert model.geom_rgba[blue] == pytest.approx([0.1, 0.2, 0.9, 1.0], abs=1 / 255)
+    lo, hi = _extent(model, data, red)
+    assert lo == pytest.approx([-0.03, -0.03, 0.05]) and hi == pytest.approx([0.03, 0.03, 0.17])
+    lo, hi = _extent(model, data, blue)
+    assert lo == pytest.approx([-0.01, -0.01, 0.17]) and hi == pytest.approx([0.01, 0.01, 0.19])
+    lo, hi = _extent(model, data, geoms["turret_link_collision_0"])  # both parts, one mesh
+    assert lo == pytest.approx([-0.03, -0.03, 0.05]) and hi == pytest.approx([0.03, 0.03, 0.19])
+    # converted once: a second load (another process) reads the cache and writes nothing
+    written = {p: p.stat().st_mtime_ns for p in (tmp_path / "cosim" / "meshes").iterdir()}
+    assert len([p for p in written if p.suffix == ".stl"]) == 4
+    mesh_convert._converted.cache_clear()
+    again = load_urdf(MESHBOT, UrdfOptions(packages=MESHBOT_PACKAGES, env={}))
+    assert again.spec.to_xml() == loaded.spec.to_xml()
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cosim" / "meshes").iterdir()} == written
+
+
+def test_a_collada_file_that_does_not_read(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    (tmp_path / "m.dae").write_text("<COLLADA/>")
+    inertial = ('<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" '
+                'ixy="0" ixz="0" iyz="0"/></inertial>')
+    path = tmp_path / "r.urdf"
+    mesh = '<geometry><mesh filename="m.dae"/></geometry>'
+    path.write_text(f'<robot name="r"><link name="base">{inertial}<visual>{mesh}</visual>'
+                    '<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>'
+                    '</link></robot>')
+    loaded = load_urdf(path, UrdfOptions(env={}))  # a visual: drawn with the collision box
+    assert any("m.dae" in n and "collision geometry" in n for n in loaded.notes)
+    path.write_text(f'<robot name="r"><link name="base">{inertial}<collision>{mesh}'
+                    '</collision></link></robot>')
+    with pytest.raises(DescriptionError, match="link 'base'.*collision mesh 'm.dae'.*does not "
+                       "read.*binary STL or OBJ"):
+        load_urdf(path, UrdfOptions(env={}))
+
+
+def test_the_mesh_robot_runs_and_describe_draws_its_colours(tmp_path):
+    import subprocess
+    import sys
+
+    import numpy as np
+    from matplotlib import image
+
+    from orchestrator.api import run
+
+    result = run(MESHBOT_RUN, in_process=True, out=tmp_path)
+    assert result.success, result.error
+    assert list(result.last("/meshbot/joint_states").position) == pytest.approx([0.8], abs=0.05)
+    png = tmp_path / "meshbot.png"
+    out = subprocess.run([sys.executable, "-m", "descriptions.describe", str(MESHBOT_RUN),
+                          "--picture", str(png)], capture_output=True, text=True, timeout=120,
+                         cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert "turret.dae' (COLLADA) converted to binary STL (2 parts" in out.stdout
+    rgb = image.imread(png)[..., :3]
+    red = (rgb[..., 0] > 0.6) & (rgb[..., 1] < 0.25) & (rgb[..., 2] < 0.25)
+    blue = (rgb[..., 2] > 0.6) & (rgb[..., 0] < 0.25)
+    assert red.sum() > 500 and blue.sum() > 50, (red.sum(), blue.sum())
+    assert np.std(rgb) > 0.05

@@ -272,7 +272,8 @@ def test_collada_collision_mesh_is_an_error(tmp_path):
     (tmp_path / "m.dae").write_text("<COLLADA/>")
     path = write_urdf(tmp_path, f'<link name="base">{INERTIAL}<collision><geometry>'
                       '<mesh filename="m.dae"/></geometry></collision></link>')
-    with pytest.raises(DescriptionError, match="link 'base'.*MuJoCo cannot read.*STL or OBJ"):
+    with pytest.raises(DescriptionError, match="link 'base'.*collision mesh 'm.dae'.*does not "
+                       "read.*binary STL or OBJ"):
         load_urdf(path)
 
 
