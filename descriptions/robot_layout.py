@@ -21,7 +21,7 @@ from descriptions.worldfile import (
     stage_robots,
 )
 from plan import poses
-from plan.description_spec import is_urdf_description
+from plan.description_spec import UsdSpec, is_urdf_description, is_usd_description
 from plan.errors import ScenarioError
 from plan.model import RobotsSpec, ScenarioModel
 from plan.robot_placement import place_robots
@@ -59,12 +59,18 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
             key = f"robots.urdf.args.{exc.arg}" if exc.arg else "robots.description"
             raise scenario_error(exc, path, key) from None
         footprint, base_body = robot.footprint_radius, robot.base_link
+    elif is_usd_description(str(description)):
+        urdf, robot = _usd_robot(where, path, spec, description)
+        footprint, base_body = robot.footprint_radius, robot.base_link
     else:
         if spec.urdf is not None:
             raise where.fail("robots.urdf", "urdf: settings for a description that is not a "
                              "URDF or xacro.", "urdf: only with a .urdf, .xacro or .urdf.xacro "
                              "description.")
         footprint = _footprint(where, description, spec.base_body)
+    if spec.usd is not None and not is_usd_description(str(description)):
+        raise where.fail("robots.usd", "usd: settings for a description that is not USD.",
+                         "usd: only with a .usd, .usda or .usdc description.")
     robots = place_robots(path, spec, obstacles, footprint, model.seed, mounts)
     layout = RobotsLayout(description, base_body, tuple(robots), spec.position_tolerance,
                           spec.yaw_tolerance, spec.success_fraction, urdf)
@@ -74,6 +80,28 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
         raise where.fail("robots.description", f"the swarm world does not compile: {exc}",
                          "a description whose names do not clash with the world's.") from None
     return layout
+
+
+def _usd_robot(where: _Where, path: Path, spec: RobotsSpec, description: Path):
+    """A USD robot description read with its ``usd:`` settings: (the settings as the
+    layout carries them, the robot model); its losses said once, here."""
+    import sys
+
+    from descriptions.usd_robot import layout_usd_robot
+
+    if spec.urdf is not None:
+        raise where.fail("robots.urdf", "urdf: settings for a USD description.",
+                         "usd: (base, wheels, sensors, interfaces, gains) for a .usd, .usda "
+                         "or .usdc description.")
+    settings = (spec.usd or UsdSpec()).model_dump_json()
+    try:
+        robot = layout_usd_robot(description, settings).model
+    except DescriptionError as exc:
+        raise scenario_error(exc, path, "robots.description") from None
+    if robot.notes:
+        print(f"cosim: {description.name} read as a USD robot; not kept: "
+              + "; ".join(robot.notes), file=sys.stderr)
+    return settings, robot
 
 
 def _description(where: _Where, path: Path, spec: RobotsSpec, mounts) -> Path:
@@ -89,8 +117,8 @@ def _description(where: _Where, path: Path, spec: RobotsSpec, mounts) -> Path:
     description = (path.parent / spec.description).resolve()
     if not description.is_file():
         raise where.fail("robots.description", f"{spec.description!r} does not exist (looked "
-                         f"for {description}).", "the MJCF of one robot, relative to this "
-                         "file, e.g. worlds/robot.xml.")
+                         f"for {description}).", "the MJCF, URDF, xacro or USD of one robot, "
+                         "relative to this file, e.g. worlds/robot.xml.")
     return description
 
 

@@ -30,6 +30,11 @@ def missing_sensor(robot: RobotModel, kind: SensorKind, key: str, mjcf_name: str
             world is not None and mujoco.mj_name2id(world, _OBJECT_TYPES[what], mjcf_name) >= 0):
         return []
     source = Path(robot.source).name or "the world"
+    if robot.reader == "usd":
+        return [(key, f"the robot has no {kind}: {source} hangs none on a link or frame.",
+                 f"add robots.usd.sensors: {{{kind}: PRIM}} (the name of the link or frame "
+                 f"prim it hangs on)" + (", or a UsdGeom.Camera prim under a link."
+                                         if kind == "camera" else "."))]
     if is_urdf_description(robot.source):
         gazebo = GAZEBO_TYPES[kind]
         return [(key, f"the robot has no {kind}: {source} hangs none on a link (no Gazebo "

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from descriptions.description_error import DescriptionError
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
-from plan.description_spec import UrdfSpec
+from plan.description_spec import UrdfSpec, is_usd_description
 from plan.errors import ScenarioError
 
 
@@ -60,6 +60,11 @@ def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
 
 def layout_robot(description: Path | str, settings: str) -> LoadedUrdf:
     """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
-    ``layout_settings``'s JSON), loaded once per process."""
+    ``layout_settings``'s JSON), or USD (``robots.usd``'s JSON: descriptions.usd_robot),
+    loaded once per process."""
+    if is_usd_description(str(description)):
+        from descriptions.usd_robot import layout_usd_robot
+
+        return layout_usd_robot(description, settings)
     spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
     return load_robot(description, urdf_options(spec, Path("/")))

@@ -35,6 +35,7 @@ WORLD = "world"
 JOINT_TYPES = {"PhysicsRevoluteJoint": "revolute", "PhysicsPrismaticJoint": "prismatic",
                "PhysicsFixedJoint": "fixed"}
 GPRIMS = ("Cube", "Sphere", "Cylinder", "Capsule", "Mesh")
+GEOMETRY_GROUPS = ("visuals", "collisions")  # Isaac's importer's Xforms under a link
 UNLIMITED = 1e17  # |limit| at or above this (or inf) is no limit
 CUSTOM_TAGS = ("ros2_control", "gazebo", "transmission")
 BOTH_INERTIA = "physics:diagonalInertia and newton:inertia both given on links "
@@ -427,19 +428,25 @@ def _frames(top, links: dict[str, Link], joints: dict[str, Joint], by_path, add_
         if prim.IsA(UsdGeom.Camera) and owner is not None:
             cam = UsdGeom.Camera(prim).GetCamera(Usd.TimeCode.Default())
             name = add_link(prim, False)
-            joints.setdefault(f"{name}_joint", Joint(f"{name}_joint", path, "fixed",
-                                                     owner, name))
+            _frame_joint(joints, path, owner, name)
             links[name].camera = Camera(
                 name, path, owner, 2 * math.atan(cam.horizontalAperture / 2 / cam.focalLength),
-                tuple(cam.clippingRange))
+                (float(cam.clippingRange.min), float(cam.clippingRange.max)))
             it.PruneChildren()
             continue
-        if path in by_path or owner is None or prim.GetTypeName() != "Xform":
+        if path in by_path or owner is None or prim.GetTypeName() != "Xform" or \
+                prim.GetName() in GEOMETRY_GROUPS:
             continue
         if any(q.GetTypeName() in GPRIMS for q in Usd.PrimRange(prim)):
             continue
-        name = add_link(prim, False)
-        joints.setdefault(f"{name}_joint", Joint(f"{name}_joint", path, "fixed", owner, name))
+        _frame_joint(joints, path, owner, add_link(prim, False))
+
+
+def _frame_joint(joints: dict[str, Joint], path: str, parent: str, child: str) -> None:
+    """The fixed joint a frame hangs on, named CHILD_joint (CHILD_frame_joint if taken)."""
+    name = next(n for n in (f"{child}_joint", f"{child}_frame_joint", f"{path}_joint")
+                if n not in joints)
+    joints[name] = Joint(name, path, "fixed", parent, child)
 
 
 def _owner(prim, by_path: dict[str, str]) -> str | None:

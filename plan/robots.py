@@ -53,7 +53,7 @@ class RobotsLayout:
     yaw_tolerance: float
     success_fraction: float
     urdf: str = ""  # a URDF or xacro description's settings (plan.description_spec.UrdfSpec)
-    # as JSON, its package folders absolute; '' for an MJCF description
+    # as JSON, its package folders absolute; a USD description's (UsdSpec); '' for an MJCF one
 
     @property
     def names(self) -> list[str]:

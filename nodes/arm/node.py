@@ -21,7 +21,6 @@ from std_msgs.msg import Float64MultiArray
 from descriptions.robot_model import RobotModel
 from nodes.contract import StepNode, Tick
 from nodes.physics.world import robots_of
-from plan.description_spec import is_urdf_description
 from plan.model import DURATION_HELP, DurationNs
 from plan.topic_names import JOINT_COMMANDS, JOINT_STATES
 
@@ -160,6 +159,6 @@ def commanded_joints(robot: RobotModel) -> list[str]:
     """The joints ``robot`` commands by position, in its model's order, as its
     /joint_states names them (a URDF robot's own names, without a swarm's prefix)."""
     joints = [a.joint for a in robot.actuated if a.interface == "position"]
-    if is_urdf_description(robot.source):
+    if robot.described:
         joints = [j.removeprefix(robot.prefix) for j in joints]
     return joints

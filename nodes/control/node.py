@@ -53,7 +53,6 @@ from nodes.control import follow as f
 from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.global_planner import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id, robots_of
-from plan.description_spec import is_urdf_description
 from plan.poses import pose_of
 from plan.rot3 import mat_t_mul, mat_t_vec
 from plan.timeutil import NS_PER_S
@@ -226,7 +225,7 @@ class ControlNode(StepNode):
             "frame_id": robot.prefix + params.frame_id,
             "base_frame": robot.base_link if params.base_frame is None
             else robot.prefix + params.base_frame}
-        if is_urdf_description(robot.source) and "robot_radius" not in params.model_fields_set:
+        if robot.described and "robot_radius" not in params.model_fields_set:
             update["robot_radius"] = robot.footprint_radius  # a URDF's, from its collisions
         return params.model_copy(update=update)
 
