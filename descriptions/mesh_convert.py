@@ -48,8 +48,16 @@ class MeshPart:
 
 
 def cache_dir() -> Path:
-    """Where converted meshes are kept (created when missing)."""
+    """Where converted meshes are kept (created when missing); a folder under the system's
+    temporary folder where the cache folder cannot be written."""
     folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cosim" / "meshes"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        if os.access(folder, os.W_OK):
+            return folder
+    except OSError:
+        pass
+    folder = Path(tempfile.gettempdir()) / f"cosim-meshes-{os.getuid()}"
     folder.mkdir(parents=True, exist_ok=True)
     return folder
 

@@ -52,6 +52,11 @@ def test_a_world_rooted_arm_is_fixed_where_it_is_placed():
     assert ("ur/forearm_link", "ur/tool0") in fixed
     with pytest.raises(DescriptionError, match="root link is 'world'"):
         load_urdf(WORLDARM, UrdfOptions(env={}, base="free"))
+    from descriptions.describe import account
+
+    text = account(loaded, UrdfOptions())
+    assert "base link: base_link (fixed to the world)" in text
+    assert "world  [the world where the robot is placed: a site, not a body]" in text
 
 
 def test_a_world_holding_two_links_is_named(tmp_path):
