@@ -17,13 +17,21 @@ What Isaac's layout has no place for is left out: joint damping (``<dynamics>``)
 Gazebo sensor tags (cosim's scenario names the lidar and IMU links instead).
 
     .venv/bin/python tools/make_usd_robots.py   # writes scenarios/robots/usd/*_isaac.usda
+
+With ``--converter EXE`` (urdf-usd-converter's command, PyPI ``urdf-usd-converter==0.3.4``,
+installed apart: ``python -m venv /tmp/uuc && /tmp/uuc/bin/pip install
+urdf-usd-converter==0.3.4``) it also converts both expanded xacros with it and writes each
+result flattened into one layer, ``*_urdf_usd_converter.usda`` (urdf-usd-converter's layout).
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import struct
+import subprocess
 import sys
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -271,8 +279,29 @@ def _shape(stage, path: str, el: ET.Element, resolver: PackageResolver, link, xm
     return mesh
 
 
+def convert(exe: str, name: str, text: str, package: Path) -> None:
+    """Convert the expanded URDF with urdf-usd-converter and flatten its layers into one."""
+    from pxr import Usd
+
+    with tempfile.TemporaryDirectory() as tmp:
+        urdf = Path(tmp) / f"{name}.urdf"
+        urdf.write_text(text)
+        subprocess.run([exe, str(urdf), str(Path(tmp) / "out"), "--package",
+                        f"{name}_description={package}"], check=True, capture_output=True)
+        flat = Usd.Stage.Open(str(Path(tmp) / "out" / f"{name}.usda")).Flatten()
+        flat.documentation = (f"{name} converted by urdf-usd-converter 0.3.4 from cosim's "
+                              "xacro test robot, flattened into one layer by "
+                              "tools/make_usd_robots.py --converter (do not edit by hand).")
+        out = OUT / f"{name}_urdf_usd_converter.usda"
+        flat.Export(str(out))
+        print(f"wrote {out.relative_to(ROOT)}")
+
+
 def main() -> None:
     """Write both robots."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--converter", help="urdf-usd-converter's command: convert with it too")
+    ns = p.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     for name, fixed, drives, camera in (
             ("mybot", False, {"wheel_left_joint": (0.0, WHEEL_KV),
@@ -285,6 +314,8 @@ def main() -> None:
         out.unlink(missing_ok=True)
         write_robot(parse_urdf(text, name), text, resolver, out, fixed, drives, camera)
         print(f"wrote {out.relative_to(ROOT)}")
+        if ns.converter:
+            convert(ns.converter, name, text, package)
 
 
 if __name__ == "__main__":
