@@ -128,6 +128,12 @@ def build_parser() -> argparse.ArgumentParser:
     how.add_argument("--spread", type=int, metavar="N",
                      help="with --pack kind: each kind's nodes over at most N processes\n"
                           "(a swarm's lidars and controllers on N cores)")
+    how.add_argument("--real-time-factor", type=_real_time_factor, metavar="R",
+                     help="pace the run for people: tick k starts no earlier than its sim\n"
+                          "time / R after the first (1.0: real time, as Gazebo's default;\n"
+                          "a MoveIt or rclpy client in another shell needs it to see the run).\n"
+                          "Only the tick loop waits: the digest is the unpaced one. Default:\n"
+                          "as fast as it goes")
     how.add_argument("--profile", choices=PROFILE_MODES,
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
@@ -145,7 +151,18 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       camera_warm_up=not args.no_camera_warm_up, profile=args.profile,
                       pack=args.pack, spread=args.spread, shuffle_start=args.shuffle_start,
                       strict=args.strict,
-                      live=args.live, rosbridge=args.rosbridge, twin=args.twin)
+                      live=args.live, rosbridge=args.rosbridge, twin=args.twin,
+                      real_time_factor=args.real_time_factor)
+
+
+def _real_time_factor(text: str) -> float:
+    """--real-time-factor's value: a number above 0 (argparse's exit 2 otherwise)."""
+    from plan.options import check_real_time_factor
+
+    try:
+        return check_real_time_factor(text, "")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
 
 
 def overrides_from(args: argparse.Namespace) -> dict:

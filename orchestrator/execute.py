@@ -321,6 +321,7 @@ def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
                 outcome: RunOutcome, on_tick: OnTick | None,
                 external: Arrivals | Replay | None) -> LoopResult:
     from orchestrator.lockstep.inprocess import run_in_process
+    from orchestrator.lockstep.pace import pace_of
     from orchestrator.proxies.arrivals_record import recording
 
     with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
@@ -341,7 +342,7 @@ def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
             live_observe, live_tick = in_process_observer(endpoints, scenario)
             observe = _both(observe, live_observe)
             on_tick = _both(on_tick, live_tick) if on_tick else live_tick
-        return run_in_process(scenario, observe, on_tick, arrivals)
+        return run_in_process(scenario, observe, on_tick, arrivals, pace_of(options))
 
 
 def _both(first: Callable, second: Callable) -> Callable:

@@ -2,7 +2,8 @@
 
 Nothing here changes what a run computes (the digest is the same whatever the options);
 they choose how the work is done: pipelined or strictly in lockstep, forked or fresh
-node processes, zenoh shared memory, the camera's GL warm-up, profiling; and whether a
+node processes, zenoh shared memory, the camera's GL warm-up, profiling, a pace on the
+wall clock (``real_time_factor``, for people watching); and whether a
 scenario's warnings refuse the run (strict). The orchestrator
 hands the node-side fields to every node process on its command line (``to_json``), never
 through the environment.
@@ -11,6 +12,7 @@ through the environment.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -49,6 +51,8 @@ class RunOptions:
     live: str | None = None  # ADDR:PORT of a Foxglove WebSocket server watching the run
     rosbridge: str | None = None  # ADDR:PORT of a rosbridge v2 server (watch and drive)
     twin: str | None = None  # ws://HOST:PORT of a real robot's rosbridge (a twin: scenario)
+    real_time_factor: float | None = None  # pace: tick k starts no earlier than the first
+    # tick's wall time + its sim time / R (orchestrator.lockstep.pace); None: unpaced
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:
@@ -62,6 +66,9 @@ class RunOptions:
         if self.profile is not None and self.profile not in PROFILE_MODES:
             raise ValueError(f"profile must be one of {', '.join(PROFILE_MODES)} or None, "
                              f"not {self.profile!r}")
+        if self.real_time_factor is not None:
+            object.__setattr__(self, "real_time_factor",
+                               check_real_time_factor(self.real_time_factor))
         object.__setattr__(self, "out", Path(self.out))
         for name, default in (("live", LIVE_DEFAULT), ("rosbridge", ROSBRIDGE_DEFAULT)):
             text = getattr(self, name)
@@ -110,6 +117,20 @@ class RunOptions:
         out = asdict(self)
         out["out"] = str(self.out)
         return out
+
+
+def check_real_time_factor(value: object, name: str = "real_time_factor") -> float:
+    """``value`` as a pace (a finite number above 0: 1.0 is real time, 2.0 twice as fast);
+    a ValueError naming ``name`` otherwise."""
+    try:
+        factor = float(value) if not isinstance(value, bool) else math.nan
+    except (TypeError, ValueError):
+        factor = math.nan
+    if not (math.isfinite(factor) and factor > 0):
+        raise ValueError(f"{name} {value!r}: expected a number above 0 (1.0: real time, "
+                         "2.0: twice as fast as the wall clock); leave it out for a run as "
+                         "fast as it goes")
+    return factor
 
 
 NODE_FIELDS = ("zenoh_shm", "zenoh_express", "camera_warm_up", "profile", "pack", "spread")

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from nodes.contract import StepNode, Tick
 from nodes.live_params import ParamsInput
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
+from orchestrator.lockstep.pace import Pace
 from plan.errors import SimulationError
 from plan.roles import NodeRole
 from plan.scenario import Scenario
@@ -22,10 +23,11 @@ Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 
 def run_in_process(scenario: Scenario, observer: Observer | None = None,
                    on_tick: Callable[[int], None] | None = None,
-                   external: Callable[[int], dict] | None = None) -> LoopResult:
+                   external: Callable[[int], dict] | None = None,
+                   pace: Pace | None = None) -> LoopResult:
     """Run every node in this process in schedule order; return the digest, metrics and
     the nodes' notes. ``external(tick)`` gives what enters from outside at a tick of the
-    external node."""
+    external node. With a ``pace``, each tick waits for its time on the wall clock."""
     sched = scenario.schedule
     nodes = {name: make_node(scenario, name) for name in sched.order}
     notes: list[Note] = []
@@ -43,6 +45,8 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     stop = scenario.model.success.stop_on_goal and scenario.model.has_goal
     for k in range(sched.n_ticks):
         tick = Tick(k, sched.time_ns(k))
+        if pace is not None:
+            pace.hold(tick.time_ns)
         for name in sched.due(k):
             plan = scenario.nodes[name]
             inputs = {}

@@ -18,8 +18,10 @@ from std_msgs.msg import String
 
 from orchestrator.lockstep.acks import AckBook
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
+from orchestrator.lockstep.pace import pace_of
 from orchestrator.lockstep.participants import Participant
 from orchestrator.lockstep.supervisor import Supervisor
+from orchestrator.ros_surface.simcontrol import PLAYING
 from plan.errors import SimulationError
 from plan.options import RunOptions
 from plan.packing import ProcessLayout
@@ -113,6 +115,7 @@ class LockstepMaster:
         self.stop_on_goal = bool(scenario.model.success.stop_on_goal and scenario.model.has_goal)
         self.published, self.end = 0, None
         self.book: AckBook | None = None  # the running tick loop's (see _tick_of)
+        self.pace = pace_of(options)  # --real-time-factor: ticks held back to the wall clock
         self.control = None  # the run's RunControl, while ``run`` goes
         self._next_liveness = 0.0
         self._next_sample = 0.0
@@ -171,23 +174,36 @@ class LockstepMaster:
         book = self._new_book()
         n = self.sched.n_ticks
         requested = False  # a stop asked for through ``control``
+        cleared = -1  # the last tick ``control`` let start (a paced tick may wait after it)
         while True:
             self._decide(book)
             k = self.published
             if self.end is None and k < n and book.may_start(k, self.window):
-                if control:
+                if control and cleared != k:
+                    playing = control.state == PLAYING
                     action = control.next_action(k, self._idle(k), partial(self._drain, book))
                     if action == "reset":
                         self._drain(book)
                         self._reset_nodes()
                         book = self._new_book()
                         control.reset_done()
+                        cleared = -1
+                        if self.pace is not None:
+                            self.pace.restart()
                         continue
                     self._decide(book)  # ticks finished before a pause may have met the goal
                     if action == "stop" and self.end is None:
                         self.end, requested = k, True
                         book.close(k)
                     if self.end is not None:
+                        continue
+                    cleared = k
+                    if self.pace is not None and not (playing and control.state == PLAYING):
+                        self.pace.restart()  # paused: a step goes at once, play from here
+                if self.pace is not None:
+                    wait = self.pace.wait_s(self.sched.time_ns(k))
+                    if wait > 0:  # not yet: take reports meanwhile, no longer than that
+                        self._take_reports(book, min(int(wait * 1e9), WAIT_SLICE_NS))
                         continue
                 self._publish(book, k)
             elif self.end is not None or book.next_decided >= n:
@@ -284,9 +300,10 @@ class LockstepMaster:
         """The latest metrics each node reported."""
         return {name: dict(s.metrics) for name, s in self.stats.items()}
 
-    def _take_reports(self, book: AckBook) -> None:
-        """Wait a little for reports and file them; fail on an error, a death or a deadline."""
-        for status in self._statuses():
+    def _take_reports(self, book: AckBook, wait_ns: int = WAIT_SLICE_NS) -> None:
+        """Wait a little (at most ``wait_ns``) for reports and file them; fail on an error,
+        a death or a deadline."""
+        for status in self._statuses(wait_ns):
             if status.state == DONE:
                 now = time.monotonic()
                 for done in status.done:
@@ -317,9 +334,9 @@ class LockstepMaster:
 
     # -- shared ------------------------------------------------------------------------------
 
-    def _statuses(self) -> list[Status]:
+    def _statuses(self, wait_ns: int = WAIT_SLICE_NS) -> list[Status]:
         out = []
-        for rec in self.transport.wait(WAIT_SLICE_NS):
+        for rec in self.transport.wait(wait_ns):
             if rec.topic == STATUS_TOPIC:
                 status = decode_status(rec.data)
                 self.last_status[status.node] = status
