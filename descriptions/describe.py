@@ -5,7 +5,9 @@ frames rendered off screen. What ``check_urdf`` and ``urdf_to_graphviz`` are to 
 
     cosim-describe robot.urdf.xacro [--arg k:=v] [--package name=path] [--wheels L,R]
                    [--base auto|free|fixed] [--sensor kind=link] [--picture out.png]
+    cosim-describe robot.usda [--wheels L,R] [--base ...] [--sensor kind=link] [--picture ...]
     cosim-describe scenario.yaml [--picture out.png]   # robots.description and robots.urdf
+                                                       # (robots.usd for a USD description)
 
 Exit 0 when it loads, 2 (with the reason) when it does not.
 """
@@ -24,6 +26,7 @@ from descriptions.packages import PackageResolver  # noqa: E402
 from descriptions.urdf import LoadedUrdf, UrdfOptions, guess_wheels, load_urdf  # noqa: E402
 from descriptions.urdf_parse import parse_urdf  # noqa: E402
 from descriptions.xacro_expand import expand  # noqa: E402
+from plan.description_spec import is_usd_description  # noqa: E402
 
 
 def _pairs(values: list[str], sep: str, what: str) -> dict[str, str]:
@@ -39,8 +42,9 @@ def _pairs(values: list[str], sep: str, what: str) -> dict[str, str]:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line."""
     p = argparse.ArgumentParser(prog="cosim-describe", description=__doc__.split("\n\n")[0])
-    p.add_argument("description", type=Path, help=".urdf, .xacro or .urdf.xacro, or a "
-                   "scenario .yaml whose robots: names one (read with its robots.urdf)")
+    p.add_argument("description", type=Path, help=".urdf, .xacro or .urdf.xacro, a USD "
+                   "robot (.usd, .usda, .usdc), or a scenario .yaml whose robots: names one "
+                   "(read with its robots.urdf or robots.usd)")
     p.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE",
                    help="a xacro argument (repeatable)")
     p.add_argument("--package", action="append", default=[], metavar="NAME=PATH",
@@ -68,9 +72,15 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
     robots = (yaml.safe_load(scenario.read_text()) or {}).get("robots") or {}
     if not robots.get("description"):
         raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
+    description = (scenario.parent / robots["description"]).resolve()
+    if is_usd_description(str(description)):
+        from descriptions.usd_robot import usd_options
+        from plan.description_spec import UsdSpec
+
+        return description, usd_options(
+            UsdSpec.model_validate(robots.get("usd") or {}).model_dump())
     spec = UrdfSpec.model_validate(robots.get("urdf") or {})
-    return (scenario.parent / robots["description"]).resolve(), urdf_options(
-        spec, scenario.parent)
+    return description, urdf_options(spec, scenario.parent)
 
 
 def options_of(ns: argparse.Namespace) -> UrdfOptions:
@@ -81,6 +91,10 @@ def options_of(ns: argparse.Namespace) -> UrdfOptions:
     wheels = None
     if ns.wheels:
         wheels = tuple(w.strip() for w in ns.wheels.split(","))
+    elif not ns.no_drive and is_usd_description(str(ns.description)):
+        from descriptions.usd_robot import load_usd
+
+        wheels = guess_wheels(load_usd(ns.description, options).urdf)
     elif not ns.no_drive:
         resolver = PackageResolver(dict(options.packages))
         text = expand(ns.description, options.args, resolver).urdf
@@ -196,7 +210,12 @@ def main(argv: list[str] | None = None) -> int:
             ns.description, options = from_scenario(ns)
         else:
             options = options_of(ns)
-        loaded = load_urdf(ns.description, options)
+        if is_usd_description(str(ns.description)):
+            from descriptions.usd_robot import load_usd
+
+            loaded = load_usd(ns.description, options)
+        else:
+            loaded = load_urdf(ns.description, options)
     except DescriptionError as exc:
         print(f"cosim-describe: {exc}", file=sys.stderr)
         return 2
