@@ -80,7 +80,8 @@ def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
 
 def run(scenario: str | Path | Scenario, *, in_process: bool = False,
         out: str | Path = "runs", check: bool = True, options: RunOptions | None = None,
-        external: Arrivals | Replay | None = None, **overrides: Any) -> FinishedRun:
+        external: Arrivals | Replay | None = None, real_time_factor: float | None = None,
+        **overrides: Any) -> FinishedRun:
     """Run a scenario (a file or a loaded Scenario) and return its FinishedRun.
 
     ``in_process=True`` steps every node in this process with no transport (the reference,
@@ -93,9 +94,13 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     issued as ScenarioWarning. ``external`` feeds the scenario's ``external:`` topics: an
     ``Arrivals`` that other threads put messages into while the run goes (each enters at
     the next tick of the external node), or a function tick -> {topic: message} (a replay).
+    ``real_time_factor`` paces the run on the wall clock for people watching (1.0: real
+    time; ``RunOptions.real_time_factor``): the same digest, in sim time / R of wall time.
     """
     loaded = load(scenario, **overrides)
     chosen = (options or RunOptions()).with_(out=Path(out), in_process=in_process)
+    if real_time_factor is not None:
+        chosen = chosen.with_(real_time_factor=real_time_factor)
     outcome = execute(loaded, chosen, external=external)
     for text in outcome.warnings:
         warnings.warn(text, ScenarioWarning, stacklevel=2)
@@ -108,7 +113,8 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
 
 
 def replay(run_dir: str | Path, *, in_process: bool = False, out: str | Path = "runs",
-           check: bool = True, options: RunOptions | None = None) -> FinishedRun:
+           check: bool = True, options: RunOptions | None = None,
+           real_time_factor: float | None = None) -> FinishedRun:
     """Run a recorded run again in lockstep from its run directory (``--replay``): its
     scenario and overrides, each message that entered it from outside at the tick it
     entered (orchestrator.replay). Compare ``.digest`` with the recorded manifest's."""
@@ -116,7 +122,7 @@ def replay(run_dir: str | Path, *, in_process: bool = False, out: str | Path = "
 
     recorded = load_recorded(Path(run_dir))
     return run(recorded.scenario, in_process=in_process, out=out, check=check,
-               options=options, external=recorded)
+               options=options, external=recorded, real_time_factor=real_time_factor)
 
 
 @dataclass

@@ -8,6 +8,7 @@ import time
 import pytest
 
 from descriptions.load import load_scenario
+from orchestrator.api import run
 from orchestrator.cosim_orchestrate import main
 from orchestrator.execute import execute
 from orchestrator.lockstep.pace import Pace
@@ -60,6 +61,15 @@ def test_a_paced_multi_process_run_holds_back_clock_and_gives_the_unpaced_digest
     assert paced.digest == reference.digest
     assert abs(ticks_span_s(slow) - due) <= due * 0.05 + ALLOWANCE_S, ticks_span_s(slow)
     assert due <= paced.loop_s <= due * 1.05 + ALLOWANCE_S, paced.loop_s
+
+
+def test_the_run_api_paces_and_records_the_factor(tmp_path):
+    started = time.monotonic()
+    result = run(PROTOCOL, in_process=True, out=tmp_path, real_time_factor=4.0,
+                 duration="0.5s")
+    assert time.monotonic() - started >= 0.5 / 4.0
+    assert result.manifest["options"]["real_time_factor"] == 4.0
+    assert result.manifest["loop_real_time_factor"] <= 4.0 * 1.05
 
 
 def test_the_pace_anchors_at_the_first_tick_and_again_after_a_restart():
