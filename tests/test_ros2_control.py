@@ -20,7 +20,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from descriptions.load import load_scenario
 from nodes.ros2_control.config import ControllersFileError, read_controllers_file
-from nodes.ros2_control.controllers import DiffDriveOdometry
+from nodes.ros2_control.controllers.diff_drive_controller import DiffDriveOdometry
 from nodes.ros2_control.trajectory import Point, Trajectory, interpolate
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
@@ -105,17 +105,24 @@ def manager(rate: int = 100, **controllers) -> dict:
     return doc
 
 
-def test_an_unsupported_controller_type_is_named_with_what_is_served(tmp_path):
-    path = write(tmp_path, manager(
-        admittance=("admittance_controller/AdmittanceController", {"joints": JOINTS})))
-    with pytest.raises(ScenarioError) as err:
+def test_a_type_cosim_cannot_run_loads_and_only_its_activation_is_refused(tmp_path):
+    gripper = ("position_controllers/GripperActionController", {"joint": "wrist_3"})
+    jtc = ("joint_trajectory_controller/JointTrajectoryController",
+           {"joints": JOINTS, "command_interfaces": ["position"]})
+    path = write(tmp_path, manager(jtc=jtc, gripper=gripper))
+    with pytest.raises(ScenarioError) as err:  # activated at the start: exit 2, named
         load_scenario(path)
     text = str(err.value)
-    assert "admittance_controller/AdmittanceController" in text and "controllers.yaml" in text
+    assert "'gripper'" in text and "position_controllers/GripperActionController" in text
     assert "joint_trajectory_controller/JointTrajectoryController" in text  # what is served
     bad = subprocess.run([*ORCHESTRATE, str(path), "--quiet"], capture_output=True, text=True,
                          cwd=tmp_path, timeout=120)
-    assert bad.returncode == 2 and "admittance" in bad.stderr and not (tmp_path / "runs").exists()
+    assert bad.returncode == 2 and "GripperActionController" in bad.stderr
+    assert not (tmp_path / "runs").exists()
+    # listed as inactive, it loads: said at load time, and its activation is refused
+    scenario = load_scenario(path, {"nodes.controller_manager.params.inactive": ["gripper"]})
+    assert any("'gripper' of type 'position_controllers/GripperActionController' is loaded"
+               in str(w) for w in scenario.warnings), scenario.warnings
 
 
 def test_a_rate_other_than_update_rate_and_unknown_joints_are_refused(tmp_path):
@@ -140,7 +147,8 @@ def test_a_controllers_file_reads_namespaced_and_wildcard_blocks(tmp_path):
         "/**": {"ros__parameters": {"command_interfaces": ["position"]}},
         "/robot_0/jtc": {"ros__parameters": {"joints": ["a", "b"]}}}))
     spec = read_controllers_file(path)
-    assert spec.update_rate == 50 and spec.named("jtc").joints == ("a", "b")
+    assert spec.update_rate == 50 and spec.named("jtc").params.joints == ["a", "b"]
+    assert spec.named("jtc").params.command_interfaces == ["position"]  # from /**
     path.write_text("controller_manager: {ros__parameters: {update_rate: 100}}\n")
     with pytest.raises(ControllersFileError, match="names no controller"):
         read_controllers_file(path)

@@ -23,9 +23,19 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
 from nodes.registry import KINDS
-from nodes.ros2_control import config as c
-from nodes.ros2_control.controllers import ABORTED, ACTIVE, CANCELED, SUCCEEDED
-from nodes.ros2_control.node import CANCEL_ID, GOAL_ID, GOAL_SUFFIX, SWITCH_TOPIC, read
+from nodes.ros2_control.controllers.joint_trajectory_controller import (
+    ABORTED,
+    ACTIVE,
+    CANCEL_ID,
+    CANCELED,
+    FOLLOW,
+    GOAL,
+    GOAL_ID,
+    SUCCEEDED,
+)
+from nodes.ros2_control.manager import load, resolve, switch_problem
+from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
+from nodes.ros2_control.registry import BASE_CLASS, served_types
 from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
@@ -51,7 +61,9 @@ class ControllerManagerServer:
         self.file = read(plan.params)
         self.topics = {inp.topic: inp.graph_topic for inp in plan.inputs
                        if inp.producer == EXTERNAL_NAME}
-        self.active = {s.name: s.name not in plan.params.inactive for s in self.file.controllers}
+        self.controllers = load(self.file)  # what each claims and offers, from its parameters
+        self.active = {name: name in at_start(plan.params, self.file)
+                       and self.controllers[name] is not None for name in self.controllers}
         self._cond = threading.Condition()
         self._reports: deque[tuple[int, dict[str, float]]] = deque(maxlen=4096)
         self._seq = 0
@@ -68,16 +80,17 @@ class ControllerManagerServer:
                             answering(self._switch), callback_group=group)
         self.actions = []
         self._active_handles: dict[str, object] = {}  # controller -> its executing goal
-        for spec in self.file.controllers:
-            if spec.type == c.JTC and f"/{spec.name}{GOAL_SUFFIX}" in self.topics:
+        for name, ctrl in self.controllers.items():
+            offered = ctrl.actions() if ctrl is not None else {}
+            if offered.get(FOLLOW) is FollowJointTrajectory and resolve(name, GOAL) in self.topics:
                 node.create_subscription(
-                    JointTrajectoryControllerState, f"/{spec.name}/controller_state",
-                    self._feedback(spec.name), QoSProfile(depth=10), callback_group=group)
+                    JointTrajectoryControllerState, f"/{name}/controller_state",
+                    self._feedback(name), QoSProfile(depth=10), callback_group=group)
                 self.actions.append(ActionServer(
-                    node, FollowJointTrajectory, f"/{spec.name}/follow_joint_trajectory",
-                    answering(self._executor(spec.name)), callback_group=group,
-                    goal_callback=self._goal_callback(spec.name),
-                    cancel_callback=self._cancel_callback(spec.name)))
+                    node, FollowJointTrajectory, resolve(name, FOLLOW),
+                    answering(self._executor(name)), callback_group=group,
+                    goal_callback=self._goal_callback(name),
+                    cancel_callback=self._cancel_callback(name)))
         control.observers.append(self._observe)
 
     def _observe(self, tick: int, reports: dict) -> None:
@@ -95,34 +108,34 @@ class ControllerManagerServer:
     def _list(self, request, response):
         with self._cond:
             active = dict(self.active)
-        for spec in self.file.controllers:
-            state = ControllerState(name=spec.name, type=spec.type,
-                                    state="active" if active[spec.name] else "inactive",
+        for entry in self.file.controllers:
+            ctrl = self.controllers[entry.name]
+            state = ControllerState(name=entry.name, type=entry.type,
+                                    state=_state(ctrl, active[entry.name]),
                                     update_rate=self.file.update_rate)
-            if spec.type not in (c.JSB, c.DIFF_DRIVE):
-                state.required_command_interfaces = [f"{j}/position" for j in spec.joints]
-            elif spec.type == c.DIFF_DRIVE:
-                state.required_command_interfaces = [f"{j}/velocity" for j in spec.joints]
-            if active[spec.name]:
-                state.claimed_interfaces = list(state.required_command_interfaces)
-            state.required_state_interfaces = [f"{j}/{i}" for j in spec.joints
-                                               for i in ("position", "velocity")]
+            if ctrl is not None:
+                claim = ctrl.claim()
+                state.required_command_interfaces = list(claim.command)
+                state.required_state_interfaces = list(claim.state)
+                if active[entry.name]:  # an inactive controller claims nothing
+                    state.claimed_interfaces = list(claim.command)
             response.controller.append(state)
         return response
 
     def _types(self, request, response):
-        response.types = list(c.SUPPORTED)
-        response.base_classes = ["controller_interface::ControllerInterface"] * len(c.SUPPORTED)
+        response.types = served_types()
+        response.base_classes = [BASE_CLASS] * len(response.types)
         return response
 
     def _switch(self, request, response):
-        names = set(self.active)
-        unknown = [n for n in [*request.activate_controllers, *request.deactivate_controllers]
-                   if n not in names]
-        if unknown:
+        with self._cond:
+            active = [n for n, a in self.active.items() if a]
+        problem = switch_problem(self.file, self.controllers, active,
+                                 list(request.activate_controllers),
+                                 list(request.deactivate_controllers))
+        if problem:
             response.ok = False
-            response.message = f"no controller {unknown[0]!r}; controllers: " + \
-                ", ".join(sorted(names))
+            response.message = problem
             return response
         msg = String(data=" ".join([*(f"-{n}" for n in request.deactivate_controllers),
                                     *(f"+{n}" for n in request.activate_controllers)]))
@@ -159,7 +172,7 @@ class ControllerManagerServer:
                                 "/controller_manager/switch_controller)", name, self.control.at())
                     return GoalResponse.REJECT
                 self._sent += 1
-                replaced = self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"],
+                replaced = self.arrivals.put(self.topics[resolve(name, GOAL)],
                                              _goal(request, f"{GOAL_ID}{self._sent}"))
                 previous = self._latest.get(name)
                 if replaced is not None and previous and \
@@ -182,7 +195,7 @@ class ControllerManagerServer:
                     self._sent += 1
                     cancel = FollowJointTrajectory.Goal()
                     cancel.trajectory.header.frame_id = f"{CANCEL_ID}{self._sent}"
-                    replaced = self.arrivals.put(self.topics[f"/{name}{GOAL_SUFFIX}"], cancel)
+                    replaced = self.arrivals.put(self.topics[resolve(name, GOAL)], cancel)
                     if replaced is not None and \
                             replaced.trajectory.header.frame_id.startswith(GOAL_ID):
                         self._never_entered[id(handle.request)] = "cancelled before it " \
@@ -237,8 +250,7 @@ class ControllerManagerServer:
                     if state == ABORTED:
                         text = RESULT_TEXT.get(code, "")
                         if joint >= 0:
-                            spec = self.file.named(name)
-                            text += f" (joint {spec.joints[joint]})"
+                            text += f" (joint {self.controllers[name].joints[joint]})"
                         return _finish(handle, "abort", code, text)
                     if state == CANCELED:
                         how = "canceled" if handle.is_cancel_requested else "abort"
@@ -250,6 +262,14 @@ class ControllerManagerServer:
                     how = "canceled" if handle.is_cancel_requested else "abort"
                     return _finish(handle, how, -1, f"the run ended: {ended}")
         return execute
+
+
+def _state(ctrl, active: bool) -> str:
+    """A controller's lifecycle state as list_controllers says it (a type cosim cannot run
+    is loaded and never configured)."""
+    if ctrl is None:
+        return "unconfigured"
+    return "active" if active else "inactive"
 
 
 def _goal(request, name: str) -> FollowJointTrajectory.Goal:

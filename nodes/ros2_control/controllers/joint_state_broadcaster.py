@@ -1,0 +1,64 @@
+"""joint_state_broadcaster/JointStateBroadcaster: the hardware's joint states on
+``/joint_states`` and ``/dynamic_joint_states`` (``~/...`` with ``use_local_topics``)."""
+
+from __future__ import annotations
+
+from control_msgs.msg import DynamicJointState
+from pydantic import Field
+from sensor_msgs.msg import JointState
+
+from nodes.ros2_control import fast_messages as fast
+from nodes.ros2_control.interface import (
+    INTERFACES,
+    Claim,
+    ControllerInterface,
+    ControllerParams,
+    Update,
+)
+from nodes.ros2_control.param_types import OptionalJointNames
+
+
+class JointStateBroadcasterParams(ControllerParams):
+    """joint_state_broadcaster's parameters (its ``joint_state_broadcaster.yaml``)."""
+
+    joints: OptionalJointNames = Field([], description="the joints to publish; empty: every "
+                                       "joint of the hardware, in its order")
+    use_local_topics: bool = Field(False, description="publish on ~/joint_states instead of "
+                                   "/joint_states")
+    frame_id: str = Field("base_link", description="the header's frame")
+    publish_dynamic_joint_states: bool = Field(True, description="also publish "
+                                               "/dynamic_joint_states")
+
+
+class JointStateBroadcaster(ControllerInterface):
+    """Publishes position, velocity and effort of its joints (or of all) at every update."""
+
+    Params = JointStateBroadcasterParams
+
+    def _topic(self, name: str) -> str:
+        return f"~/{name}" if self.params.use_local_topics else f"/{name}"
+
+    def claim(self) -> Claim:
+        """Every state interface of its joints (none named: all, known at activation)."""
+        return Claim(state=tuple(f"{j}/{i}" for j in self.params.joints for i in INTERFACES))
+
+    def publications(self) -> dict[str, type]:
+        """``/joint_states`` and, unless turned off, ``/dynamic_joint_states``."""
+        out: dict[str, type] = {self._topic("joint_states"): JointState}
+        if self.params.publish_dynamic_joint_states:
+            out[self._topic("dynamic_joint_states")] = DynamicJointState
+        return out
+
+    def update(self, time_ns: int, period_ns: int) -> Update:
+        """The joints' states as they are now."""
+        names = list(self.params.joints) or list(self.state)
+        readings = [self.state[n] for n in names]
+        positions = [r.position for r in readings]
+        velocities = [r.velocity for r in readings]
+        efforts = [r.effort for r in readings]
+        out = {self._topic("joint_states"): fast.joint_state(names, positions, velocities,
+                                                             efforts)}
+        if self.params.publish_dynamic_joint_states:
+            out[self._topic("dynamic_joint_states")] = fast.dynamic_joint_state(
+                names, positions, velocities, efforts)
+        return Update(published=out)

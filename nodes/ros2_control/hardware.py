@@ -1,0 +1,200 @@
+"""cosim's hardware for the controller manager: which joints and interfaces the robot
+exports (``HardwareInfo``, from the robot model and its MuJoCo actuators) and, until the
+hardware lives in the physics step, how the manager reads and writes it over topics
+(``TopicHardware``): the physics node's /joint_states (remapped to /cosim/hardware_states)
+read into the controllers' ``HardwareState``; the commands written as physics'
+/joint_commands (remapped to /cosim/hardware_commands: one value per commanded joint, in
+its order, each what its actuator takes) and, for a mobile base's wheels, as the base twist
+that physics' drive realises (physics' /cmd_vel remapped to /cosim/base_command).
+
+A command interface a controller claims and MuJoCo cannot realise (a velocity command for
+a joint whose actuator is a position servo, a joint no actuator drives) is a problem naming
+the joint, found when the scenario loads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+from geometry_msgs.msg import Twist
+
+from nodes.ros2_control import fast_messages as fast
+from nodes.ros2_control.interface import Claim, JointReading
+
+HARDWARE_STATES = "/cosim/hardware_states"
+HARDWARE_COMMANDS = "/cosim/hardware_commands"  # physics' /joint_commands, remapped
+BASE_COMMAND = "/cosim/base_command"  # physics' /cmd_vel, remapped
+
+
+@dataclass(frozen=True)
+class CommandJoint:
+    """A joint physics takes commands for: its name, the interface its MuJoCo actuator
+    realises (None: none of position, velocity, effort), the actuator."""
+
+    name: str
+    interface: str | None
+    actuator: str
+
+
+@dataclass(frozen=True)
+class DriveWheels:
+    """A differential drive's wheels (velocity commands, realised as the base's twist)."""
+
+    left: str
+    right: str
+    radius: float
+    separation: float
+
+
+@dataclass(frozen=True)
+class HardwareInfo:
+    """The robot's joints (names as its controllers file gives them), the joints physics
+    takes commands for in /joint_commands order, and its drive's wheels."""
+
+    joints: tuple[str, ...]
+    commands: tuple[CommandJoint, ...]
+    drive: DriveWheels | None = None
+
+    def command_interfaces(self) -> set[str]:
+        """Every command interface the hardware exports (``joint/interface``)."""
+        out = {f"{c.name}/{c.interface}" for c in self.commands if c.interface}
+        if self.drive is not None:
+            out |= {f"{self.drive.left}/velocity", f"{self.drive.right}/velocity"}
+        return out
+
+    def problems(self, claim: Claim) -> list[tuple[str, str]]:
+        """Why the hardware cannot give a controller what it claims: (problem, accepted)."""
+        exported = self.command_interfaces()
+        out = []
+        for name in [*claim.command, *claim.state]:
+            joint = name.rpartition("/")[0]
+            if joint not in self.joints:
+                out.append((f"joint {joint!r} is not in the world.", "joints of the robot: "
+                            + ", ".join(sorted(j for j in self.joints if j)) + "."))
+        if out:
+            return out[:1]
+        for name in claim.command:
+            if name not in exported:
+                return [self._missing(name)]
+        return []
+
+    def _missing(self, name: str) -> tuple[str, str]:
+        joint, _, interface = name.rpartition("/")
+        have = next((c for c in self.commands if c.name == joint), None)
+        if have is not None and have.interface:
+            why = f"its MuJoCo actuator {have.actuator!r} takes {have.interface} commands"
+        elif have is not None:
+            why = (f"its MuJoCo actuator {have.actuator!r} is no position, velocity or motor "
+                   "actuator")
+        elif self.drive is not None and joint in (self.drive.left, self.drive.right):
+            why = "a drive wheel takes velocity commands"
+        else:
+            why = "physics takes no command for it (no actuator of the robot's commanded joints)"
+        served = ", ".join(sorted(self.command_interfaces())) or "none"
+        return (f"joint {joint!r} has no {interface} command interface in cosim's hardware: "
+                f"{why}.", f"a controller claiming an interface the hardware has ({served}); "
+                f"for {interface} on {joint!r}, a {interface} actuator on the joint (a URDF "
+                f"robot: <command_interface name=\"{interface}\"/> in its <ros2_control> "
+                "block).")
+
+
+def actuator_interface(model, actuator: int) -> str | None:
+    """The command interface a MuJoCo actuator realises: ``position`` (a servo: affine bias
+    on the position), ``velocity`` (affine bias on the velocity only), ``effort`` (a motor:
+    no bias), else None."""
+    if model.actuator_trntype[actuator] != mujoco.mjtTrn.mjTRN_JOINT:
+        return None
+    bias = model.actuator_biastype[actuator]
+    if bias == mujoco.mjtBias.mjBIAS_NONE:
+        return "effort"
+    if bias == mujoco.mjtBias.mjBIAS_AFFINE:
+        if model.actuator_biasprm[actuator, 1] != 0.0:
+            return "position"
+        if model.actuator_biasprm[actuator, 2] != 0.0:
+            return "velocity"
+    return None
+
+
+def hardware_info(model, robot, command_joints: list[str] | None = None) -> HardwareInfo:
+    """The hardware of ``robot`` (a RobotModel) in the compiled world ``model``: its joints,
+    the joints physics takes commands for (``command_joints`` in that order, else the robot's
+    commanded joints), the interface each one's actuator realises, its drive's wheels."""
+    prefix = robot.prefix if robot is not None else ""
+
+    def local(name: str) -> str:
+        return name[len(prefix):] if prefix and name.startswith(prefix) else name
+
+    names = [model.joint(j).name for j in range(model.njnt)]
+    joints = tuple(local(n) for n in names if n and (not prefix or n.startswith(prefix)))
+    actuators = {}  # joint -> its first joint actuator
+    for a in range(model.nu):
+        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+            actuators.setdefault(names[int(model.actuator_trnid[a, 0])], a)
+    if command_joints is None:
+        wanted = [local(a.joint) for a in (robot.actuated if robot is not None else ())]
+    else:
+        wanted = list(command_joints)
+    commands = []
+    for joint in wanted:
+        a = actuators.get(prefix + joint)
+        if a is None:
+            continue
+        commands.append(CommandJoint(joint, actuator_interface(model, a), model.actuator(a).name))
+    drive = None
+    if robot is not None and robot.drive is not None:
+        d = robot.drive
+        drive = DriveWheels(local(d.left_joint), local(d.right_joint), d.wheel_radius,
+                            d.wheel_separation)
+    return HardwareInfo(joints, tuple(commands), drive)
+
+
+class TopicHardware:
+    """The hardware read from and written to the physics node's topics (see the module):
+    ``state`` is the mapping the controllers are loaned, refreshed in place by ``read``;
+    ``command`` holds the last value of every command interface."""
+
+    def __init__(self, info: HardwareInfo, write_joints: bool, write_base: bool):
+        self.info = info
+        self.write_joints = write_joints
+        self.write_base = write_base and info.drive is not None
+        self.state: dict[str, JointReading] = {}
+        self.command: dict[str, float] = {}
+
+    def read(self, msg) -> None:
+        """Take the physics node's JointState."""
+        self.state.clear()
+        self.state.update({n: JointReading(p, v, e) for n, p, v, e in zip(
+            msg.name, msg.position, _padded(msg.velocity, msg.name),
+            _padded(msg.effort, msg.name), strict=True)})
+
+    def start(self) -> None:
+        """Before the first update: hold every position where it is, nothing else moves."""
+        for c in self.info.commands:
+            if c.interface:
+                self.command[f"{c.name}/{c.interface}"] = (
+                    self.state[c.name].position if c.interface == "position" else 0.0)
+        if self.info.drive is not None:
+            self.command[f"{self.info.drive.left}/velocity"] = 0.0
+            self.command[f"{self.info.drive.right}/velocity"] = 0.0
+
+    def write(self, commands: dict[str, float]) -> dict[str, object]:
+        """Take the controllers' commands (an interface no controller commands keeps its last
+        value); the messages that carry every command to physics."""
+        self.command.update(commands)
+        out: dict[str, object] = {}
+        if self.write_joints:
+            out[HARDWARE_COMMANDS] = fast.float64_array(
+                [self.command.get(f"{c.name}/{c.interface}", 0.0) for c in self.info.commands])
+        if self.write_base:
+            d = self.info.drive
+            left, right = self.command[f"{d.left}/velocity"], self.command[f"{d.right}/velocity"]
+            twist = Twist()
+            twist.linear.x = d.radius * (left + right) / 2.0
+            twist.angular.z = d.radius * (right - left) / d.separation
+            out[BASE_COMMAND] = twist
+        return out
+
+
+def _padded(values, names) -> list[float]:
+    return list(values) if len(values) == len(names) else [0.0] * len(names)

@@ -1,0 +1,132 @@
+"""The controller manager's logic, with no transport: it loads the controllers of a file
+(a type cosim does not serve loads as a name and a type, and cannot be activated),
+configures them, switches them (deactivations first, then activations, as one request) and
+updates the active ones in file order, routing their subscriptions' messages to them and
+their topics (``~/x`` under the controller's name) out of them."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from nodes.ros2_control.config import ControllersFile
+from nodes.ros2_control.interface import ControllerInterface, HardwareState, Update
+from nodes.ros2_control.registry import controller_class
+
+
+def resolve(controller: str, topic: str) -> str:
+    """A controller's topic as the graph names it: ``~/x`` -> ``/<controller>/x``."""
+    return f"/{controller}/{topic[2:]}" if topic.startswith("~/") else topic
+
+
+def load(file: ControllersFile) -> dict[str, ControllerInterface | None]:
+    """Every controller of the file, configured (None: a type cosim does not serve)."""
+    out: dict[str, ControllerInterface | None] = {}
+    for entry in file.controllers:
+        cls = controller_class(entry.type)
+        ctrl = None if cls is None or entry.params is None else cls(entry.name, entry.params)
+        if ctrl is not None:
+            ctrl.configure()
+        out[entry.name] = ctrl
+    return out
+
+
+def claim_conflict(controllers: Mapping[str, ControllerInterface | None],
+                   active: Iterable[str]) -> str | None:
+    """The first command interface two of the ``active`` controllers claim, said, or None."""
+    owner: dict[str, str] = {}
+    for name in active:
+        ctrl = controllers.get(name)
+        for interface in ctrl.claim().command if ctrl is not None else ():
+            if interface in owner:
+                return (f"{interface} is claimed by {owner[interface]!r} and {name!r}, both "
+                        "active")
+            owner[interface] = name
+    return None
+
+
+def switch_problem(file: ControllersFile, controllers: Mapping[str, ControllerInterface | None],
+                   active: Iterable[str], activate: list[str], deactivate: list[str]
+                   ) -> str | None:
+    """Why a switch cannot be done (an unknown controller, a type cosim cannot run, two
+    active controllers claiming one command interface), or None."""
+    unknown = [n for n in [*activate, *deactivate] if n not in controllers]
+    if unknown:
+        return f"no controller {unknown[0]!r}; controllers: " + ", ".join(controllers)
+    for name in activate:
+        if controllers[name] is None:
+            return (f"controller {name!r} has type {file.named(name).type!r}, which cosim "
+                    "cannot run (it is loaded and stays inactive)")
+    after = [n for n in controllers if (n in active and n not in deactivate) or n in activate]
+    return claim_conflict(controllers, after)
+
+
+class ControllerManager:
+    """The controllers of one file, their lifecycle, switches and updates."""
+
+    def __init__(self, file: ControllersFile):
+        self.file = file
+        self.controllers = load(file)
+
+    def active(self) -> list[str]:
+        """The active controllers, in file order."""
+        return [n for n, c in self.controllers.items() if c is not None and c.active]
+
+    def notes(self) -> list[str]:
+        """What the controllers read and do not act on, and the types cosim cannot run."""
+        out = [n for c in self.controllers.values() if c is not None for n in c.notes()]
+        out += [f"{e.name}: type {e.type} is loaded, and cosim cannot run it: it cannot be "
+                "activated." for e in self.file.unserved]
+        return out
+
+    def activate(self, names: list[str], state: HardwareState) -> Update:
+        """Activate ``names`` (already checked) with the hardware's state loaned."""
+        out = Update()
+        for name in names:
+            ctrl = self.controllers[name]
+            if ctrl is not None and not ctrl.active:
+                out.commands.update(ctrl.activate(state).commands)
+        return out
+
+    def switch(self, activate: list[str], deactivate: list[str], state: HardwareState
+               ) -> tuple[Update, str | None]:
+        """Deactivate, then activate; the commands they leave, and why nothing was switched
+        (or None)."""
+        problem = switch_problem(self.file, self.controllers, self.active(), activate,
+                                 deactivate)
+        if problem:
+            return Update(), problem
+        out = Update()
+        for name in deactivate:
+            ctrl = self.controllers[name]
+            if ctrl is not None and ctrl.active:
+                out.commands.update(ctrl.deactivate().commands)
+        out.commands.update(self.activate(activate, state).commands)
+        return out, None
+
+    def update(self, time_ns: int, period_ns: int, inputs: Mapping[str, Any]) -> Update:
+        """Give each active controller its messages, then update it; their commands (a later
+        controller's over an earlier one's) and what they publish, under the graph's names."""
+        out = Update()
+        for name, ctrl in self.controllers.items():
+            if ctrl is None or not ctrl.active:
+                continue
+            for topic in ctrl.subscriptions():
+                msg = inputs.get(resolve(name, topic))
+                if msg is not None:
+                    out.notes += ctrl.on_message(topic, msg, time_ns)
+            done = ctrl.update(time_ns, period_ns)
+            out.commands.update(done.commands)
+            out.published.update({resolve(name, t): m for t, m in done.published.items()})
+            out.notes += done.notes
+        return out
+
+    def metrics(self) -> dict[str, float]:
+        """``active:<name>`` (1 or 0) of every controller, then each one's own
+        (``<metric>:<name>``)."""
+        out = {f"active:{n}": float(c is not None and c.active)
+               for n, c in self.controllers.items()}
+        for name, ctrl in self.controllers.items():
+            if ctrl is not None:
+                out.update({f"{k}:{name}": v for k, v in ctrl.metrics().items()})
+        return out
