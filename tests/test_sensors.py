@@ -176,3 +176,39 @@ def test_camera_made_in_its_warm_up_thread_renders_the_same_pixels(tmp_path):
     for topic in ("/camera/color/image_raw", "/camera/depth/image_rect"):
         assert bytes(warm.out[topic].data) == bytes(lazy.out[topic].data)
     assert len(set(bytes(warm.out["/camera/color/image_raw"].data))) > 1  # not a blank frame
+
+
+def test_sensor_nodes_of_one_process_share_one_mirror_and_measure_their_own_state(
+        monkeypatch):
+    """A swarm's lidars packed in one process pose one mirror of the world in turn: each scan
+    is the one taken by the same node with a mirror of its own, given the same states."""
+    from geometry_msgs.msg import Twist
+
+    from descriptions.load import load_scenario
+    from nodes.sensors.mirror import WorldMirror
+    from orchestrator.lockstep.inprocess import make_node
+    from tests.helpers import SCENARIOS
+
+    sc = load_scenario(SCENARIOS / "swarm_small.yaml")
+    physics = make_node(sc, "physics")
+    go = Twist()
+    go.linear.x, go.angular.z = 0.5, 1.0
+    states = [physics.step(Tick(k, k * TICK), {"/robot_0/cmd_vel": go})["/cosim/world_state"]
+              for k in range(30)]
+    # robot 0 before and after it moved, robot 1 in between
+    steps = [("lidar@robot_0", 0, states[0]), ("lidar@robot_1", 0, states[-1]),
+             ("lidar@robot_0", 5, states[-1])]
+
+    def scans():
+        nodes = {name: make_node(sc, name) for name in ("lidar@robot_0", "lidar@robot_1")}
+        out = [list(nodes[name].step(Tick(k, k * TICK), {"/cosim/world_state": state})
+                    ["/scan"].ranges) for name, k, state in steps]
+        return nodes, out
+
+    nodes, shared = scans()
+    assert nodes["lidar@robot_0"].mirror is nodes["lidar@robot_1"].mirror
+    monkeypatch.setattr(WorldMirror, "shared", classmethod(lambda cls, w, lay=None: cls(w, lay)))
+    nodes, own = scans()
+    assert nodes["lidar@robot_0"].mirror is not nodes["lidar@robot_1"].mirror
+    assert shared == own
+    assert shared[0] != shared[2], "robot 0 did not move"

@@ -105,7 +105,7 @@ class SensorsNode(StepNode):
         camera; a robot of a swarm sees the other robots."""
         robots = robots_of(self.config, self.description_names(self.params))
         p = _placed(self.params, robots[0] if len(robots) == 1 else None)
-        self.mirror = WorldMirror(self.config.world, self.config.layout)
+        self.mirror = WorldMirror.shared(self.config.world, self.config.layout)
         others = self.arena = None
         if self.config.layout is not None and len(robots) == 1:
             others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
