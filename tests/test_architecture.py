@@ -336,3 +336,59 @@ def _literals(hint) -> list[str]:
     for arg in get_args(hint):
         out += [arg] if isinstance(arg, str) else _literals(arg)
     return out
+
+
+CONTROLLER_HOME = ("nodes/ros2_control/registry.py", "nodes/ros2_control/controllers/")
+"""Where controller types are known: the registry (type name -> class) and one module per
+type. Everything else asks a controller what it claims, publishes and offers."""
+
+
+def controller_type_branches(files: list[tuple[str, str]]) -> list[str]:
+    """Where code (``(path, source)`` pairs) outside the registry and the controllers' own
+    modules names a controller type (not in a docstring), tests a controller's class, or
+    compares a controller's ``.type`` (in a module that uses nodes.ros2_control)."""
+    from nodes.ros2_control.registry import CONTROLLER_TYPES
+
+    names = set(CONTROLLER_TYPES)
+    classes = {cls.__name__ for cls in CONTROLLER_TYPES.values()}
+    found = []
+    for where, text in files:
+        if where.startswith(CONTROLLER_HOME):
+            continue
+        tree = ast.parse(text)
+        docstrings = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Expr)}
+        uses_control = "nodes.ros2_control" in text
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Constant) and node.value in names
+                    and id(node) not in docstrings):
+                found.append(f"{where}:{node.lineno}: {node.value!r}")
+            elif (isinstance(node, ast.Call) and getattr(node.func, "id", "") == "isinstance"
+                  and any(getattr(a, "id", getattr(a, "attr", "")) in classes
+                          for a in ast.walk(node.args[1]))):
+                found.append(f"{where}:{node.lineno}: isinstance of a controller class")
+            elif (uses_control and isinstance(node, ast.Compare)
+                  and any(isinstance(o, ast.Attribute) and o.attr == "type"
+                          for o in [node.left, *node.comparators])):
+                found.append(f"{where}:{node.lineno}: a controller's type compared")
+    return found
+
+
+def test_nothing_outside_the_registry_branches_on_a_controller_type():
+    files = [(str(p.relative_to(ROOT)), p.read_text()) for p in project_files().values()]
+    found = controller_type_branches(files)
+    assert not found, ("ask the controller (claim, publications, subscriptions, actions, "
+                       "drives_base) or nodes.ros2_control.registry:\n" + "\n".join(found))
+
+
+def test_the_controller_type_check_sees_a_branch():
+    probe = ('"""doc: joint_state_broadcaster/JointStateBroadcaster"""\n'
+             'import nodes.ros2_control\n'
+             'def f(spec, ctrl):\n'
+             '    if spec.type == "diff_drive_controller/DiffDriveController":\n'
+             '        return isinstance(ctrl, JointTrajectoryController)\n')
+    found = "\n".join(controller_type_branches([("nodes/probe.py", probe)]))
+    assert "'diff_drive_controller/DiffDriveController'" in found
+    assert "isinstance of a controller class" in found
+    assert "a controller's type compared" in found
+    assert "JointStateBroadcaster'" not in found  # a docstring names a type; it does not branch
+    assert not controller_type_branches([("nodes/ros2_control/registry.py", probe)])
