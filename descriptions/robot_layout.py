@@ -98,10 +98,14 @@ def _usd_robot(where: _Where, path: Path, spec: RobotsSpec, description: Path):
         robot = layout_usd_robot(description, settings).model
     except DescriptionError as exc:
         raise scenario_error(exc, path, "robots.description") from None
-    if robot.notes:
-        print(f"cosim: {description.name} read as a USD robot; not kept: "
+    if robot.notes and (description, settings) not in _SAID:
+        _SAID.add((description, settings))
+        print(f"cosim: {description.name} read as a USD robot; changed or not kept: "
               + "; ".join(robot.notes), file=sys.stderr)
     return settings, robot
+
+
+_SAID: set[tuple[Path, str]] = set()  # the USD robots whose losses this process has said
 
 
 def _description(where: _Where, path: Path, spec: RobotsSpec, mounts) -> Path:

@@ -273,6 +273,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     for link in links.values():
         _geometry(stage.GetPrimAtPath(link.prim), link, by_path, cache, notes)
     kept = _kept_elements(top)
+    notes += _unread(top)
     _check_tree(description, links, joints, articulated)
     roots = [n for n in links if n not in {j.child for j in joints.values()
                                            if j.parent != WORLD}]
@@ -541,6 +542,39 @@ def _friction(p) -> float | None:
         return None
     value = _get(material.GetPrim(), "physics:dynamicFriction")
     return None if value is None else float(value)
+
+
+READ_SCHEMAS = {"PhysicsRigidBodyAPI", "PhysicsMassAPI", "PhysicsCollisionAPI",
+                "PhysicsMeshCollisionAPI", "PhysicsArticulationRootAPI", "PhysicsDriveAPI",
+                "PhysicsMaterialAPI", "MaterialBindingAPI", "NewtonJointAPI", "NewtonMassAPI",
+                "NewtonCollisionAPI", "NewtonMeshCollisionAPI", "NewtonArticulationRootAPI",
+                "GeomModelAPI", "PhysxJointAPI"}
+READ_TYPES = {"", "Xform", "Scope", "Material", "Shader", "Camera", "PhysicsScene",
+              *GPRIMS, *JOINT_TYPES, "GeomSubset", "DistantLight", "DomeLight"}
+
+
+def _unread(top) -> list[str]:
+    """One note naming the prim types and applied schemas under the robot that cosim does
+    not read (PhysX settings, sensors of Isaac's own schemas, ...), with a count each."""
+    from pxr import Usd
+
+    types: dict[str, int] = {}
+    schemas: dict[str, int] = {}
+    for prim in Usd.PrimRange(top):
+        if prim.GetTypeName() not in READ_TYPES:
+            types[prim.GetTypeName()] = types.get(prim.GetTypeName(), 0) + 1
+        for schema in prim.GetAppliedSchemas():
+            base = str(schema).split(":")[0]
+            if base not in READ_SCHEMAS:
+                schemas[base] = schemas.get(base, 0) + 1
+    out = []
+    if types:
+        out.append("prim types not read: " + ", ".join(f"{t} ({n})"
+                                                       for t, n in sorted(types.items())))
+    if schemas:
+        out.append("applied schemas not read: " + ", ".join(
+            f"{t} ({n})" for t, n in sorted(schemas.items())))
+    return out
 
 
 def _kept_elements(top) -> list[ET.Element]:
