@@ -223,7 +223,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
         _mass(links[prim.GetName()], prim, notes)
     articulated = any(p.HasAPI(UsdPhysics.ArticulationRootAPI) for p in Usd.PrimRange(top))
 
-    joints: dict[str, Joint] = {}
+    found: list[Joint] = []
     for prim in Usd.PrimRange(top):
         if not prim.IsA(UsdPhysics.Joint):
             continue
@@ -267,8 +267,10 @@ def read_stage_robot(stage, description: str) -> StageRobot:
                                        "PhysicsMassAPI) to the child link")
             add_link(child_prim, False)
         child = by_path[str(child_prim.GetPath())]
-        joints[prim.GetName()] = _joint(prim, kind, parent, child, meters, notes)
+        found.append(_joint(prim, kind, parent, child, meters, notes, prim.GetName()))
+    joints = _named(description, found, notes)
 
+    _mjc_actuators(top, joints, notes)
     _frames(top, links, joints, by_path, add_link, cache)
     for link in links.values():
         _geometry(stage.GetPrimAtPath(link.prim), link, by_path, cache, notes)
@@ -277,9 +279,52 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     _check_tree(description, links, joints, articulated)
     roots = [n for n in links if n not in {j.child for j in joints.values()
                                            if j.parent != WORLD}]
+    joints = _tree_order(joints, roots[0])
     top_pose, _ = split_scale(_matrix(cache.GetLocalToWorldTransform(top)))
     return StageRobot(top.GetName(), str(top.GetPath()), links, joints, roots[0],
                       articulated, top_pose, kept, notes)
+
+
+def _named(description: str, found: list[Joint], notes: list[str]) -> dict[str, Joint]:
+    """The joints by name: the prim's, but fixed joints whose prim name several share
+    (mujoco-usd-converter's ``PhysicsFixedJoint``) are named CHILD_joint; two moving joints
+    of one name are a DescriptionError."""
+    names = [j.name for j in found]
+    joints: dict[str, Joint] = {}
+    renamed = []
+    for joint in found:
+        if names.count(joint.name) > 1:
+            if joint.kind != "fixed":
+                other = next(j for j in found if j.name == joint.name and j is not joint)
+                raise DescriptionError(description, f"two joints are named {joint.name!r} ("
+                                       f"{other.prim} and {joint.prim}); joint names are the "
+                                       "prims' names", prim=joint.prim,
+                                       fix="give every moving joint prim its own name")
+            joint.name = next(n for n in (f"{joint.child}_joint", f"{joint.child}_fixed_joint",
+                                          joint.prim) if n not in joints and n not in names)
+            renamed.append(joint.name)
+        joints[joint.name] = joint
+    if renamed:
+        notes.append(f"fixed joints sharing a prim name named by their child link: "
+                     f"{', '.join(renamed)}")
+    return joints
+
+
+def _tree_order(joints: dict[str, Joint], root: str) -> dict[str, Joint]:
+    """The joints from the root down (the world's joint first, then depth first, siblings in
+    the stage's order), as a URDF lists them: a layout that nests joints under their child
+    links (mujoco-usd-converter) lists the deepest first."""
+    order = [j for j in joints.values() if j.parent == WORLD]
+
+    def below(link: str) -> None:
+        for joint in joints.values():
+            if joint.parent == link:
+                order.append(joint)
+                below(joint.child)
+
+    below(root)
+    order += [j for j in joints.values() if j not in order]
+    return {j.name: j for j in order}
 
 
 def _parent_link(body0, body1, top, by_path: dict[str, str], add_link) -> str:
@@ -348,8 +393,8 @@ def _matrix_quat(r: np.ndarray) -> tuple[float, float, float, float]:
     return tuple(float(v) for v in q)
 
 
-def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[str]) -> Joint:
-    name = prim.GetName()
+def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[str],
+           name: str) -> Joint:
     pivot = tuple(float(v) * meters for v in (_get(prim, "physics:localPos1") or (0, 0, 0)))
     rot1 = _get(prim, "physics:localRot1")
     r1 = np.eye(3) if rot1 is None else quat_matrix(*_quat(rot1))
@@ -370,7 +415,7 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
         lower, upper = lower * meters, None if upper is None else upper * meters
     joint.lower, joint.upper = lower, upper
     joint.drive = _drive(prim, "angular" if degrees else "linear", per_unit, name, notes)
-    effort = _get(prim, "urdf:limit:effort")
+    effort = _get(prim, "urdf:limit:effort", _get(prim, "mjc:actuatorfrcrange:max"))
     if joint.drive is not None and joint.drive.max_force is not None:
         joint.effort = joint.drive.max_force
     elif effort is not None and effort > 0:
@@ -388,6 +433,48 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
             joint.damping = float(value) * scale
             break
     return joint
+
+
+def api_schemas(prim) -> set[str]:
+    """The API schemas applied to ``prim``, registered or not (mujoco-usd-converter's
+    ``MjcSiteAPI`` is unknown to usd-core alone)."""
+    names = {str(s) for s in prim.GetAppliedSchemas()}
+    listed = prim.GetMetadata("apiSchemas")
+    if listed is not None:
+        names |= {str(s) for s in listed.GetAddedOrExplicitItems()}
+    return {n.split(":")[0] for n in names}
+
+
+def _mjc_actuators(top, joints: dict[str, Joint], notes: list[str]) -> None:
+    """mujoco-usd-converter's ``MjcActuator`` prims as drives of the joints they target: a
+    position servo (gain kp, bias [0, -kp, -kv]), a velocity servo (gain kv, bias [0, 0,
+    -kv]) or a motor; ``mjc:forceRange`` the force limit."""
+    from pxr import Usd
+
+    by_prim = {j.prim: j for j in joints.values()}
+    for prim in Usd.PrimRange(top):
+        if prim.GetTypeName() != "MjcActuator":
+            continue
+        targets = prim.GetRelationship("mjc:target").GetTargets() \
+            if prim.GetRelationship("mjc:target") else []
+        joint = by_prim.get(str(targets[0])) if targets else None
+        if joint is None or joint.kind == "fixed":
+            notes.append(f"actuator {prim.GetName()!r}: its mjc:target is no moving joint, "
+                         "ignored")
+            continue
+        gain = list(_get(prim, "mjc:gainPrm") or [1.0])
+        bias = list(_get(prim, "mjc:biasPrm") or [0.0, 0.0, 0.0]) + [0.0, 0.0, 0.0]
+        affine = str(_get(prim, "mjc:biasType", "none")) == "affine"
+        kp = float(gain[0]) if affine and bias[1] < 0 else 0.0
+        kv = -float(bias[2]) if affine and bias[2] < 0 else 0.0
+        high = _get(prim, "mjc:forceRange:max")
+        limited = str(_get(prim, "mjc:forceLimited", "false")) == "true"
+        joint.drive = Drive(kp, kv, float(high) if limited and high else None)
+        if joint.drive.max_force is not None:
+            joint.effort = joint.drive.max_force
+        if not affine and float(gain[0]) != 1.0:
+            notes.append(f"actuator {prim.GetName()!r}: a motor with gear/gain {gain[0]:g}, "
+                         "read as a plain effort command")
 
 
 def _drive(prim, token: str, per_unit: float, joint: str, notes: list[str]) -> Drive | None:
@@ -470,12 +557,13 @@ def _geometry(prim, link: Link, by_path: dict[str, str], cache, notes: list[str]
             it.PruneChildren()
             continue
         kind = p.GetTypeName()
-        if kind not in GPRIMS:
+        if kind not in GPRIMS or "MjcSiteAPI" in api_schemas(p):  # a site: the link's frame
             continue
         collision = p.HasAPI(UsdPhysics.CollisionAPI)
         purpose = UsdGeom.Imageable(p).ComputePurpose()
-        if not collision and (purpose in ("guide", "proxy") or UsdGeom.Imageable(
-                p).ComputeVisibility() == "invisible"):
+        hidden = UsdGeom.Imageable(p).ComputeVisibility() == "invisible" and \
+            _get(p, "mjc:group") is None  # mujoco-usd-converter hides MuJoCo's groups 3-5
+        if not collision and (purpose in ("guide", "proxy") or hidden):
             continue
         if collision and _get(p, "physics:collisionEnabled", True) is False:
             continue
@@ -548,9 +636,9 @@ READ_SCHEMAS = {"PhysicsRigidBodyAPI", "PhysicsMassAPI", "PhysicsCollisionAPI",
                 "PhysicsMeshCollisionAPI", "PhysicsArticulationRootAPI", "PhysicsDriveAPI",
                 "PhysicsMaterialAPI", "MaterialBindingAPI", "NewtonJointAPI", "NewtonMassAPI",
                 "NewtonCollisionAPI", "NewtonMeshCollisionAPI", "NewtonArticulationRootAPI",
-                "GeomModelAPI", "PhysxJointAPI"}
+                "GeomModelAPI", "PhysxJointAPI", "MjcJointAPI", "MjcSiteAPI", "NewtonSiteAPI"}
 READ_TYPES = {"", "Xform", "Scope", "Material", "Shader", "Camera", "PhysicsScene",
-              *GPRIMS, *JOINT_TYPES, "GeomSubset", "DistantLight", "DomeLight"}
+              *GPRIMS, *JOINT_TYPES, "GeomSubset", "DistantLight", "DomeLight", "MjcActuator"}
 
 
 def _unread(top) -> list[str]:
@@ -563,7 +651,7 @@ def _unread(top) -> list[str]:
     for prim in Usd.PrimRange(top):
         if prim.GetTypeName() not in READ_TYPES:
             types[prim.GetTypeName()] = types.get(prim.GetTypeName(), 0) + 1
-        for schema in prim.GetAppliedSchemas():
+        for schema in api_schemas(prim):
             base = str(schema).split(":")[0]
             if base not in READ_SCHEMAS:
                 schemas[base] = schemas.get(base, 0) + 1

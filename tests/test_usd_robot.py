@@ -1,6 +1,7 @@
 """Robots described in OpenUSD (descriptions/usd_robot.py) load like URDF robots: cosim's two
 xacro test robots written in Isaac Sim's importer layout (tools/make_usd_robots.py) and
-converted by urdf-usd-converter 0.3.4 (scenarios/robots/usd/) keep their prims' names, drives
+converted by urdf-usd-converter 0.3.4 and (their MJCF) mujoco-usd-converter 0.8.0
+(scenarios/robots/usd/) keep their prims' names, drives
 become actuators, the base is free or fixed as the layout says; the same robot from URDF and
 from USD follows the same actuator commands to within the stated tolerance; a USD robot
 reaches nav's goal, an arm its joint targets, a swarm of copies gives one digest in-process
@@ -72,6 +73,19 @@ def test_urdf_usd_converter_layout_keeps_frames_sensors_and_ros2_control():
                                                                   ("wrist_3", "effort")]
 
 
+def test_mujoco_usd_converter_layout_reads_mjc_actuators():
+    arm = load_usd(USD / "myarm_mujoco_usd_converter.usda")
+    assert not arm.model.mobile and [a.joint for a in arm.model.actuated] == ARM
+    model = arm.spec.compile()
+    wrist = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "wrist_3_position")
+    assert model.actuator_gainprm[wrist, 0] == pytest.approx(30)  # MjcActuator gain, bias
+    assert model.actuator_biasprm[wrist, 1:3].tolist() == pytest.approx([-30, -2])
+    bot = load_usd(USD / "mybot_mujoco_usd_converter.usda", UrdfOptions(wheels=WHEELS))
+    assert bot.model.mobile and bot.model.drive.wheel_radius == pytest.approx(0.06)
+    assert {j.name for j in bot.model.joints} >= {"wheel_left_joint", "imu_link_joint"}
+    assert any("PhysicsFixedJoint" in n or "named by their child" in n for n in bot.notes)
+
+
 def _swap(tmp_path, scenario: str, description: str, usd: dict | None, name: str):
     doc = yaml.safe_load((ROOT / "scenarios" / scenario).read_text())
     doc["robots"]["description"] = str(USD / description)
@@ -119,7 +133,8 @@ def test_the_same_mobile_robot_from_urdf_and_usd_follows_the_same_wheel_commands
 def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_path):
     """Two targets held 2 s each. Isaac's layout (no joint damping: the URDF's 0.5 N m s/rad
     has no place there) settles on the same positions (1e-4 rad) by different transients;
-    urdf-usd-converter's (newton:damping kept) follows the whole way (1e-6 rad)."""
+    urdf-usd-converter's and mujoco-usd-converter's (newton:damping kept) follow the whole
+    way (1e-6 rad)."""
     targets = [[0.8, -0.5, 1.0, 0.0, 0.5, 0.0], [0.0, 0.6, 0.8, -0.4, 0.0, 1.0]]
 
     def command(k):
@@ -138,6 +153,9 @@ def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_p
         assert urdf[settled] == pytest.approx(targets[settled > 999], abs=0.05)
         assert isaac[settled] == pytest.approx(urdf[settled], abs=1e-4)
     assert np.abs(converted - urdf).max() < 1e-6
+    mujoco_layout = _follow(_swap(tmp_path, "arm_usd.yaml", "myarm_mujoco_usd_converter.usda",
+                                  None, "arm_mujoco.yaml"), command, 2000, joints)
+    assert np.abs(mujoco_layout - urdf).max() < 1e-6
 
 
 def test_a_usd_robot_reaches_the_nav_goal_and_an_arm_its_targets(tmp_path):

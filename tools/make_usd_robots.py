@@ -22,6 +22,10 @@ With ``--converter EXE`` (urdf-usd-converter's command, PyPI ``urdf-usd-converte
 installed apart: ``python -m venv /tmp/uuc && /tmp/uuc/bin/pip install
 urdf-usd-converter==0.3.4``) it also converts both expanded xacros with it and writes each
 result flattened into one layer, ``*_urdf_usd_converter.usda`` (urdf-usd-converter's layout).
+With ``--mujoco-converter EXE`` (PyPI ``mujoco-usd-converter==0.8.0``, installed apart the same
+way) it converts the MJCF cosim makes of each robot (descriptions.urdf.load_urdf with the
+settings of scenarios/nav_urdf.yaml and arm_urdf.yaml: its actuators become ``MjcActuator``
+prims) and writes ``*_mujoco_usd_converter.usda``.
 """
 
 from __future__ import annotations
@@ -297,10 +301,41 @@ def convert(exe: str, name: str, text: str, package: Path) -> None:
         print(f"wrote {out.relative_to(ROOT)}")
 
 
+MJCF_OPTIONS = {
+    "mybot": {"wheels": ("wheel_left_joint", "wheel_right_joint")},
+    "myarm": {"base": "fixed", "interfaces": {"wrist_2": "position", "wrist_3": "position"},
+              "gains": {"position": {"kp": 200, "kv": 20}, "wrist_1": {"kp": 30, "kv": 2},
+                        "wrist_2": {"kp": 30, "kv": 2}, "wrist_3": {"kp": 30, "kv": 2}}}}
+
+
+def convert_mjcf(exe: str, name: str, package: Path) -> None:
+    """cosim's MJCF of the robot converted by mujoco-usd-converter, flattened into one layer."""
+    from pxr import Usd
+
+    from descriptions.urdf import UrdfOptions, load_urdf
+
+    loaded = load_urdf(package / "urdf" / f"{name}.urdf.xacro", UrdfOptions(
+        packages={f"{name}_description": str(package)}, **MJCF_OPTIONS[name]))
+    with tempfile.TemporaryDirectory() as tmp:
+        mjcf = Path(tmp) / f"{name}.xml"
+        mjcf.write_text(loaded.spec.to_xml())
+        subprocess.run([exe, str(mjcf), str(Path(tmp) / "out")], check=True,
+                       capture_output=True)
+        flat = Usd.Stage.Open(str(Path(tmp) / "out" / f"{name}.usda")).Flatten()
+        flat.documentation = (f"{name} as cosim compiles it (MJCF) converted by "
+                              "mujoco-usd-converter 0.8.0, flattened into one layer by "
+                              "tools/make_usd_robots.py --mujoco-converter (do not edit).")
+        out = OUT / f"{name}_mujoco_usd_converter.usda"
+        flat.Export(str(out))
+        print(f"wrote {out.relative_to(ROOT)}")
+
+
 def main() -> None:
     """Write both robots."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--converter", help="urdf-usd-converter's command: convert with it too")
+    p.add_argument("--mujoco-converter", help="mujoco-usd-converter's command: convert "
+                   "cosim's MJCF of each robot with it too")
     ns = p.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     for name, fixed, drives, camera in (
@@ -316,6 +351,8 @@ def main() -> None:
         print(f"wrote {out.relative_to(ROOT)}")
         if ns.converter:
             convert(ns.converter, name, text, package)
+        if ns.mujoco_converter:
+            convert_mjcf(ns.mujoco_converter, name, package)
 
 
 if __name__ == "__main__":
