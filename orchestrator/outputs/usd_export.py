@@ -10,10 +10,16 @@ sim time ``k * tick``. The stage is the world itself (a USD world is composed in
 and flattened into the file; an MJCF world is written from scratch by the writer), plus
 every body MuJoCo knows that the world file does not describe in USD (an MJCF robot:
 geometry, joints, actuators, camera) under the default prim, e.g. ``/World/base_link``.
+
+A robot described in URDF, xacro or USD is also written on its own, under its own link and
+joint names, as ``robots/ROBOT.usda`` beside the stage (one file for a swarm of copies), in
+the layout Isaac Sim's URDF importer writes (``descriptions.usd_robot_write``): a scenario
+whose ``robots.description`` names that file runs the same robot again.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from fractions import Fraction
 from pathlib import Path
@@ -24,6 +30,8 @@ import numpy as np
 from descriptions.swarm_world import swarm_spec
 from descriptions.worldfile import compile_world, is_usd, load_world_spec, open_stage
 from plan.timeutil import NS_PER_S, Ns, tick_at_ns
+
+log = logging.getLogger(__name__)
 
 WORLD_STATE = "/cosim/world_state"
 
@@ -51,6 +59,25 @@ def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path, robots=None)
     _set_timing(stage, samples, tick_ns, ticks)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage.Export(str(out))
+    if robots is not None:
+        export_robot_usd(robots, out.parent / "robots")
+    return out
+
+
+def export_robot_usd(robots, folder: Path) -> Path | None:
+    """The description of ``robots`` (plan.robots.RobotsLayout), when URDF, xacro or USD,
+    written as ``folder/ROBOT.usda`` in Isaac Sim's importer layout; None for an MJCF one."""
+    from descriptions.urdf_robot import layout_robot
+    from descriptions.usd_robot_write import write_robot_usd
+    from plan.description_spec import is_urdf_description, is_usd_description
+
+    description = str(robots.description)
+    if not (is_urdf_description(description) or is_usd_description(description)):
+        return None
+    loaded = layout_robot(robots.description, robots.urdf)
+    out = folder / f"{loaded.urdf.name or 'robot'}.usda"
+    for note in write_robot_usd(loaded, out):
+        log.warning("%s: %s", out.name, note)
     return out
 
 
