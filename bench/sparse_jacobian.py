@@ -1,6 +1,7 @@
 """Does a swarm world hit MuJoCo 4.0.0's sparse-factor bug? Dense against sparse Jacobian.
 
-    python -m bench.sparse_jacobian [--robots 16 64] [--steps 1500] [--timing]
+    python -m bench.sparse_jacobian [--robots 16 64] [--steps 1500] [--pile] [--no-islands]
+                                    [--elliptic] [--threads N] [--timing]
 
 MuJoCo 4.0.1 fixes a Newton-solver bug that gave a wrong Hessian factor when the
 constraint Jacobian is sparse (google-deepmind/mujoco #3767); MuJoCo picks the sparse
@@ -70,11 +71,11 @@ def with_jacobian(model: mujoco.MjModel, jacobian: int) -> mujoco.MjModel:
 
 
 def start(world: Swarm, model: mujoco.MjModel, pile: bool = False,
-          nudge: float = 0.0) -> mujoco.MjData:
+          nudge: float = 0.0, threads: int = 1) -> mujoco.MjData:
     """The robots turned to the centre (odd) or away from it (even; ``pile``: all to the
     centre), wheels commanded forward, the odd ones turning a little; ``nudge`` moves every
-    robot along x by that much, alternately + and - (m)."""
-    data = mujoco.MjData(model)
+    robot along x by that much, alternately + and - (m); ``threads`` > 1: the engine's pool."""
+    data = _data(model, threads)
     for i, name in enumerate(world.robots):
         adr = model.jnt_qposadr[model.joint(f"{name}/base_free").id]
         x, y = data.qpos[adr], data.qpos[adr + 1]
@@ -90,10 +91,10 @@ def start(world: Swarm, model: mujoco.MjModel, pile: bool = False,
 
 
 def trajectory(world: Swarm, jacobian: int, steps: int, pile: bool = False,
-               nudge: float = 0.0) -> np.ndarray:
+               nudge: float = 0.0, threads: int = 1) -> np.ndarray:
     """qpos after each of ``steps`` steps."""
     model = with_jacobian(world.model, jacobian)
-    data = start(world, model, pile, nudge)
+    data = start(world, model, pile, nudge, threads)
     out = np.empty((steps, model.nq))
     for k in range(steps):
         mujoco.mj_step(model, data)
@@ -101,27 +102,34 @@ def trajectory(world: Swarm, jacobian: int, steps: int, pile: bool = False,
     return out
 
 
-def _qacc_from(model: mujoco.MjModel, state: mujoco.MjData) -> np.ndarray:
+def _data(model: mujoco.MjModel, threads: int) -> mujoco.MjData:
     data = mujoco.MjData(model)
+    if threads > 1:
+        mujoco.mju_threadpool(data, threads)
+    return data
+
+
+def _qacc_from(model: mujoco.MjModel, state: mujoco.MjData, threads: int = 1) -> np.ndarray:
+    data = _data(model, threads)
     data.qpos[:], data.qvel[:], data.ctrl[:] = state.qpos, state.qvel, state.ctrl
     data.qacc_warmstart[:] = state.qacc_warmstart
     mujoco.mj_forward(model, data)
     return data.qacc.copy()
 
 
-def one_step_errors(world: Swarm, steps: int, pile: bool = False, every: int = 10
-                    ) -> dict[str, float]:
+def one_step_errors(world: Swarm, steps: int, pile: bool = False, every: int = 10,
+                    threads: int = 1) -> dict[str, float]:
     """From every ``every``-th state of the dense run: the largest relative difference of
     qacc dense against sparse, and each against a tightly solved reference."""
     dense, sparse = with_jacobian(world.model, DENSE), with_jacobian(world.model, SPARSE)
     reference = with_jacobian(world.model, DENSE)
     reference.opt.tolerance, reference.opt.iterations = 1e-15, 2000
-    data = start(world, dense, pile)
+    data = start(world, dense, pile, threads=threads)
     worst = {"dense_vs_sparse": 0.0, "dense_vs_reference": 0.0, "sparse_vs_reference": 0.0}
     touching = {"robot_robot": 0, "robot_wall": 0}
     for k in range(steps):
         if k % every == 0:
-            qd, qs, qr = (_qacc_from(m, data) for m in (dense, sparse, reference))
+            qd, qs, qr = (_qacc_from(m, data, threads) for m in (dense, sparse, reference))
             scale = max(1.0, float(np.abs(qr).max()))
             for key, a, b in (("dense_vs_sparse", qd, qs), ("dense_vs_reference", qd, qr),
                               ("sparse_vs_reference", qs, qr)):
@@ -174,16 +182,25 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--steps", type=int, default=1500)
     parser.add_argument("--pile", action="store_true", help="every robot drives to the centre")
     parser.add_argument("--timing", action="store_true", help="also time a step of each")
+    parser.add_argument("--no-islands", action="store_true",
+                        help="one constraint problem for the whole world (mjDSBL_ISLAND)")
+    parser.add_argument("--elliptic", action="store_true", help="elliptic friction cones")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="the engine's thread pool (mju_threadpool), as params.threads")
     args = parser.parse_args(argv)
     print(f"mujoco {mujoco.__version__}")
     rows = []
     for n in args.robots:
         world = swarm(n)
+        if args.no_islands:
+            world.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
+        if args.elliptic:
+            world.model.opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         auto_sparse = bool(mujoco.mj_isSparse(world.model))
-        errors = one_step_errors(world, args.steps, args.pile)
-        runs = {name: trajectory(world, jac, args.steps, args.pile)
+        errors = one_step_errors(world, args.steps, args.pile, threads=args.threads)
+        runs = {name: trajectory(world, jac, args.steps, args.pile, threads=args.threads)
                 for name, jac in (("dense", DENSE), ("sparse", SPARSE), ("auto", AUTO))}
-        nudged = trajectory(world, DENSE, args.steps, args.pile, nudge=1e-12)
+        nudged = trajectory(world, DENSE, args.steps, args.pile, 1e-12, args.threads)
         checkpoints = [c for c in (100, 300, 1000, args.steps) if c <= args.steps]
         row = {"robots": n, "nv": world.model.nv, "auto_is_sparse": auto_sparse, **errors}
         for label, other, base in (("sparse", runs["sparse"], runs["dense"]),
