@@ -127,12 +127,16 @@ def _link_poses(model: mujoco.MjModel, data: mujoco.MjData, urdf) -> dict[str, n
             if link in urdf.links}
 
 
-def _set_pose(xf, t: np.ndarray, scale=None) -> None:
-    """translate and orient (doubles, as the importer writes them) and an optional scale."""
+def _set_pose(xf, t: np.ndarray, scale=None, tidy: bool = False) -> None:
+    """translate and orient (doubles, as the importer writes them; ``tidy``: rounded as the
+    reader rounds) and an optional scale."""
     from pxr import Gf, UsdGeom
 
-    xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*_tidy(t[:3, 3])))
-    xf.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Quatd(*_tidy(_quat(t[:3, :3]))))
+    pos, quat = t[:3, 3].tolist(), _quat(t[:3, :3])
+    if tidy:  # a link's frame; a mesh's is left as MuJoCo put it (its principal axes)
+        pos, quat = _tidy(pos), _tidy(quat)
+    xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*pos))
+    xf.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Quatd(*quat))
     if scale is not None:
         xf.AddScaleOp().Set(Gf.Vec3f(*[float(v) for v in scale]))
 
@@ -179,7 +183,7 @@ def _write_link(stage, path: str, model: mujoco.MjModel, pose: np.ndarray, frict
     from pxr import Gf, UsdGeom, UsdPhysics
 
     xf = UsdGeom.Xform.Define(stage, path)
-    _set_pose(xf, pose)
+    _set_pose(xf, pose, tidy=True)
     prim = xf.GetPrim()
     UsdPhysics.RigidBodyAPI.Apply(prim)
     b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, prim.GetName())
