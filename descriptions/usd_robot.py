@@ -177,7 +177,7 @@ def _xyz_rpy(t: np.ndarray) -> dict[str, str]:
 
 def _num(v: float) -> str:
     v = float(v)
-    return "0" if abs(v) < 1e-12 else repr(round(v, 12))
+    return "0" if abs(v) < 1e-15 else repr(v)  # every digit: see usd_stage_robot.snapped
 
 
 def write_urdf(robot: StageRobot, notes: list[str]) -> tuple[str, Path]:

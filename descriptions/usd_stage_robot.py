@@ -146,6 +146,23 @@ def _matrix(m) -> np.ndarray:
     return np.array(m, dtype=float).T
 
 
+EXACT = np.array([0.0, 0.5, math.sqrt(0.5), math.sqrt(0.75), 1.0])
+SNAP = 1e-6  # float32 (quatf, matrix4d from float ops) is off right angles by ~1e-8
+
+
+def snapped(r: np.ndarray) -> np.ndarray:
+    """A rotation matrix with entries within SNAP of 0, 1/2, sqrt(1/2), sqrt(3/4) or 1 (in
+    size) set to them: USD's float32 quaternions tilt a wheel turned by 90 degrees by ~1e-8
+    rad, and MuJoCo's cylinder-on-plane contact then gives one contact instead of two."""
+    out = r.copy()
+    for idx, v in np.ndenumerate(r):
+        near = EXACT[np.argmin(np.abs(EXACT - abs(v)))]
+        if abs(abs(v) - near) < SNAP:
+            out[idx] = math.copysign(near, v) if near else 0.0
+    u, _, vt = np.linalg.svd(out)
+    return u @ vt if np.abs(u @ vt - out).max() > 1e-12 else out
+
+
 def split_scale(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the pose without scale, the scale per axis) of a 4x4 transform (no shear)."""
     scale = np.linalg.norm(t[:3, :3], axis=0)
@@ -155,6 +172,7 @@ def split_scale(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if np.linalg.det(pose[:3, :3]) < 0:  # a mirror: keep a rotation, put the flip in scale
         pose[:3, 0] *= -1
         scale[0] *= -1
+    pose[:3, :3] = snapped(pose[:3, :3])
     return pose, scale
 
 
@@ -280,6 +298,8 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     roots = [n for n in links if n not in {j.child for j in joints.values()
                                            if j.parent != WORLD}]
     joints = _tree_order(joints, roots[0])
+    order = [roots[0], *(j.child for j in joints.values())]
+    links = {name: links[name] for name in order + [n for n in links if n not in order]}
     top_pose, _ = split_scale(_matrix(cache.GetLocalToWorldTransform(top)))
     return StageRobot(top.GetName(), str(top.GetPath()), links, joints, roots[0],
                       articulated, top_pose, kept, notes)
@@ -397,7 +417,7 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
            name: str) -> Joint:
     pivot = tuple(float(v) * meters for v in (_get(prim, "physics:localPos1") or (0, 0, 0)))
     rot1 = _get(prim, "physics:localRot1")
-    r1 = np.eye(3) if rot1 is None else quat_matrix(*_quat(rot1))
+    r1 = np.eye(3) if rot1 is None else snapped(quat_matrix(*_quat(rot1)))
     axis_token = str(_get(prim, "physics:axis", "X"))
     unit = {"X": (1.0, 0, 0), "Y": (0, 1.0, 0), "Z": (0, 0, 1.0)}.get(axis_token, (1.0, 0, 0))
     axis = tuple(float(round(v, 12)) + 0.0 for v in r1 @ np.array(unit))

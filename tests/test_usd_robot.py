@@ -18,7 +18,7 @@ import yaml
 
 import nodes  # noqa: F401  (the node kinds, for loading scenarios)
 from descriptions.load import load_scenario
-from descriptions.swarm_world import swarm_model
+from descriptions.swarm_world import swarm_model, swarm_spec
 from descriptions.urdf import UrdfOptions
 from descriptions.usd_robot import load_usd
 from orchestrator.api import run
@@ -98,9 +98,17 @@ def _swap(tmp_path, scenario: str, description: str, usd: dict | None, name: str
     return path
 
 
-def _follow(path, commands, steps: int, record) -> np.ndarray:
+def _follow(path, commands, steps: int, record, undamped: tuple[str, ...] = ()) -> np.ndarray:
+    """The recorded state over ``steps`` steps of the scenario's world under ``commands``
+    (step -> {actuator: ctrl}); the ``undamped`` joints' damping set to 0 first."""
     scenario = load_scenario(path)
-    model = swarm_model(scenario.world, scenario.robots)
+    if undamped:
+        spec = swarm_spec(scenario.world, scenario.robots)
+        for joint in undamped:
+            spec.joint(joint).damping = [0.0, 0.0, 0.0]
+        model = spec.compile()
+    else:
+        model = swarm_model(scenario.world, scenario.robots)
     data = mujoco.MjData(model)
     out = []
     for k in range(steps):
@@ -111,10 +119,11 @@ def _follow(path, commands, steps: int, record) -> np.ndarray:
     return np.array(out)
 
 
-def test_the_same_mobile_robot_from_urdf_and_usd_follows_the_same_wheel_commands():
-    """4 s of the same wheel speeds (a left then a right turn): the base paths differ by
-    under 2 cm (measured 1.5 cm over 1.2 m), because Isaac's layout has no place for the
-    URDF's wheel <dynamics damping="0.01"> (the wheels' velocity gain is 2)."""
+def test_the_same_mobile_robot_from_urdf_and_usd_follows_the_same_wheel_commands(tmp_path):
+    """4 s of the same wheel speeds (a left then a right turn, 1.2 m): from either converter's
+    layout the base follows the URDF robot's path to 1e-6 m. From Isaac's layout it is 4.2 cm
+    off, all of it the URDF's wheel <dynamics damping="0.01">, which Isaac's layout has no
+    place for: without it the URDF robot follows the same path to 1e-6 m."""
     def wheels(k):
         turn = 0.5 if k < 1000 else -0.5
         return {"mybot/wheel_left_joint_velocity": (0.3 - 0.2 * turn) / 0.06,
@@ -124,17 +133,25 @@ def test_the_same_mobile_robot_from_urdf_and_usd_follows_the_same_wheel_commands
         return data.xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY,
                                            "mybot/base_footprint")].copy()
 
-    urdf = _follow(ROOT / "scenarios" / "nav_urdf.yaml", wheels, 2000, base)
-    usd = _follow(ROOT / "scenarios" / "nav_usd_robot.yaml", wheels, 2000, base)
+    nav_urdf = ROOT / "scenarios" / "nav_urdf.yaml"
+    urdf = _follow(nav_urdf, wheels, 2000, base)
+    isaac = _follow(ROOT / "scenarios" / "nav_usd_robot.yaml", wheels, 2000, base)
     assert np.linalg.norm(urdf[-1] - urdf[0]) > 1.0
-    assert np.abs(urdf - usd).max() < 0.02
+    assert np.abs(urdf - isaac).max() < 0.05
+    undamped = _follow(nav_urdf, wheels, 2000, base, tuple(f"mybot/{w}" for w in WHEELS))
+    assert np.abs(undamped - isaac).max() < 1e-6
+    for layout in ("urdf_usd_converter", "mujoco_usd_converter"):  # the damping kept
+        converted = _follow(_swap(tmp_path, "nav_usd_robot.yaml", f"mybot_{layout}.usda", None,
+                                  f"nav_{layout}.yaml"), wheels, 2000, base)
+        assert np.abs(urdf - converted).max() < 1e-6, layout
 
 
 def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_path):
-    """Two targets held 2 s each. Isaac's layout (no joint damping: the URDF's 0.5 N m s/rad
-    has no place there) settles on the same positions (1e-4 rad) by different transients;
-    urdf-usd-converter's and mujoco-usd-converter's (newton:damping kept) follow the whole
-    way (1e-6 rad)."""
+    """Two targets held 2 s each. Isaac's layout (no joint damping: the URDF's 0.5 and 0.2
+    N m s/rad have no place there) settles on the same positions (1e-4 rad) by other
+    transients (up to 0.6 rad apart on the light wrist), and follows the undamped URDF arm
+    to 1e-6 rad; urdf-usd-converter's and mujoco-usd-converter's (newton:damping kept)
+    follow the URDF arm the whole way (1e-6 rad)."""
     targets = [[0.8, -0.5, 1.0, 0.0, 0.5, 0.0], [0.0, 0.6, 0.8, -0.4, 0.0, 1.0]]
 
     def command(k):
@@ -146,6 +163,9 @@ def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_p
 
     urdf = _follow(ROOT / "scenarios" / "arm_urdf.yaml", command, 2000, joints)
     isaac = _follow(ROOT / "scenarios" / "arm_usd.yaml", command, 2000, joints)
+    undamped = _follow(ROOT / "scenarios" / "arm_urdf.yaml", command, 2000, joints,
+                       tuple(f"myarm/{j}" for j in ARM))
+    assert np.abs(undamped - isaac).max() < 1e-6
     converted = _follow(_swap(tmp_path, "arm_urdf.yaml", "myarm_urdf_usd_converter.usda", {
         "interfaces": {"wrist_2": "position", "wrist_3": "position"}, "gains": ARM_GAINS},
         "arm_converted.yaml"), command, 2000, joints)
