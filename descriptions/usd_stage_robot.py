@@ -5,7 +5,7 @@ cameras, and what the converters keep beside (urdf-usd-converter's ``urdf:`` cus
 ``<ros2_control>``, ``<gazebo>``, ``<transmission>``). Every name is a prim's NAME, never
 its path; every pose is in metres, +Z up (``descriptions.worldfile.open_stage``).
 
-The layouts read (docs/tutorials/usd-robot.md):
+The layouts read (docs/how-to/usd-robots.md):
 
 - Isaac Sim's URDF importer: links as rigid bodies under the robot prim, joints in a
   ``joints`` scope, ``PhysicsDriveAPI:angular|linear`` on driven joints, revolute limits in

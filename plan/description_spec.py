@@ -66,7 +66,7 @@ class UrdfSpec(Strict):
 
 class UsdSpec(Strict):
     """A robot described in OpenUSD (UsdPhysics bodies, joints, drives): how cosim reads it
-    (docs/tutorials/usd-robot.md). Names are the prims' names, not their paths."""
+    (docs/how-to/usd-robots.md). Names are the prims' names, not their paths."""
 
     base: Literal["auto", "free", "fixed"] = Field("auto", description="free: a mobile robot; "
                                                    "fixed: fixed to the world; auto: fixed when "

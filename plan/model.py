@@ -146,7 +146,7 @@ class RobotsSpec(Strict):
                                   "docs/tutorials/own-robot.md)")
     usd: UsdSpec | None = Field(None, description="how a USD robot description (.usd, .usda, "
                                 ".usdc with UsdPhysics bodies and joints) is read (base, "
-                                "wheels, sensors, interfaces, gains; docs/tutorials/usd-robot.md)")
+                                "wheels, sensors, interfaces, gains; docs/how-to/usd-robots.md)")
     count: int | None = Field(None, ge=1, le=1024, description="this many robots, placed by "
                               "the scenario seed in region (instead of named)")
     name_prefix: Name = Field("robot", description="count: robots are named PREFIX_0, ...")
