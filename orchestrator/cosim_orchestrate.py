@@ -79,7 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "root names Isaac Sim and O3DE use (simulation_interfaces.namespace)")
     p.add_argument("--export-usd", action="store_true",
                    help="also write the run as an OpenUSD stage, run.usda, with time-sampled\n"
-                        "body transforms (usdview, Omniverse); built from the bag afterwards")
+                        "body transforms (usdview, Omniverse), and a URDF or USD robot as\n"
+                        "robots/ROBOT.usda in Isaac Sim's importer layout; built from the bag\n"
+                        "afterwards")
     p.add_argument("--expect-digest", metavar="HEX",
                    help="exit 4 unless the run's digest is HEX (64 hex digits)")
     p.add_argument("--against", type=Path, metavar="DIR",
