@@ -3,6 +3,8 @@ clock by the tick loop alone, in-process and multi-process, the digest unchanged
 
 from __future__ import annotations
 
+import json
+import subprocess
 import time
 
 import pytest
@@ -11,9 +13,10 @@ from descriptions.load import load_scenario
 from orchestrator.api import run
 from orchestrator.cosim_orchestrate import main
 from orchestrator.execute import execute
+from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.lockstep.pace import Pace
 from plan.options import RunOptions, check_real_time_factor
-from tests.helpers import SCENARIOS
+from tests.helpers import ORCHESTRATE, ROOT, SCENARIOS
 
 PROTOCOL = SCENARIOS / "protocol.yaml"  # 1 s simulated in 10 ms ticks, five counter nodes
 # How far the first-to-last decided tick span may miss simulated time / R beyond the 5 %: the
@@ -97,3 +100,44 @@ def test_the_cli_exits_2_naming_the_option(tmp_path, capsys, value):
     err = capsys.readouterr().err
     assert "--real-time-factor" in err and "above 0" in err, err
     assert not any(tmp_path.iterdir()), "nothing may be written"
+
+
+def test_a_pause_stops_the_paced_clock_and_play_resumes_it_without_a_burst(tmp_path,
+                                                                            ros_node):
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import SetBool, Trigger
+
+    from tests.test_sim_control import call, wait_paused_at
+
+    node, executor = ros_node
+    seen: list[tuple[float, int]] = []  # (when it arrived, its sim time in ns)
+    node.create_subscription(Clock, "/clock", lambda m: seen.append(
+        (time.monotonic(), m.clock.sec * 10**9 + m.clock.nanosec)), qos_profile_sensor_data)
+    run_proc = subprocess.Popen([*ORCHESTRATE, str(PROTOCOL), "--paused", "--quiet",
+                                 "--real-time-factor", "0.5", "--out", str(tmp_path)],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+    try:
+        for _ in range(3):  # steps while paused go at once
+            assert call(ros_node, Trigger, "/cosim/step", Trigger.Request()).success
+        wait_paused_at(ros_node, 3)
+        time.sleep(1.0)  # a clock that kept running would burst through 1 s of ticks
+        played = time.monotonic()
+        call(ros_node, SetBool, "/cosim/pause", SetBool.Request(data=False))
+        while run_proc.poll() is None:
+            executor.spin_once(timeout_sec=0.05)
+        err = run_proc.stderr.read()
+    finally:
+        if run_proc.poll() is None:
+            run_proc.kill()
+        run_proc.communicate()
+    assert run_proc.returncode == 0, err
+    after = [(t, ns) for t, ns in seen if t >= played]
+    took = after[-1][0] - after[0][0]
+    due = (after[-1][1] - after[0][1]) / 1e9 / 0.5
+    assert due > 1.5, f"too few /clock messages after play: {after[:3]} ... {after[-3:]}"
+    assert abs(took - due) <= due * 0.05 + ALLOWANCE_S, f"took {took:.3f} s, due {due:.3f} s"
+    [run_dir] = list(tmp_path.iterdir())
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert manifest["digest"] == run_in_process(load_scenario(PROTOCOL)).digest
