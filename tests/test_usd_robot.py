@@ -256,3 +256,28 @@ def test_cosim_describe_describes_a_usd_robot(capsys):
     assert "robot 'myarm' from" in out and "fixed to the world" in out
     assert "elbow: revolute [-2.6, 2.6]" in out and "actuator elbow_position" in out
     assert main([str(USD / "nowhere.usda")]) == 2
+
+
+def test_the_load_says_what_the_usd_robot_lost_and_settings_go_with_their_format(tmp_path,
+                                                                                 capsys):
+    doc = yaml.safe_load((ROOT / "scenarios" / "nav_usd_robot.yaml").read_text())
+    doc["robots"]["description"] = str(USD / "mybot_mujoco_usd_converter.usda")
+    doc["robots"]["usd"]["base"] = "free"
+    doc["world"] = str(ROOT / "scenarios" / "worlds" / "arena.xml")
+    path = tmp_path / "said.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    load_scenario(path)
+    said = capsys.readouterr().err
+    assert "mybot_mujoco_usd_converter.usda read as a USD robot; changed or not kept:" in said
+    assert "applied schemas not read: MjcCollisionAPI" in said
+    doc["robots"]["urdf"] = {"wheels": list(WHEELS)}
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ScenarioError, match="robots.urdf: urdf: settings for a USD"):
+        load_scenario(path)
+    doc["robots"].pop("urdf")
+    doc["nodes"][1]["params"] = {"lidar": {}}
+    doc["robots"]["usd"] = {"wheels": list(WHEELS), "sensors": {"imu": "imu_link"}}
+    doc["robots"]["description"] = str(USD / "mybot_isaac.usda")
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ScenarioError, match=r"add robots.usd.sensors: \{lidar: PRIM\}"):
+        load_scenario(path)
