@@ -459,7 +459,7 @@ def twin_run(scenario: Scenario, options: RunOptions, on_tick: Callable[[int], N
     """What a live twin run changes: its arrivals (with the link to the robot, started with
     the run's live endpoints), strict lockstep (tick k starts when k - 1 is decided, so what
     arrived enters at the tick whose wall time it arrived before) and a loop paced on the
-    wall clock."""
+    wall clock (real time, whatever ``real_time_factor`` says)."""
     external_plan = next(p for p in scenario.nodes.values()
                          if p.role is NodeRole.ORCHESTRATOR)
     arrivals = TwinArrivals(external_plan.outputs)
@@ -468,4 +468,5 @@ def twin_run(scenario: Scenario, options: RunOptions, on_tick: Callable[[int], N
     arrivals.link.pacer = pacer
     if scenario.model.transport == "ros2" and not options.in_process:
         arrivals.link.own_domain()
-    return arrivals, options.with_(pipeline=False), pacer
+    # the robot's wall clock paces a live twin (real time): a --real-time-factor gives way
+    return arrivals, options.with_(pipeline=False, real_time_factor=None), pacer
