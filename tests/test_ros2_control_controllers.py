@@ -186,3 +186,77 @@ def test_an_interface_mujoco_cannot_realise_is_refused_naming_the_joint(tmp_path
         load_scenario(arm_scenario(tmp_path, effort_joint="wrist_2"))
     assert ("push: joint 'wrist_2' has no effort command interface in cosim's hardware: its "
             "MuJoCo actuator 'myarm/wrist_2_velocity' takes velocity commands") in str(err.value)
+
+
+# -- a parallel gripper, as MoveIt's grasping drives it ----------------------------------------
+
+GRIPPER_ACTION = "parallel_gripper_action_controller/GripperActionController"
+
+
+def gripper_goal(name: str, *positions: float):
+    from control_msgs.action import ParallelGripperCommand
+
+    goal = ParallelGripperCommand.Goal()
+    goal.command.header.frame_id = name
+    goal.command.position = list(positions)
+    return goal
+
+
+def test_a_parallel_gripper_reaches_stalls_and_holds_on_cancel():
+    cls = controller_class(GRIPPER_ACTION)
+    ctrl = cls("gripper", cls.Params(joint="finger", stall_timeout=0.1))
+    ctrl.configure()
+    state = {"finger": JointReading(0.02, 0.0)}
+    ctrl.activate(state)
+    assert ctrl.claim().command == ("finger/position",)
+    assert ctrl.update(0, 10_000_000).commands == {"finger/position": 0.02}  # holds
+    assert ctrl.on_message("~/cosim/goal", gripper_goal("cosim-goal-1", 0.04, 0.04), 0) == [
+        "gripper/gripper_cmd goal 1 refused: 2 positions, expects 1"]
+    ctrl.on_message("~/cosim/goal", gripper_goal("cosim-goal-2", 0.04), 0)
+    state["finger"] = JointReading(0.025, 0.05)  # moving towards it
+    assert ctrl.update(50_000_000, 10_000_000).commands == {"finger/position": 0.04}
+    assert ctrl.metrics()["goal_state"] == 1.0
+    state["finger"] = JointReading(0.028, 0.0)  # an object between the fingers: it stops
+    ctrl.update(100_000_000, 10_000_000)
+    assert ctrl.metrics()["goal_state"] == 1.0  # not yet stall_timeout without motion
+    ctrl.update(160_000_000, 10_000_000)
+    assert ctrl.metrics() == {"goal_seq": 2.0, "goal_state": 3.0, "stalled": 1.0,
+                              "reached_goal": 0.0, "position": 0.028}
+    ctrl.on_message("~/cosim/goal", gripper_goal("cosim-goal-3", 0.0281), 200_000_000)
+    ctrl.update(210_000_000, 10_000_000)  # within goal_tolerance (0.01)
+    assert ctrl.metrics()["goal_state"] == 2.0 and ctrl.metrics()["reached_goal"] == 1.0
+    ctrl.on_message("~/cosim/goal", gripper_goal("cosim-goal-4", 0.0), 300_000_000)
+    state["finger"] = JointReading(0.02, -0.05)
+    ctrl.on_message("~/cosim/goal", gripper_goal("cosim-cancel-5"), 310_000_000)
+    assert ctrl.metrics()["goal_state"] == 4.0
+    assert ctrl.update(320_000_000, 10_000_000).commands == {"finger/position": 0.02}
+
+
+def test_a_moveit_users_gripper_goal_is_answered_by_the_gripper_controller(tmp_path, ros_node):
+    """A plain rclpy ParallelGripperCommand client against a running arm whose wrist_1 is the
+    gripper: the goal succeeds with the joint's state; a goal of two positions is rejected."""
+    from control_msgs.action import ParallelGripperCommand
+    from simulation_interfaces.msg import SimulationState
+
+    from tests.sim_client import SimClient, orchestrate
+
+    path = arm_scenario(tmp_path)
+    controllers_file(tmp_path, {"arm": "position_controllers/JointGroupPositionController",
+                                "gripper": GRIPPER_ACTION},
+                     {"arm": {"joints": ARM_JOINTS[:3]},
+                      "gripper": {"joint": "wrist_1", "goal_tolerance": 0.02}})
+    sim = SimClient(ros_node)
+    with orchestrate(path, tmp_path / "out", "--paused", "--duration", "2s") as proc:
+        sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
+                      gripper_goal("", 0.3, 0.3), accepted=False)
+        grasp = sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
+                              gripper_goal("", 0.3))
+        sim.set_state(SimulationState.STATE_PLAYING)
+        sim.spin_until(lambda: grasp.result.done(), timeout=120)
+        outcome = grasp.result.result()
+        proc.communicate(timeout=60)
+    sim.close()
+    assert outcome.status == 4, outcome  # SUCCEEDED
+    assert outcome.result.reached_goal and not outcome.result.stalled
+    assert outcome.result.state.name == ["wrist_1"]
+    assert abs(outcome.result.state.position[0] - 0.3) < 0.02

@@ -11,6 +11,9 @@ from nodes.ros2_control.controllers.joint_state_broadcaster import JointStateBro
 from nodes.ros2_control.controllers.joint_trajectory_controller import (
     JointTrajectoryController,
 )
+from nodes.ros2_control.controllers.parallel_gripper_action_controller import (
+    ParallelGripperActionController,
+)
 from nodes.ros2_control.controllers.position_controllers import JointGroupPositionController
 from nodes.ros2_control.controllers.velocity_controllers import JointGroupVelocityController
 from nodes.ros2_control.interface import ControllerInterface
@@ -23,6 +26,8 @@ CONTROLLER_TYPES: dict[str, type[ControllerInterface]] = {
     "velocity_controllers/JointGroupVelocityController": JointGroupVelocityController,
     "effort_controllers/JointGroupEffortController": JointGroupEffortController,
     "diff_drive_controller/DiffDriveController": DiffDriveController,
+    "parallel_gripper_action_controller/GripperActionController":
+        ParallelGripperActionController,
 }
 BASE_CLASS = "controller_interface::ControllerInterface"
 """What list_controller_types gives as every type's base class."""

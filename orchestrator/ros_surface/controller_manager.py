@@ -1,6 +1,8 @@
 """The controller manager's face of an interactive run with a ``ros2_control`` node: the
 services ``/controller_manager/list_controllers``, ``list_controller_types`` and
-``switch_controller``, and each trajectory controller's ``~/follow_joint_trajectory`` action.
+``switch_controller``, and the actions controllers offer (a trajectory controller's
+``~/follow_joint_trajectory``, a parallel gripper's ``~/gripper_cmd``: their faces in
+``controller_actions``).
 
 What changes the run (a goal, a cancel, a switch) is put into the run's external arrivals and
 enters the controller manager node at its next activation, at a tick boundary, recorded like
@@ -14,8 +16,6 @@ import logging
 import threading
 from collections import deque
 
-from control_msgs.action import FollowJointTrajectory
-from control_msgs.msg import JointTrajectoryControllerState
 from controller_manager_msgs.msg import ControllerState
 from controller_manager_msgs.srv import ListControllers, ListControllerTypes, SwitchController
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -24,18 +24,15 @@ from std_msgs.msg import String
 
 from nodes.registry import KINDS
 from nodes.ros2_control.controllers.joint_trajectory_controller import (
-    ABORTED,
     ACTIVE,
     CANCEL_ID,
-    CANCELED,
-    FOLLOW,
     GOAL,
     GOAL_ID,
-    SUCCEEDED,
 )
 from nodes.ros2_control.manager import load, resolve, switch_problem
 from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
 from nodes.ros2_control.registry import BASE_CLASS, served_types
+from orchestrator.ros_surface.controller_actions import FACES
 from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
@@ -43,8 +40,6 @@ from runtime.arrivals import Arrivals
 WAIT_S = 0.1
 PREFIX = "/controller_manager/"
 log = logging.getLogger("cosim")
-RESULT_TEXT = {0: "", -1: "invalid goal", -2: "invalid joints", -3: "old header timestamp",
-               -4: "path tolerance violated", -5: "goal tolerance violated"}
 
 
 class ControllerManagerServer:
@@ -80,14 +75,20 @@ class ControllerManagerServer:
                             answering(self._switch), callback_group=group)
         self.actions = []
         self._active_handles: dict[str, object] = {}  # controller -> its executing goal
+        self.faces = {}  # controller -> the face of the action it offers
         for name, ctrl in self.controllers.items():
-            offered = ctrl.actions() if ctrl is not None else {}
-            if offered.get(FOLLOW) is FollowJointTrajectory and resolve(name, GOAL) in self.topics:
-                node.create_subscription(
-                    JointTrajectoryControllerState, f"/{name}/controller_state",
-                    self._feedback(name), QoSProfile(depth=10), callback_group=group)
+            for action_name, action in (ctrl.actions() if ctrl is not None else {}).items():
+                face = FACES.get(action)
+                if face is None or resolve(name, GOAL) not in self.topics:
+                    continue
+                self.faces[name] = face
+                if face.feedback_topic is not None:
+                    topic = resolve(name, face.feedback_topic)
+                    node.create_subscription(
+                        ctrl.publications()[face.feedback_topic], topic, self._feedback(name),
+                        QoSProfile(depth=10), callback_group=group)
                 self.actions.append(ActionServer(
-                    node, FollowJointTrajectory, resolve(name, FOLLOW),
+                    node, action, resolve(name, action_name),
                     answering(self._executor(name)), callback_group=group,
                     goal_callback=self._goal_callback(name),
                     cancel_callback=self._cancel_callback(name)))
@@ -164,40 +165,46 @@ class ControllerManagerServer:
                 return response
 
     def _goal_callback(self, name: str):
+        face = self.faces[name]
+        label = face.action.__name__
+
         def on_goal(request) -> GoalResponse:
             with self._cond:
                 if not self.active[name]:  # as upstream: nothing would ever answer it
-                    log.warning("FollowJointTrajectory: goal for %s rejected at %s: the "
-                                "controller is not running (activate it with "
-                                "/controller_manager/switch_controller)", name, self.control.at())
+                    log.warning("%s: goal for %s rejected at %s: the controller is not "
+                                "running (activate it with /controller_manager/"
+                                "switch_controller)", label, name, self.control.at())
+                    return GoalResponse.REJECT
+                if (why := face.refuse(request)) is not None:
+                    log.warning("%s: goal for %s rejected at %s: %s", label, name,
+                                self.control.at(), why)
                     return GoalResponse.REJECT
                 self._sent += 1
                 replaced = self.arrivals.put(self.topics[resolve(name, GOAL)],
-                                             _goal(request, f"{GOAL_ID}{self._sent}"))
+                                             face.entering(request, f"{GOAL_ID}{self._sent}"))
                 previous = self._latest.get(name)
-                if replaced is not None and previous and \
-                        replaced.trajectory.header.frame_id.startswith(GOAL_ID):
+                if replaced is not None and previous and face.is_goal(replaced):
                     self._never_entered[id(previous)] = "replaced by a newer goal before it " \
                         "entered the run (both arrived within one tick)"
                 else:  # a goal that enters: the controller counts it
                     self._goals_put[name] = self._goals_put.get(name, 0) + 1
                 self._seq_of[id(request)] = self._goals_put[name]
                 self._latest[name] = request
-            log.info("FollowJointTrajectory: goal %d for %s from %s", self._goals_put[name], name,
+            log.info("%s: goal %d for %s from %s", label, self._goals_put[name], name,
                      self.control.at())
             return GoalResponse.ACCEPT
         return on_goal
 
     def _cancel_callback(self, name: str):
+        face = self.faces[name]
+
         def on_cancel(handle) -> CancelResponse:
             with self._cond:
                 if self._latest.get(name) is handle.request:
                     self._sent += 1
-                    cancel = FollowJointTrajectory.Goal()
-                    cancel.trajectory.header.frame_id = f"{CANCEL_ID}{self._sent}"
-                    replaced = self.arrivals.put(self.topics[resolve(name, GOAL)], cancel)
-                    if replaced is not None and \
-                            replaced.trajectory.header.frame_id.startswith(GOAL_ID):
+                    replaced = self.arrivals.put(self.topics[resolve(name, GOAL)],
+                                                 face.cancel(f"{CANCEL_ID}{self._sent}"))
+                    if replaced is not None and face.is_goal(replaced):
                         self._never_entered[id(handle.request)] = "cancelled before it " \
                             "entered the run"
                         self._goals_put[name] -= 1
@@ -205,21 +212,27 @@ class ControllerManagerServer:
         return on_cancel
 
     def _feedback(self, name: str):
-        """Feedback of the executing goal from the controller's ~/controller_state (it tells
-        the client how the motion goes; nothing of it enters the run)."""
-        def forward(state: JointTrajectoryControllerState) -> None:
+        """Feedback of the executing goal from the controller's state topic (it tells the
+        client how the motion goes; nothing of it enters the run)."""
+        face = self.faces[name]
+
+        def forward(state) -> None:
             handle = self._active_handles.get(name)
             if handle is None or not handle.is_active:
                 return
-            fb = FollowJointTrajectory.Feedback(header=state.header,
-                                                joint_names=list(state.joint_names),
-                                                desired=state.reference, actual=state.feedback,
-                                                error=state.error)
-            handle.publish_feedback(fb)
+            handle.publish_feedback(face.feedback(state))
         return forward
 
     def _executor(self, name: str):
-        def execute(handle) -> FollowJointTrajectory.Result:
+        face = self.faces[name]
+        label = face.action.__name__
+
+        def finish(handle, ending):
+            log.info("%s: %s %s", label, ending.how, ending.text)
+            getattr(handle, ending.how)()
+            return ending.result
+
+        def execute(handle):
             self._active_handles[name] = handle
             with self._cond:
                 mine = self._seq_of.pop(id(handle.request))
@@ -233,34 +246,28 @@ class ControllerManagerServer:
                         why = self._never_entered.pop(id(handle.request), None)
                 if why is not None:
                     how = "canceled" if handle.is_cancel_requested else "abort"
-                    return _finish(handle, how, -1 if how == "abort" else 0, why)
+                    return finish(handle, face.failed(how, why))
                 with self._cond:
                     fresh = [(s, m) for s, m in self._reports if s > seen]
                     seen = fresh[-1][0] if fresh else seen
                 for _, m in fresh:
                     if m.get(f"goal_seq:{name}", 0.0) != float(mine):
                         if m.get(f"goal_seq:{name}", 0.0) > mine:
-                            return _finish(handle, "abort", -1, "replaced by a newer goal")
+                            return finish(handle, face.failed("abort",
+                                                              "replaced by a newer goal"))
                         continue
                     state = m.get(f"goal_state:{name}")
-                    code = int(m.get(f"error_code:{name}", 0.0))
-                    joint = int(m.get(f"error_joint:{name}", -1.0))
-                    if state == SUCCEEDED:
-                        return _finish(handle, "succeed", 0, "")
-                    if state == ABORTED:
-                        text = RESULT_TEXT.get(code, "")
-                        if joint >= 0:
-                            text += f" (joint {self.controllers[name].joints[joint]})"
-                        return _finish(handle, "abort", code, text)
-                    if state == CANCELED:
-                        how = "canceled" if handle.is_cancel_requested else "abort"
-                        return _finish(handle, how, 0, "cancelled: holding position"
-                                       if how == "canceled" else "preempted")
                     if state == ACTIVE:
                         continue
+                    own = {k.rpartition(":")[0]: v for k, v in m.items()
+                           if k.endswith(f":{name}")}
+                    ending = face.ended(state, own, self.controllers[name],
+                                        handle.is_cancel_requested)
+                    if ending is not None:
+                        return finish(handle, ending)
                 if ended is not None:
                     how = "canceled" if handle.is_cancel_requested else "abort"
-                    return _finish(handle, how, -1, f"the run ended: {ended}")
+                    return finish(handle, face.failed(how, f"the run ended: {ended}", -1))
         return execute
 
 
@@ -270,24 +277,6 @@ def _state(ctrl, active: bool) -> str:
     if ctrl is None:
         return "unconfigured"
     return "active" if active else "inactive"
-
-
-def _goal(request, name: str) -> FollowJointTrajectory.Goal:
-    """The goal as it enters the run, named in its trajectory's frame_id (the controller
-    tells a new goal from the one the external node holds by it)."""
-    goal = FollowJointTrajectory.Goal()
-    goal.trajectory = request.trajectory
-    goal.trajectory.header.frame_id = name
-    goal.path_tolerance = list(request.path_tolerance)
-    goal.goal_tolerance = list(request.goal_tolerance)
-    goal.goal_time_tolerance = request.goal_time_tolerance
-    return goal
-
-
-def _finish(handle, how: str, code: int, text: str) -> FollowJointTrajectory.Result:
-    log.info("FollowJointTrajectory: %s %s", how, text)
-    getattr(handle, how)()
-    return FollowJointTrajectory.Result(error_code=code, error_string=text)
 
 
 def controller_managers(node, group, scenario: Scenario, control: RunControl,
