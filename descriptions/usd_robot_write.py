@@ -63,7 +63,7 @@ def write_robot_usd(loaded: LoadedUrdf, out: Path) -> list[str]:
     mujoco.mj_kinematics(model, data)
     urdf, robot = loaded.urdf, loaded.model
     notes: list[str] = []
-    name = _identifier(urdf.name or "robot")
+    name = prim_name(urdf.name or "robot")
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
@@ -100,8 +100,8 @@ def write_robot_usd(loaded: LoadedUrdf, out: Path) -> list[str]:
     return notes
 
 
-def _identifier(text: str) -> str:
-    """``text`` as a USD prim name (invalid characters as '_')."""
+def prim_name(text: str) -> str:
+    """``text`` as a USD prim name (other characters than letters, digits and '_' as '_')."""
     clean = re.sub(r"[^A-Za-z0-9_]", "_", text)
     return clean if IDENTIFIER.match(clean) else f"_{clean}"
 
@@ -162,15 +162,17 @@ def _quatf(r: np.ndarray):
 def _friction_materials(stage, name: str, model: mujoco.MjModel, poses) -> dict[float, object]:
     """A physics material per friction the description gave (MuJoCo's geom priority marks
     them: cosim sets it with a Gazebo <mu1>)."""
-    from pxr import UsdPhysics, UsdShade
+    from pxr import UsdGeom, UsdPhysics, UsdShade
 
     values = sorted({float(model.geom_friction[g, 0]) for g in range(model.ngeom)
                      if model.geom_priority[g] > 0 and model.geom_group[g] == COLLISION_GROUP
                      and model.body(model.geom_bodyid[g]).name in poses})
     materials = {}
+    if values:
+        UsdGeom.Scope.Define(stage, f"/{name}/PhysicsMaterials")
     for mu in values:
         mat = UsdShade.Material.Define(
-            stage, f"/{name}/PhysicsMaterials/{_identifier('mu_' + repr(mu))}")
+            stage, f"/{name}/PhysicsMaterials/{prim_name('mu_' + repr(mu))}")
         api = UsdPhysics.MaterialAPI.Apply(mat.GetPrim())
         api.CreateStaticFrictionAttr(mu)
         api.CreateDynamicFrictionAttr(mu)
@@ -299,7 +301,7 @@ def _write_joint(stage, name: str, joint, model: mujoco.MjModel, poses, notes: l
         return
     schema = {"fixed": UsdPhysics.FixedJoint, "prismatic": UsdPhysics.PrismaticJoint}.get(
         kind, UsdPhysics.RevoluteJoint)
-    usd = schema.Define(stage, f"/{name}/joints/{_identifier(joint.name)}")
+    usd = schema.Define(stage, f"/{name}/joints/{prim_name(joint.name)}")
     prim = usd.GetPrim()
     if joint.parent != WORLD:
         usd.CreateBody0Rel().SetTargets([Sdf.Path(f"/{name}/{joint.parent}")])
@@ -393,7 +395,7 @@ def _write_kept(stage, path: str, elements: list[ET.Element]) -> None:
 def _write_children(stage, path: str, elements, Sdf, UsdGeom) -> None:
     taken: dict[str, int] = {}
     for el in elements:
-        base = _identifier(el.tag)
+        base = prim_name(el.tag)
         n = taken.get(base, 0)
         taken[base] = n + 1
         prim = UsdGeom.Scope.Define(stage, f"{path}/{base if n == 0 else f'{base}_{n}'}"

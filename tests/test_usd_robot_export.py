@@ -11,12 +11,14 @@ positions and the odometry of the robot read back stay within 1e-6 (rad, m) of t
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 import yaml
 
 import nodes  # noqa: F401  (the node kinds, for loading scenarios)
 from descriptions.load import load_scenario
+from descriptions.swarm_world import swarm_model
 from descriptions.urdf import UrdfOptions
 from descriptions.urdf_robot import layout_robot
 from descriptions.usd_robot import load_usd
@@ -141,3 +143,29 @@ def test_export_usd_of_a_urdf_robot_runs_again_as_the_same_robot(tmp_path, scena
         odom = _odometry(first, "/mybot/odom")
         assert np.linalg.norm(odom[-1, :2] - odom[0, :2]) > 0.5
         assert np.abs(_odometry(again, "/mybot/odom") - odom).max() < TOLERANCE
+        _plays_back_in_run_usda(first)
+
+
+def _plays_back_in_run_usda(done) -> None:
+    """run.usda holds the robot as its asset at /World/mybot (not MuJoCo's writer's bodies),
+    each link at its recorded pose per tick."""
+    from pxr import Usd, UsdGeom, UsdPhysics
+
+    from orchestrator.outputs.usd_export import world_states
+
+    stage = Usd.Stage.Open(str(done.run_dir / "run.usda"))
+    assert stage.GetPrimAtPath("/World/Obstacles") or stage.GetPrimAtPath("/World/pillar_a")
+    assert not stage.GetPrimAtPath("/World/mybot_base_footprint")
+    base = stage.GetPrimAtPath("/World/mybot/base_footprint")
+    assert base.HasAPI(UsdPhysics.RigidBodyAPI) and base.HasAPI(UsdPhysics.ArticulationRootAPI)
+    assert stage.GetPrimAtPath("/World/mybot/joints/wheel_left_joint").HasAPI(
+        UsdPhysics.DriveAPI, "angular")
+    model = swarm_model(done.scenario.world, done.scenario.robots)
+    free = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                               "mybot/base_footprint_free")]
+    states = dict(world_states(done.run_dir / "bag", done.scenario.tick_ns, model.nq))
+    for k in (0, 100):
+        where = UsdGeom.Xformable(base).ComputeLocalToWorldTransform(Usd.TimeCode(k))
+        np.testing.assert_allclose(where.ExtractTranslation(), states[k][free:free + 3],
+                                   atol=1e-9)
+    assert not np.allclose(states[0][free:free + 2], states[100][free:free + 2])

@@ -38,30 +38,81 @@ WORLD_STATE = "/cosim/world_state"
 
 def export_run_usd(world: Path, bag: Path, tick_ns: int, out: Path, robots=None) -> Path:
     """Write ``out`` (a .usda/.usdc) from the bag's world states; returns the path. A
-    swarm's ``robots`` (plan.robots.RobotsLayout) puts every robot in, as the run had it."""
+    swarm's ``robots`` (plan.robots.RobotsLayout) puts every robot in, as the run had it: an
+    MJCF robot as MuJoCo's writer writes it, a URDF, xacro or USD robot as its own asset
+    (``robots/ROBOT.usda``, Isaac Sim's importer layout) at ``/World/NAME``, each link posed
+    per tick."""
     from mujoco.usd import layer_sink, writer
+    from pxr import Gf
 
     spec = swarm_spec(world, robots) if robots is not None else load_world_spec(world)
-    for light in [li for li in spec.lights if li.name.startswith("/")]:
-        spec.delete(light)  # added from UsdLux prims the stage already has
-    stage, samples = _stage_for(world, spec)
-    model = compile_world(spec, world)
+    asset = None if robots is None else export_robot_usd(robots, out.parent / "robots")
+    scene = spec if asset is None else load_world_spec(world, stage_robots_too=False)
+    for light in [li for li in scene.lights if li.name.startswith("/")]:
+        scene.delete(light)  # added from UsdLux prims the stage already has
+    stage, samples = _stage_for(world, scene)
+    model = compile_world(spec, world)  # the run's model: the bag's qpos is its
     data = mujoco.MjData(model)
-    usd_writer = writer.UsdWriter(stage, spec, model)
+    scene_model = model if asset is None else compile_world(scene, world)
+    scene_data = data if asset is None else mujoco.MjData(scene_model)
+    _check_scene_first(scene_model, model)
+    usd_writer = writer.UsdWriter(stage, scene, scene_model)
     usd_writer.add_sink(layer_sink.LayerSink(stage).update)
+    links = [] if asset is None else _robot_links(stage, asset, robots, model)
     ticks = []
     for tick, qpos in world_states(bag, tick_ns, model.nq):
         data.qpos[:] = qpos
-        data.time = float(tick)  # LayerSink: time code = data.time * the layer's rate (1)
         mujoco.mj_kinematics(model, data)
-        usd_writer.update(data)
+        if scene_data is not data:
+            scene_data.qpos[:] = qpos[:scene_model.nq]
+            mujoco.mj_kinematics(scene_model, scene_data)
+        scene_data.time = float(tick)  # LayerSink: time code = data.time * the layer's rate (1)
+        usd_writer.update(scene_data)
+        for body, translate, orient in links:
+            translate.Set(Gf.Vec3d(*data.xpos[body].tolist()), float(tick))
+            orient.Set(Gf.Quatd(*data.xquat[body].tolist()), float(tick))
         ticks.append(tick)
     _set_timing(stage, samples, tick_ns, ticks)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage.Export(str(out))
-    if robots is not None:
-        export_robot_usd(robots, out.parent / "robots")
     return out
+
+
+def _check_scene_first(scene: mujoco.MjModel, model: mujoco.MjModel) -> None:
+    """The world's own joints come first in the run's qpos (the robots are attached after
+    them), so the world alone is posed from the first ``scene.nq`` values."""
+    for j in range(scene.njnt):
+        name = scene.joint(j).name
+        full = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) if name else -1
+        if name and (full < 0 or model.jnt_qposadr[full] != scene.jnt_qposadr[j]):
+            raise ValueError(f"the world's joint {name!r} is not where the run's model has it")
+
+
+def _robot_links(stage, asset: Path, robots, model: mujoco.MjModel) -> list:
+    """A prim per robot referencing ``asset`` under the default prim (NAME, or NAME_robot
+    where the world has a prim of that name); (body, translate, orient) of each link."""
+    from pxr import Gf, UsdGeom, UsdPhysics
+
+    from descriptions.usd_robot_write import prim_name
+
+    top = stage.GetDefaultPrim().GetPath()
+    meters = UsdGeom.GetStageMetersPerUnit(stage) or 1.0
+    links = []
+    for robot in robots.robots:
+        path = top.AppendChild(prim_name(robot.name))
+        if stage.GetPrimAtPath(path):
+            path = top.AppendChild(prim_name(f"{robot.name}_robot"))
+        prim = stage.DefinePrim(path, "Xform")
+        prim.GetReferences().AddReference(str(asset.resolve()))
+        if meters != 1.0:  # the robot is in metres, the world is not
+            UsdGeom.Xformable(prim).AddScaleOp().Set(Gf.Vec3f(*[1.0 / meters] * 3))
+        for link in prim.GetChildren():
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY,
+                                     f"{robot.name}/{link.GetName()}")
+            if body >= 0 and link.HasAPI(UsdPhysics.RigidBodyAPI):
+                links.append((body, link.GetAttribute("xformOp:translate"),
+                              link.GetAttribute("xformOp:orient")))
+    return links
 
 
 def export_robot_usd(robots, folder: Path) -> Path | None:
