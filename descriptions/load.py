@@ -16,8 +16,10 @@ from descriptions.robot_layout import robots_layout
 from descriptions.robot_model import RobotModel
 from descriptions.robot_reader import RobotNames, world_robots
 from descriptions.swarm_world import swarm_model
+from descriptions.world_edits import world_objects
 from descriptions.worldfile import check_world
 from plan.errors import WorldError
+from plan.events import WorldObjects
 from plan.load import read_scenario
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
@@ -48,6 +50,11 @@ class MujocoWorlds:
             return world_robots(world, layout, robot_names)
         except ValueError as exc:
             raise WorldError(world, str(exc)) from None
+
+    def world_objects(self, world_model: mujoco.MjModel, start: tuple[str, float, float] | None
+                      ) -> WorldObjects:
+        """The world's names, obstacles and movers, for the events' checks."""
+        return world_objects(world_model, start)
 
 
 WORLDS = MujocoWorlds()

@@ -16,6 +16,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from descriptions.robot_model import RobotModel
+from plan.events import EventSpec
 from plan.robots import RobotsLayout
 from plan.timeutil import Ns
 
@@ -47,6 +48,8 @@ class NodeConfig:
     # node (NAME@ROBOT) its own, a scenario of one robot its one (unnamed) robot
     layout: RobotsLayout | None = None  # a swarm: how its world is built from ``world`` (the
     # arena) and where each robot goes; None: ``world`` is the whole world
+    events: tuple[EventSpec, ...] = ()  # the scenario's events (plan.events): objects
+    # that enter and leave the world at given times, applied by every node with a world
 
     @property
     def robot(self) -> RobotModel:

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from plan.description_spec import UrdfSpec, UsdSpec
+from plan.events import EventSpec
 from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
@@ -261,6 +262,11 @@ class ScenarioModel(Strict):
     simulation_interfaces: SimulationInterfacesSpec = Field(
         default_factory=SimulationInterfacesSpec)
     nodes: list[NodeSpec] = Field(min_length=1)
+    events: list[EventSpec] = Field(default_factory=list, description="objects that enter "
+                                    "and leave the running world at given times, e.g. "
+                                    "[{at: 5s, spawn: {name: box1, shape: box, size: [0.3, "
+                                    "0.3, 0.5], pose: {x: 1, y: 0}}}, {at: 8s, delete: box1}] "
+                                    "(plan/events.py)")
 
     @property
     def has_goal(self) -> bool:

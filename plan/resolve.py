@@ -8,6 +8,7 @@ from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
+from plan.events import object_problems, physics_period, timing_problems
 from plan.external_node import complete_model
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
@@ -41,6 +42,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
+    model = with_event_files(path, model, found)
     where = ScenarioChecks(path, model, origins, worlds, found)
     classes, params = {}, {}
     for i, spec in enumerate(model.nodes):
@@ -75,6 +77,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     if len(outputs) < len(model.nodes):
         found.raise_any()  # an input's publisher may be the node whose outputs are wrong
     publishers = producers(where, outputs, {i: cls for i, (_, cls) in classes.items()})
+    check_events(where, model, outputs, world_model, params)
     inputs = {i: node_inputs(where, i, spec, classes[i][1], params[i], publishers)
               for i, spec in enumerate(model.nodes)}
     found.raise_any()  # what follows reads every node's inputs, the tick and the world
@@ -99,6 +102,43 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
+
+
+def with_event_files(path: Path, model: ScenarioModel, found: Problems) -> ScenarioModel:
+    """The model with each spawned mesh's file made absolute (every node reads it from its
+    own working directory); a file that does not exist is a problem naming the key."""
+    events = list(model.events)
+    for i, event in enumerate(events):
+        obj = event.spawn
+        if obj is None or obj.mesh is None:
+            continue
+        file = (path.parent / obj.mesh).resolve()
+        if not file.is_file():
+            found.add(ScenarioChecks(path, model).fail(
+                f"events[{i}] ({obj.name}).spawn.mesh", f"mesh file {obj.mesh!r} does not "
+                f"exist ({file}).", "the path of an STL or OBJ file, relative to this file."))
+            continue
+        events[i] = event.model_copy(update={"spawn": obj.model_copy(update={"mesh": str(file)})})
+    return model.model_copy(update={"events": events}) if model.events else model
+
+
+def check_events(where: ScenarioChecks, model: ScenarioModel, outputs: dict, world_model,
+                 params: dict) -> None:
+    """The events' times against the physics node's ticks and the duration, and their names
+    and places against the world (``plan.events``); problems kept in ``where.found``."""
+    if not model.events:
+        return
+    period = physics_period({spec.name: outputs[i][0] for i, spec in enumerate(model.nodes)},
+                            {spec.name: spec.period_ns for spec in model.nodes})
+    problems = timing_problems(model.events, period, model.duration)
+    if world_model is not None and where.worlds is not None:
+        start = next(((p.base_body, p.start.x, p.start.y) for p in params.values()
+                      if getattr(p, "start", None) is not None
+                      and isinstance(getattr(p, "base_body", None), str)), None)
+        objects = where.worlds.world_objects(world_model, start)
+        problems += object_problems(model.events, objects)
+    for key, problem, accepted in problems:
+        where.found.add(where.fail(key, problem, accepted))
 
 
 def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Protocol
 
+from plan.events import WorldObjects
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
 
@@ -36,3 +37,9 @@ class WorldReader(Protocol):
         description names ``names`` (``StepNode.description_names``, merged); none in a
         world without the robot. ``plan.errors.WorldError`` when the world does not have
         what the names name."""
+
+    def world_objects(self, world_model: Any, start: tuple[str, float, float] | None
+                      ) -> WorldObjects:
+        """What a scenario's events are checked against (``plan.events``): the world's
+        names, static obstacles, and its robots and loose objects where they start
+        (``start``: a body moved to (x, y) by the physics node's start parameter)."""

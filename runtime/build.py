@@ -28,7 +28,8 @@ def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
     return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
                       period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
                       joint_goal=joint_goal, scenario_dir=scenario.file.parent.resolve(),
-                      render_warm_up=warm_up, robots=robots, layout=scenario.robots)
+                      render_warm_up=warm_up, robots=robots, layout=scenario.robots,
+                      events=tuple(scenario.model.events))
 
 
 def scenario_robots(scenario: Scenario) -> tuple[RobotModel, ...]:

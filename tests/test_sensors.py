@@ -207,7 +207,8 @@ def test_sensor_nodes_of_one_process_share_one_mirror_and_measure_their_own_stat
 
     nodes, shared = scans()
     assert nodes["lidar@robot_0"].mirror is nodes["lidar@robot_1"].mirror
-    monkeypatch.setattr(WorldMirror, "shared", classmethod(lambda cls, w, lay=None: cls(w, lay)))
+    monkeypatch.setattr(WorldMirror, "shared", classmethod(
+        lambda cls, w, lay=None, events=(): cls(w, lay, events)))
     nodes, own = scans()
     assert nodes["lidar@robot_0"].mirror is not nodes["lidar@robot_1"].mirror
     assert shared == own

@@ -71,13 +71,28 @@ def joint_state(names: list[str], pos: np.ndarray, vel: np.ndarray,
     return msg
 
 
-def world_state(qpos: np.ndarray, qvel: np.ndarray) -> Float64MultiArray:
-    """The mirror of the world for sensors: data = qpos then qvel, labelled in the layout."""
+WORLD_VERSION = "world_version"  # the layout dimension that carries it (no data of its own)
+
+
+def world_state(qpos: np.ndarray, qvel: np.ndarray, version: int = 0) -> Float64MultiArray:
+    """The mirror of the world for sensors: data = qpos then qvel, labelled in the layout;
+    once a scenario event changed the world, a third dimension says how many are in it
+    (its ``size``; the qpos layout is that world's)."""
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label="qpos", size=len(qpos), stride=len(qpos)),
                       MultiArrayDimension(label="qvel", size=len(qvel), stride=len(qvel))]
+    if version:
+        msg.layout.dim.append(MultiArrayDimension(label=WORLD_VERSION, size=version, stride=0))
     msg.data = f64(np.concatenate([qpos, qvel]))
     return msg
+
+
+def world_version(msg: Float64MultiArray) -> int:
+    """How many scenario events are in the world a world state shows (0: none)."""
+    for dim in msg.layout.dim[2:]:
+        if dim.label == WORLD_VERSION:
+            return int(dim.size)
+    return 0
 
 
 def twist_of(msg: Twist | TwistStamped | None) -> tuple[float, float]:

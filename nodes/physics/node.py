@@ -44,6 +44,7 @@ from nodes.physics.imu import ImuParams, imu_problems
 from nodes.physics.swarm import SwarmPhysics, robot_params
 from nodes.physics.urdf_rig import ROBOT_DESCRIPTION
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
+from nodes.physics.world_events import LiveWorld
 from plan.interactive import SET_POSE_TOPIC
 from plan.obstacles import place_problem
 from plan.timeutil import format_ns
@@ -245,7 +246,12 @@ class PhysicsNode(StepNode):
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robots."""
         world = self.config.world
-        self.model = load_model(world, self.config.layout)
+        live = None
+        if self.config.events:  # a world that changes: kept as a spec to recompile
+            live = LiveWorld(world, self.config.layout, self.config.events)
+            self.model = live.model
+        else:
+            self.model = load_model(world, self.config.layout)
         self.data = mujoco.MjData(self.model)
         if self.params.threads > 1:
             mujoco.mju_threadpool(self.data, self.params.threads)
@@ -254,11 +260,14 @@ class PhysicsNode(StepNode):
         robots = robots_of(self.config, self.description_names(self.params))
         self.swarm = SwarmPhysics(self.model, self.data, self.params,
                                   replace(self.config, robots=robots), self.rng, self.substeps,
-                                  self.dt, self.note)
+                                  self.dt, self.note, live)
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
-        """Integrate one period (except at the first activation) and publish the state."""
-        return self.swarm.step(tick, inputs)
+        """Integrate one period (except at the first activation), apply the scenario's
+        events due at the tick, and publish the state."""
+        out = self.swarm.step(tick, inputs)
+        self.model, self.data = self.swarm.model, self.swarm.data  # recompiled by an event
+        return out
 
     def metrics(self) -> dict[str, float]:
         """Collision events, the ground-truth planar pose, and whether it reached the goal

@@ -38,6 +38,7 @@ from nodes.physics.urdf_rig import (
     urdf_params,
 )
 from nodes.physics.world import named_id
+from nodes.physics.world_events import geom_map
 from plan.interactive import SET_POSE_TOPIC
 from plan.robots import namespaced, prefixed
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
@@ -248,6 +249,17 @@ class SwarmContacts:
         self.robot_events = 0
         self._last = b""
 
+    def rebind(self, model: mujoco.MjModel, moved: np.ndarray) -> None:
+        """Follow a world recompiled with objects added or taken out (``moved``: each old
+        geom's new id, -1 gone): every geom not a robot's is an obstacle's."""
+        root_of = {rig.root: i for i, rig in enumerate(self.rigs)}
+        roots = model.body_rootid[model.geom_bodyid]
+        self.owner = np.array([root_of.get(int(r), -1) for r in roots], dtype=np.int64)
+        self.floor = floor_mask(model)
+        self.touching = frozenset((int(moved[a]), int(moved[b])) for a, b in self.touching
+                                  if moved[a] >= 0 and moved[b] >= 0)
+        self._last = b""
+
     def update(self, data: mujoco.MjData) -> None:
         """Count the pairs touching now that were not one substep ago."""
         n = data.ncon
@@ -280,8 +292,9 @@ class SwarmPhysics:
     """Steps the one world with every robot (one, unnamed, without a robots: section)."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, params, config,
-                 rng: np.random.Generator, substeps: int, dt: float, note):
+                 rng: np.random.Generator, substeps: int, dt: float, note, live=None):
         self.model, self.data, self.params = model, data, params
+        self.live = live  # nodes.physics.world_events.LiveWorld: the scenario's events
         self.substeps, self.dt, self.note = substeps, dt, note
         layout = config.layout
         self.rigs = [Rig(model, robot, params, rng,
@@ -346,7 +359,9 @@ class SwarmPhysics:
         if teleport is not None:
             for rig in self.rigs:
                 rig.teleport(model, data, teleport)
-        self.book.account(data, tick)
+        if self.live is not None:
+            self._apply_events(tick)
+        self.book.account(self.data, tick)
         out = self._publish()
         if first and self.params.tf is not None:
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
@@ -356,9 +371,22 @@ class SwarmPhysics:
                 out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
         return out
 
+    def _apply_events(self, tick: Tick) -> None:
+        """Put in and take out the objects of the events due at this tick's time (after
+        integrating up to it, so the state published at the tick has them)."""
+        old = self.model
+        changed = self.live.advance(self.data, tick.time_ns)
+        if changed is None:
+            return
+        self.model, self.data = changed
+        if self.params.threads > 1:
+            mujoco.mju_threadpool(self.data, self.params.threads)
+        self.contacts.rebind(self.model, geom_map(old, self.model))
+
     def _publish(self) -> dict[str, Any]:
         d = self.data
-        out: dict[str, Any] = {"/cosim/world_state": m.world_state(d.qpos, d.qvel)}
+        version = self.live.version if self.live is not None else 0
+        out: dict[str, Any] = {"/cosim/world_state": m.world_state(d.qpos, d.qvel, version)}
         transforms = self.book.publish(d, out, self.params.tf is not None)
         if self.params.tf is not None:
             out["/tf"] = TFMessage(transforms=transforms)

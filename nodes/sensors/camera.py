@@ -140,6 +140,8 @@ class RgbdCamera:
     def render(self) -> tuple[Image, Image | None, CameraInfo]:
         """(colour, depth or None, camera info) of the mirrored world now."""
         r = self.renderer
+        if r.model is not self.mirror.model:  # an event changed the world
+            r = self._follow_world(r)
         r.update_scene(self.mirror.data, camera=self.cam, scene_option=self.option)
         rgb = r.render()
         depth_msg = None
@@ -150,6 +152,23 @@ class RgbdCamera:
             depth = np.where(depth < self.params.max_depth, depth, np.inf).astype(np.float32)
             depth_msg = self._image(depth, "32FC1", 4)
         return self._image(rgb, "rgb8", 3), depth_msg, self.info
+
+    def _follow_world(self, renderer: mujoco.Renderer) -> mujoco.Renderer:
+        """The renderer for the mirror's new model. Objects of MuJoCo's own shapes need
+        nothing of the GL context, so a context made for a model with the same meshes,
+        textures, height fields and skins draws the new one as it is (no new context: that
+        costs 0.4-1 s in software); a new mesh needs a new context."""
+        model, old = self.mirror.model, renderer.model
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.params.width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, self.params.height)
+        assets = ("nmesh", "nmeshvert", "ntex", "ntexdata", "nhfield", "nskin", "nflex")
+        if (all(getattr(model, a) == getattr(old, a) for a in assets)
+                and np.array_equal(model.mesh_vert, old.mesh_vert)):
+            renderer._model = model  # noqa: SLF001 - Renderer has no setter; same context
+            return renderer
+        renderer.close()
+        self._renderer = self._make_renderer()
+        return self._renderer
 
     def _image(self, pixels: np.ndarray, encoding: str, bytes_per_pixel: int) -> Image:
         msg = Image()

@@ -105,13 +105,14 @@ class SensorsNode(StepNode):
         camera; a robot of a swarm sees the other robots."""
         robots = robots_of(self.config, self.description_names(self.params))
         p = _placed(self.params, robots[0] if len(robots) == 1 else None)
-        self.mirror = WorldMirror.shared(self.config.world, self.config.layout)
+        self.mirror = WorldMirror.shared(self.config.world, self.config.layout,
+                                         self.config.events)
         others = self.arena = None
         if self.config.layout is not None and len(robots) == 1:
             others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
             if p.lidar or p.point_cloud:
                 self.arena = StaticWorld(self.config.world, self.config.layout,
-                                         self.mirror.model)
+                                         self.mirror.model, self.config.events)
         self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others, self.arena)
                       if p.lidar else None)
         self.cloud = (Lidar3D(self.mirror, p.point_cloud, others, self.arena)
@@ -128,7 +129,7 @@ class SensorsNode(StepNode):
                              "input from the physics node)")
         self.mirror.update(state)
         if self.arena is not None:
-            self.arena.update(self.mirror.data.qpos)
+            self.arena.update(self.mirror.data.qpos, self.mirror.version, self.mirror.model)
         out: dict[str, Any] = {}
         if self.lidar:
             out["/scan"] = self.lidar.measure(self.rng)

@@ -23,7 +23,8 @@ import mujoco
 import numpy as np
 
 from descriptions.robot_model import RobotModel
-from nodes.physics.world import load_model
+from nodes.physics.world_events import model_at
+from plan.events import EventSpec
 from plan.robots import RobotsLayout, prefixed
 
 
@@ -64,10 +65,18 @@ class OtherRobots:
 
 class StaticWorld:
     """The swarm's arena without its robots, posed like the swarm's mirror: what a lidar
-    casts its beams against (the other robots come from ``OtherRobots``)."""
+    casts its beams against (the other robots come from ``OtherRobots``); with the
+    scenario's events, the arena of the version the mirror shows."""
 
-    def __init__(self, world: Path | str, layout: RobotsLayout, full: mujoco.MjModel):
-        self.model = load_model(world, dataclasses.replace(layout, robots=()))
+    def __init__(self, world: Path | str, layout: RobotsLayout, full: mujoco.MjModel,
+                 events: tuple[EventSpec, ...] = ()):
+        self.world, self.events = str(world), tuple(events)
+        self.layout = dataclasses.replace(layout, robots=())
+        self.version = 0
+        self._build(full)
+
+    def _build(self, full: mujoco.MjModel) -> None:
+        self.model = model_at(self.world, self.layout, self.events, self.version)
         self.data = mujoco.MjData(self.model)
         # the arena's own joints (a door, a loose box) by name in the swarm's qpos
         src, dst = [], []
@@ -84,8 +93,13 @@ class StaticWorld:
         self.dst = np.array(dst, dtype=np.int64)
         mujoco.mj_kinematics(self.model, self.data)
 
-    def update(self, qpos: np.ndarray) -> None:
-        """Pose the arena's movable parts from the swarm's qpos (nothing to do without)."""
+    def update(self, qpos: np.ndarray, version: int = 0, full: mujoco.MjModel | None = None
+               ) -> None:
+        """Pose the arena's movable parts from the swarm's qpos (nothing to do without);
+        first follow the mirror to world ``version`` (its model ``full``)."""
+        if version != self.version:
+            self.version = version
+            self._build(full)
         if self.src.size:
             self.data.qpos[self.dst] = qpos[self.src]
             mujoco.mj_kinematics(self.model, self.data)
