@@ -117,9 +117,10 @@ def actuator_interface(model, actuator: int) -> str | None:
 
 
 def hardware_info(model, robot, command_joints: list[str] | None = None) -> HardwareInfo:
-    """The hardware of ``robot`` (a RobotModel) in the compiled world ``model``: its joints,
-    the joints physics takes commands for (``command_joints`` in that order, else the robot's
-    commanded joints), the interface each one's actuator realises, its drive's wheels."""
+    """The hardware of ``robot`` (a RobotModel, or None) in the compiled world ``model``: its
+    joints, the joints physics takes commands for (``command_joints`` in that order, else the
+    robot's commanded joints, else the world's position servos), the interface each one's
+    actuator realises, its drive's wheels."""
     prefix = robot.prefix if robot is not None else ""
 
     def local(name: str) -> str:
@@ -131,10 +132,13 @@ def hardware_info(model, robot, command_joints: list[str] | None = None) -> Hard
     for a in range(model.nu):
         if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
             actuators.setdefault(names[int(model.actuator_trnid[a, 0])], a)
-    if command_joints is None:
-        wanted = [local(a.joint) for a in (robot.actuated if robot is not None else ())]
-    else:
+    if command_joints is not None:
         wanted = list(command_joints)
+    elif robot is not None:
+        wanted = [local(a.joint) for a in robot.actuated]
+    else:  # a node made outside a scenario, no robot model: the world's position servos
+        wanted = [names[int(model.actuator_trnid[a, 0])] for a in range(model.nu)
+                  if actuator_interface(model, a) == "position"]
     commands = []
     for joint in wanted:
         a = actuators.get(prefix + joint)
