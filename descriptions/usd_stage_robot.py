@@ -111,6 +111,7 @@ class Joint:
     child: str
     pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
     axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    anchor: tuple[float, float, float] | None = None  # physics:localPos0, in the parent's
     lower: float | None = None
     upper: float | None = None
     drive: Drive | None = None
@@ -213,7 +214,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     cache = UsdGeom.XformCache(Usd.TimeCode.Default())
     meters = UsdGeom.GetStageMetersPerUnit(stage)
     notes: list[str] = []
-    rigid = [p for p in Usd.PrimRange(top) if p.HasAPI(UsdPhysics.RigidBodyAPI)]
+    rigid = [p for p in _prims(top) if p.HasAPI(UsdPhysics.RigidBodyAPI)]
     if not rigid:
         raise DescriptionError(description, "no prim has PhysicsRigidBodyAPI: this is no "
                                "robot (a world whose prims name an MJCF robot is a world:, "
@@ -239,10 +240,10 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     for prim in rigid:
         add_link(prim, True)
         _mass(links[prim.GetName()], prim, notes)
-    articulated = any(p.HasAPI(UsdPhysics.ArticulationRootAPI) for p in Usd.PrimRange(top))
+    articulated = any(p.HasAPI(UsdPhysics.ArticulationRootAPI) for p in _prims(top))
 
     found: list[Joint] = []
-    for prim in Usd.PrimRange(top):
+    for prim in _prims(top):
         if not prim.IsA(UsdPhysics.Joint):
             continue
         where = str(prim.GetPath())
@@ -298,6 +299,10 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     roots = [n for n in links if n not in {j.child for j in joints.values()
                                            if j.parent != WORLD}]
     joints = _tree_order(joints, roots[0])
+    notes += _misplaced(links, joints)
+    frames = [n for n, k in links.items() if not k.rigid and k.camera is None]
+    if frames:
+        notes.append(f"plain Xforms kept as frames (links without mass): {', '.join(frames)}")
     order = [roots[0], *(j.child for j in joints.values())]
     links = {name: links[name] for name in order + [n for n in links if n not in order]}
     top_pose, _ = split_scale(_matrix(cache.GetLocalToWorldTransform(top)))
@@ -330,6 +335,22 @@ def _named(description: str, found: list[Joint], notes: list[str]) -> dict[str, 
     return joints
 
 
+def _misplaced(links: dict[str, Link], joints: dict[str, Joint]) -> list[str]:
+    """Joints whose two frames (``localPos0`` on the parent, ``localPos1`` on the child) are
+    more than 1 mm apart where the prims stand: the bodies are placed by their prims, as
+    authored, and the joint turns the child about its own frame."""
+    off = []
+    for j in joints.values():
+        if j.parent == WORLD or j.anchor is None or j.parent not in links:
+            continue
+        a = links[j.parent].pose @ np.array([*j.anchor, 1.0])
+        b = links[j.child].pose @ np.array([*j.pivot, 1.0])
+        if np.linalg.norm(a - b) > 1e-3:
+            off.append(f"{j.name} ({np.linalg.norm(a - b) * 1000:.1f} mm)")
+    return [f"joint frames apart where the bodies stand, bodies kept where their prims put "
+            f"them: {', '.join(off)}"] if off else []
+
+
 def _tree_order(joints: dict[str, Joint], root: str) -> dict[str, Joint]:
     """The joints from the root down (the world's joint first, then depth first, siblings in
     the stage's order), as a URDF lists them: a layout that nests joints under their child
@@ -345,6 +366,14 @@ def _tree_order(joints: dict[str, Joint], root: str) -> dict[str, Joint]:
     below(root)
     order += [j for j in joints.values() if j not in order]
     return {j.name: j for j in order}
+
+
+def _prims(prim):
+    """Every prim from ``prim`` down, into instances too (Isaac's importer makes its meshes
+    instanceable: their colliders live in the instances' prototypes)."""
+    from pxr import Usd
+
+    return Usd.PrimRange(prim, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
 
 
 def _parent_link(body0, body1, top, by_path: dict[str, str], add_link) -> str:
@@ -421,7 +450,9 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
     axis_token = str(_get(prim, "physics:axis", "X"))
     unit = {"X": (1.0, 0, 0), "Y": (0, 1.0, 0), "Z": (0, 0, 1.0)}.get(axis_token, (1.0, 0, 0))
     axis = tuple(float(round(v, 12)) + 0.0 for v in r1 @ np.array(unit))
-    joint = Joint(name, str(prim.GetPath()), kind, parent, child, pivot, axis)
+    pos0 = _get(prim, "physics:localPos0")
+    anchor = None if pos0 is None else tuple(float(v) * meters for v in pos0)
+    joint = Joint(name, str(prim.GetPath()), kind, parent, child, pivot, axis, anchor)
     if kind == "fixed":
         return joint
     degrees = kind == "revolute"
@@ -469,10 +500,9 @@ def _mjc_actuators(top, joints: dict[str, Joint], notes: list[str]) -> None:
     """mujoco-usd-converter's ``MjcActuator`` prims as drives of the joints they target: a
     position servo (gain kp, bias [0, -kp, -kv]), a velocity servo (gain kv, bias [0, 0,
     -kv]) or a motor; ``mjc:forceRange`` the force limit."""
-    from pxr import Usd
 
     by_prim = {j.prim: j for j in joints.values()}
-    for prim in Usd.PrimRange(top):
+    for prim in _prims(top):
         if prim.GetTypeName() != "MjcActuator":
             continue
         targets = prim.GetRelationship("mjc:target").GetTargets() \
@@ -529,7 +559,7 @@ def _frames(top, links: dict[str, Link], joints: dict[str, Joint], by_path, add_
     ``UsdGeom.Camera`` prims cameras on the link above."""
     from pxr import Usd, UsdGeom
 
-    it = iter(Usd.PrimRange(top))
+    it = iter(_prims(top))
     for prim in it:
         path = str(prim.GetPath())
         owner = _owner(prim, by_path)
@@ -545,7 +575,7 @@ def _frames(top, links: dict[str, Link], joints: dict[str, Joint], by_path, add_
         if path in by_path or owner is None or prim.GetTypeName() != "Xform" or \
                 prim.GetName() in GEOMETRY_GROUPS:
             continue
-        if any(q.GetTypeName() in GPRIMS for q in Usd.PrimRange(prim)):
+        if any(q.GetTypeName() in GPRIMS for q in _prims(prim)):
             continue
         _frame_joint(joints, path, owner, add_link(prim, False))
 
@@ -568,9 +598,9 @@ def _owner(prim, by_path: dict[str, str]) -> str | None:
 
 
 def _geometry(prim, link: Link, by_path: dict[str, str], cache, notes: list[str]) -> None:
-    from pxr import Usd, UsdGeom, UsdPhysics
+    from pxr import UsdGeom, UsdPhysics
 
-    it = iter(Usd.PrimRange(prim))
+    it = iter(_prims(prim))
     next(it)
     for p in it:
         if str(p.GetPath()) in by_path:
@@ -656,7 +686,8 @@ READ_SCHEMAS = {"PhysicsRigidBodyAPI", "PhysicsMassAPI", "PhysicsCollisionAPI",
                 "PhysicsMeshCollisionAPI", "PhysicsArticulationRootAPI", "PhysicsDriveAPI",
                 "PhysicsMaterialAPI", "MaterialBindingAPI", "NewtonJointAPI", "NewtonMassAPI",
                 "NewtonCollisionAPI", "NewtonMeshCollisionAPI", "NewtonArticulationRootAPI",
-                "GeomModelAPI", "PhysxJointAPI", "MjcJointAPI", "MjcSiteAPI", "NewtonSiteAPI"}
+                "GeomModelAPI", "PhysxJointAPI", "MjcJointAPI", "MjcSiteAPI", "NewtonSiteAPI",
+                "NodeDefAPI", "ConnectableAPI", "CoordSysAPI"}  # shading: drawn, no physics
 READ_TYPES = {"", "Xform", "Scope", "Material", "Shader", "Camera", "PhysicsScene",
               *GPRIMS, *JOINT_TYPES, "GeomSubset", "DistantLight", "DomeLight", "MjcActuator"}
 
@@ -664,11 +695,10 @@ READ_TYPES = {"", "Xform", "Scope", "Material", "Shader", "Camera", "PhysicsScen
 def _unread(top) -> list[str]:
     """One note naming the prim types and applied schemas under the robot that cosim does
     not read (PhysX settings, sensors of Isaac's own schemas, ...), with a count each."""
-    from pxr import Usd
 
     types: dict[str, int] = {}
     schemas: dict[str, int] = {}
-    for prim in Usd.PrimRange(top):
+    for prim in _prims(top):
         if prim.GetTypeName() not in READ_TYPES:
             types[prim.GetTypeName()] = types.get(prim.GetTypeName(), 0) + 1
         for schema in api_schemas(prim):

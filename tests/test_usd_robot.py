@@ -60,6 +60,24 @@ def test_isaac_layout_drives_become_servos_and_root_joint_fixes_the_arm():
     assert model.jnt_range[joint].tolist() == pytest.approx([-2.6, 2.6], abs=1e-6)  # degrees
 
 
+def test_colliders_in_an_instanceable_prim_are_read(tmp_path):
+    """Isaac's importer makes a link's meshes instanceable references: the colliders are
+    instance proxies, which a plain prim traversal does not enter."""
+    from pxr import Sdf, Usd
+
+    stage = Usd.Stage.Open(str(USD / "mybot_isaac.usda"))
+    layer = stage.GetRootLayer()
+    Sdf.CopySpec(layer, "/mybot/wheel_left_link/collisions", layer, "/WheelCollisions")
+    stage.RemovePrim("/mybot/wheel_left_link/collisions")
+    group = stage.DefinePrim("/mybot/wheel_left_link/collisions", "Xform")
+    group.GetReferences().AddInternalReference("/WheelCollisions")
+    group.SetInstanceable(True)
+    layer.Export(str(tmp_path / "instanced.usda"))
+    model = load_usd(tmp_path / "instanced.usda", UrdfOptions(wheels=WHEELS)).spec.compile()
+    assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM,
+                             "wheel_left_link_collision_0") >= 0
+
+
 def test_urdf_usd_converter_layout_keeps_frames_sensors_and_ros2_control():
     bot = load_usd(USD / "mybot_urdf_usd_converter.usda", UrdfOptions(wheels=WHEELS)).model
     assert bot.mobile and bot.base_link == "base_footprint"  # a plain Xform above base_link
