@@ -12,4 +12,9 @@ faithful MjSpec), ``urdf`` (actuators, sensors and its robot model: ``load_urdf`
 ``urdf_geometry`` (wheel radius, separation, footprint), ``urdf_state`` (TF and joint states
 under its own names), ``urdf_robot`` (a scenario's settings, once per process) and
 ``describe`` (``cosim-describe``).
+
+A robot described in USD (docs/how-to/usd-robots.md): ``usd_stage_robot`` (the stage read
+with UsdPhysics into links, joints, drives, geometry and frames, in Isaac Sim's importer,
+urdf-usd-converter's and mujoco-usd-converter's layouts) and ``usd_robot`` (written as the
+URDF it is equivalent to and loaded by ``load_urdf``: ``load_usd``).
 """
