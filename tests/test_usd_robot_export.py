@@ -169,3 +169,18 @@ def _plays_back_in_run_usda(done) -> None:
         np.testing.assert_allclose(where.ExtractTranslation(), states[k][free:free + 3],
                                    atol=1e-9)
     assert not np.allclose(states[0][free:free + 2], states[100][free:free + 2])
+
+
+def test_a_swarm_exports_one_robot_file_and_every_robot_in_run_usda(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    done = run(SCENARIOS / "swarm_urdf.yaml", in_process=True, out=tmp_path, duration="0.1s",
+               options=RunOptions(export_usd=True), check=False,
+               overrides={"robots.count": 2})
+    assert sorted(p.name for p in (done.run_dir / "robots").iterdir()) == ["mybot.usda"]
+    stage = Usd.Stage.Open(str(done.run_dir / "run.usda"))
+    bases = [UsdGeom.Xformable(stage.GetPrimAtPath(f"/World/bot_{i}/base_footprint"))
+             for i in range(2)]
+    starts = [b.ComputeLocalToWorldTransform(0).ExtractTranslation() for b in bases]
+    for robot, start in zip(done.scenario.robots.robots, starts, strict=True):
+        assert (start[0], start[1]) == pytest.approx(robot.start[:2], abs=1e-6)

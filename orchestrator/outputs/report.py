@@ -166,6 +166,9 @@ def output_rows(outcome) -> list[tuple[str, str]]:
     rows.append(("bag (MCAP)", str(outcome.bag) if outcome.bag else "not written"))
     rows.append(("report.png", str(outcome.report) if outcome.report else "not drawn"))
     rows.append(("logs", str(paths.logs)))
+    if getattr(outcome, "usd", None):  # --export-usd
+        rows.append(("run.usda", str(outcome.usd)))
+        rows += [("robot (USD)", str(p)) for p in sorted((paths.root / "robots").glob("*.usda"))]
     return rows
 
 
