@@ -67,6 +67,32 @@ def test_an_exported_robot_reads_back_as_the_same_robot(tmp_path, scenario, whee
                                    atol=1e-9, err_msg=field)
 
 
+def test_a_world_rooted_arm_keeps_its_world_joint_and_converted_meshes_their_colours(tmp_path):
+    """A description that fixes itself to a ``world`` link keeps that joint's name (no
+    root_joint); ASCII STL and COLLADA meshes (one geom per colour) come back as they ran."""
+    from descriptions.urdf import load_urdf
+
+    robots = ROOT / "tests" / "robots"
+    arm = load_urdf(robots / "worldarm_description" / "urdf" / "worldarm.urdf.xacro",
+                    UrdfOptions(env={}, args={"base_height": "0.05"}))
+    write_robot_usd(arm, tmp_path / "worldarm.usda")
+    back = load_usd(tmp_path / "worldarm.usda").model
+    assert _joints(back) == _joints(arm.model) and back.actuated == arm.model.actuated
+    meshbot = load_urdf(robots / "meshbot_description" / "urdf" / "meshbot.urdf", UrdfOptions(
+        packages={"meshbot_description": str(robots / "meshbot_description")}, env={}))
+    write_robot_usd(meshbot, tmp_path / "meshbot.usda")
+    m1 = meshbot.spec.copy().compile()
+    m2 = load_usd(tmp_path / "meshbot.usda").spec.copy().compile()
+
+    def meshes(m):
+        return sorted((m.geom(g).name, m.mesh_vertnum[m.geom_dataid[g]],
+                       tuple(np.round(m.mat_rgba[m.geom_matid[g]] if m.geom_matid[g] >= 0
+                                      else m.geom_rgba[g], 6)))
+                      for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH)
+
+    assert len(meshes(m1)) == 5 and meshes(m2) == meshes(m1)  # 4 meshes, one used twice
+
+
 def test_the_export_is_in_isaac_sims_importer_layout(tmp_path):
     """Prim for prim, the layout tools/make_usd_robots.py writes as Isaac's importer does:
     links as rigid bodies under the robot prim, joints with body0/body1 in a joints scope,
