@@ -83,17 +83,22 @@ def write_robot_usd(loaded: LoadedUrdf, out: Path) -> list[str]:
         if link not in poses:
             notes.append(f"link {link!r}: no body in the compiled robot, not written")
             continue
-        _write_link(stage, f"/{name}/{link}", model, poses[link], friction, notes)
+        if prim_name(link) != link:
+            notes.append(f"link {link!r} is the prim {prim_name(link)!r} (USD prim names are "
+                         "letters, digits and '_')")
+        _write_link(stage, f"/{name}/{prim_name(link)}", link, model, poses[link], friction,
+                    notes)
     UsdGeom.Scope.Define(stage, f"/{name}/joints")
     for joint in urdf.joints.values():
         _write_joint(stage, name, joint, model, poses, notes)
     if robot.mobile:
-        UsdPhysics.ArticulationRootAPI.Apply(stage.GetPrimAtPath(f"/{name}/{urdf.root}"))
+        UsdPhysics.ArticulationRootAPI.Apply(
+            stage.GetPrimAtPath(f"/{name}/{prim_name(urdf.root)}"))
     else:
         UsdPhysics.ArticulationRootAPI.Apply(top)
         if urdf.root != WORLD:  # Isaac's fixed base: a fixed joint from the world
             root = UsdPhysics.FixedJoint.Define(stage, f"/{name}/root_joint")
-            root.CreateBody1Rel().SetTargets([f"/{name}/{urdf.root}"])
+            root.CreateBody1Rel().SetTargets([f"/{name}/{prim_name(urdf.root)}"])
     _write_kept(stage, f"/{name}/custom", _kept_elements(loaded))
     out.parent.mkdir(parents=True, exist_ok=True)
     stage.GetRootLayer().Export(str(out))
@@ -180,15 +185,15 @@ def _friction_materials(stage, name: str, model: mujoco.MjModel, poses) -> dict[
     return materials
 
 
-def _write_link(stage, path: str, model: mujoco.MjModel, pose: np.ndarray, friction,
-                notes: list[str]) -> None:
+def _write_link(stage, path: str, link: str, model: mujoco.MjModel, pose: np.ndarray,
+                friction, notes: list[str]) -> None:
     from pxr import Gf, UsdGeom, UsdPhysics
 
     xf = UsdGeom.Xform.Define(stage, path)
     _set_pose(xf, pose, tidy=True)
     prim = xf.GetPrim()
     UsdPhysics.RigidBodyAPI.Apply(prim)
-    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, prim.GetName())
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
     if model.body_mass[b] > 0:
         mass = UsdPhysics.MassAPI.Apply(prim)
         mass.CreateMassAttr(float(model.body_mass[b]))
@@ -299,13 +304,16 @@ def _write_joint(stage, name: str, joint, model: mujoco.MjModel, poses, notes: l
         kind = "fixed"
     if joint.child not in poses:
         return
+    if prim_name(joint.name) != joint.name:
+        notes.append(f"joint {joint.name!r} is the prim {prim_name(joint.name)!r} (USD prim "
+                     "names are letters, digits and '_')")
     schema = {"fixed": UsdPhysics.FixedJoint, "prismatic": UsdPhysics.PrismaticJoint}.get(
         kind, UsdPhysics.RevoluteJoint)
     usd = schema.Define(stage, f"/{name}/joints/{prim_name(joint.name)}")
     prim = usd.GetPrim()
     if joint.parent != WORLD:
-        usd.CreateBody0Rel().SetTargets([Sdf.Path(f"/{name}/{joint.parent}")])
-    usd.CreateBody1Rel().SetTargets([Sdf.Path(f"/{name}/{joint.child}")])
+        usd.CreateBody0Rel().SetTargets([Sdf.Path(f"/{name}/{prim_name(joint.parent)}")])
+    usd.CreateBody1Rel().SetTargets([Sdf.Path(f"/{name}/{prim_name(joint.child)}")])
     parent = np.eye(4) if joint.parent == WORLD else poses[joint.parent]
     rel = np.linalg.inv(parent) @ poses[joint.child]
     j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
