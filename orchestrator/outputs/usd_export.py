@@ -165,14 +165,18 @@ def _set_timing(stage, samples, tick_ns: Ns, ticks: list[int]) -> None:
 
 
 def world_states(bag: Path, tick_ns: Ns, nq: int) -> Iterator[tuple[int, np.ndarray]]:
-    """(tick, qpos) of every /cosim/world_state message in the bag, in order."""
+    """(tick, qpos) of every /cosim/world_state message in the bag, in order. Objects a
+    scenario's events spawned (``plan.events``) come after the world's and the robots' own
+    qpos and are not written (the world state names its version then)."""
     from orchestrator.outputs.bag import BagReader
 
     with BagReader(Path(bag)) as reader:
         for _, stamp, raw in reader.raw([WORLD_STATE]):
             msg = reader.deserialize(raw, WORLD_STATE)
             dims = msg.layout.dim
-            if not dims or dims[0].label != "qpos" or dims[0].size != nq:
+            edited = any(d.label == "world_version" for d in dims[2:])
+            size = dims[0].size if dims else 0
+            if not dims or dims[0].label != "qpos" or size < nq or (size > nq and not edited):
                 raise ValueError(f"{bag}: {WORLD_STATE} at {stamp} ns does not carry the "
                                  f"world's qpos ({nq} values first)")
             yield tick_at_ns(stamp, tick_ns), np.asarray(msg.data[:nq], dtype=np.float64)
