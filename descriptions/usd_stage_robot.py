@@ -212,7 +212,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
         raise DescriptionError(description, "the stage has no prim", fix="a USD robot asset "
                                "(a default prim holding the robot's links and joints)")
     cache = UsdGeom.XformCache(Usd.TimeCode.Default())
-    meters = UsdGeom.GetStageMetersPerUnit(stage)
+    meters, kilograms = stage_units(stage)
     notes: list[str] = []
     rigid = [p for p in _prims(top) if p.HasAPI(UsdPhysics.RigidBodyAPI)]
     if not rigid:
@@ -239,7 +239,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
 
     for prim in rigid:
         add_link(prim, True)
-        _mass(links[prim.GetName()], prim, notes)
+        _mass(links[prim.GetName()], prim, notes, meters, kilograms)
     articulated = any(p.HasAPI(UsdPhysics.ArticulationRootAPI) for p in _prims(top))
 
     found: list[Joint] = []
@@ -286,7 +286,8 @@ def read_stage_robot(stage, description: str) -> StageRobot:
                                        "PhysicsMassAPI) to the child link")
             add_link(child_prim, False)
         child = by_path[str(child_prim.GetPath())]
-        found.append(_joint(prim, kind, parent, child, meters, notes, prim.GetName()))
+        found.append(_joint(prim, kind, parent, child, (meters, kilograms), notes,
+                            prim.GetName()))
     joints = _named(description, found, notes)
 
     _mjc_actuators(top, joints, notes)
@@ -306,6 +307,10 @@ def read_stage_robot(stage, description: str) -> StageRobot:
     order = [roots[0], *(j.child for j in joints.values())]
     links = {name: links[name] for name in order + [n for n in links if n not in order]}
     top_pose, _ = split_scale(_matrix(cache.GetLocalToWorldTransform(top)))
+    if _source_up_axis(stage) == "Y":  # keep open_stage's turn of +Y up to +Z up
+        up = np.eye(4)
+        up[:3, :3] = quat_matrix(math.cos(math.pi / 4), math.sin(math.pi / 4), 0, 0)
+        top_pose = top_pose @ np.linalg.inv(snapped_pose(up))
     return StageRobot(top.GetName(), str(top.GetPath()), links, joints, roots[0],
                       articulated, top_pose, kept, notes)
 
@@ -376,6 +381,35 @@ def _prims(prim):
     return Usd.PrimRange(prim, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
 
 
+def snapped_pose(t: np.ndarray) -> np.ndarray:
+    """A 4x4 pose with its rotation snapped (``snapped``)."""
+    t = t.copy()
+    t[:3, :3] = snapped(t[:3, :3])
+    return t
+
+
+def _source_up_axis(stage) -> str:
+    from pxr import Sdf
+
+    subs = stage.GetRootLayer().subLayerPaths
+    layer = Sdf.Layer.FindOrOpen(subs[0]) if subs else stage.GetRootLayer()
+    info = layer.pseudoRoot
+    return str(info.GetInfo("upAxis")) if info.HasInfo("upAxis") else "Y"
+
+
+def stage_units(stage) -> tuple[float, float]:
+    """(metres, kilograms) per unit of the file under ``open_stage``'s root layer (which says
+    metres): USD's fallbacks are centimetres and kilograms."""
+    from pxr import Sdf
+
+    subs = stage.GetRootLayer().subLayerPaths
+    layer = Sdf.Layer.FindOrOpen(subs[0]) if subs else stage.GetRootLayer()
+    info = layer.pseudoRoot
+    meters = info.GetInfo("metersPerUnit") if info.HasInfo("metersPerUnit") else 0.01
+    kilograms = info.GetInfo("kilogramsPerUnit") if info.HasInfo("kilogramsPerUnit") else 1.0
+    return float(meters), float(kilograms)
+
+
 def _parent_link(body0, body1, top, by_path: dict[str, str], add_link) -> str:
     """The parent link of a joint: a rigid body; ``world`` for an empty body0 or the robot
     prim; a plain Xform that is body0 or lies between body0 and body1 (the deepest such,
@@ -395,7 +429,7 @@ def _parent_link(body0, body1, top, by_path: dict[str, str], add_link) -> str:
     return add_link(body0, False)
 
 
-def _mass(link: Link, prim, notes: list[str]) -> None:
+def _mass(link: Link, prim, notes: list[str], meters: float, kilograms: float) -> None:
     from pxr import UsdPhysics
 
     if not prim.HasAPI(UsdPhysics.MassAPI):
@@ -406,14 +440,14 @@ def _mass(link: Link, prim, notes: list[str]) -> None:
             notes.append(f"link {link.name!r}: mass from physics:density is not computed "
                          "(only an authored physics:mass is read)")
         return
-    link.mass = float(mass)
+    link.mass = float(mass) * kilograms
     com = _get(prim, "physics:centerOfMass")
     if com is not None and all(math.isfinite(v) and abs(v) < UNLIMITED for v in com):
-        link.com = tuple(float(v) for v in com)
+        link.com = tuple(float(v) * meters for v in com)
     diagonal = _get(prim, "physics:diagonalInertia")
     full = _get(prim, "newton:inertia")
     if diagonal is not None and any(v > 0 for v in diagonal):
-        link.inertia = tuple(float(v) for v in diagonal)
+        link.inertia = tuple(float(v) * kilograms * meters ** 2 for v in diagonal)
         axes = _get(prim, "physics:principalAxes")
         if axes is not None:
             link.principal = _quat(axes)
@@ -430,7 +464,7 @@ def _mass(link: Link, prim, notes: list[str]) -> None:
         values, vectors = np.linalg.eigh(tensor)
         if np.linalg.det(vectors) < 0:
             vectors[:, 0] *= -1
-        link.inertia = tuple(float(v) for v in values)
+        link.inertia = tuple(float(v) * kilograms * meters ** 2 for v in values)
         link.principal = _matrix_quat(vectors)
 
 
@@ -442,8 +476,9 @@ def _matrix_quat(r: np.ndarray) -> tuple[float, float, float, float]:
     return tuple(float(v) for v in q)
 
 
-def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[str],
-           name: str) -> Joint:
+def _joint(prim, kind: str, parent: str, child: str, units: tuple[float, float],
+           notes: list[str], name: str) -> Joint:
+    meters, kilograms = units
     pivot = tuple(float(v) * meters for v in (_get(prim, "physics:localPos1") or (0, 0, 0)))
     rot1 = _get(prim, "physics:localRot1")
     r1 = np.eye(3) if rot1 is None else snapped(quat_matrix(*_quat(rot1)))
@@ -456,7 +491,10 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
     if kind == "fixed":
         return joint
     degrees = kind == "revolute"
-    per_unit = 180.0 / math.pi if degrees else 1.0 / meters  # per degree -> per radian
+    # to SI: a force is kg * unit / s^2, a torque kg * unit^2 / s^2; angles in degrees
+    gain_scale = kilograms * (180.0 / math.pi * meters ** 2 if degrees else 1.0)  # per rad
+    force_scale = kilograms * (meters ** 2 if degrees else meters)
+    speed_scale = math.pi / 180.0 if degrees else meters
     lower = _limit(_get(prim, "physics:lowerLimit"))
     upper = _limit(_get(prim, "physics:upperLimit"))
     if degrees:
@@ -465,20 +503,21 @@ def _joint(prim, kind: str, parent: str, child: str, meters: float, notes: list[
     elif lower is not None:
         lower, upper = lower * meters, None if upper is None else upper * meters
     joint.lower, joint.upper = lower, upper
-    joint.drive = _drive(prim, "angular" if degrees else "linear", per_unit, name, notes)
+    joint.drive = _drive(prim, "angular" if degrees else "linear", gain_scale, force_scale,
+                         name, notes)
     effort = _get(prim, "urdf:limit:effort", _get(prim, "mjc:actuatorfrcrange:max"))
     if joint.drive is not None and joint.drive.max_force is not None:
         joint.effort = joint.drive.max_force
     elif effort is not None and effort > 0:
         joint.effort = float(effort)
-    for attr, scale in (("physxJoint:maxJointVelocity", 1 / per_unit),
-                        ("newton:velocityLimit", 1 / per_unit),
+    for attr, scale in (("physxJoint:maxJointVelocity", speed_scale),
+                        ("newton:velocityLimit", speed_scale),
                         ("urdf:limit:velocity", 1.0)):
         value = _limit(_get(prim, attr))
         if value is not None and value > 0:
             joint.velocity = value * scale
             break
-    for attr, scale in (("newton:damping", per_unit), ("mjc:damping", 1.0)):
+    for attr, scale in (("newton:damping", gain_scale), ("mjc:damping", 1.0)):
         value = _get(prim, attr)
         if value is not None and value > 0:
             joint.damping = float(value) * scale
@@ -527,7 +566,8 @@ def _mjc_actuators(top, joints: dict[str, Joint], notes: list[str]) -> None:
                          "read as a plain effort command")
 
 
-def _drive(prim, token: str, per_unit: float, joint: str, notes: list[str]) -> Drive | None:
+def _drive(prim, token: str, gain_scale: float, force_scale: float, joint: str,
+           notes: list[str]) -> Drive | None:
     from pxr import UsdPhysics
 
     if not prim.HasAPI(UsdPhysics.DriveAPI, token):
@@ -537,9 +577,10 @@ def _drive(prim, token: str, per_unit: float, joint: str, notes: list[str]) -> D
                          f"{'revolute' if token == 'angular' else 'prismatic'} joint, ignored")
         return None
     drive = UsdPhysics.DriveAPI(prim, token)
-    stiffness = float(drive.GetStiffnessAttr().Get() or 0.0) * per_unit
-    damping = float(drive.GetDampingAttr().Get() or 0.0) * per_unit
+    stiffness = float(drive.GetStiffnessAttr().Get() or 0.0) * gain_scale
+    damping = float(drive.GetDampingAttr().Get() or 0.0) * gain_scale
     max_force = _limit(drive.GetMaxForceAttr().Get())
+    max_force = None if max_force is None else max_force * force_scale
     kind = str(drive.GetTypeAttr().Get() or "force")
     if kind == "acceleration":
         notes.append(f"joint {joint!r}: an acceleration drive; its gains are used as force "

@@ -299,3 +299,71 @@ def test_the_load_says_what_the_usd_robot_lost_and_settings_go_with_their_format
     path.write_text(yaml.safe_dump(doc))
     with pytest.raises(ScenarioError, match=r"add robots.usd.sensors: \{lidar: PRIM\}"):
         load_scenario(path)
+
+
+def test_a_centimetre_y_up_robot_with_a_prismatic_drive_reads_in_si_units(tmp_path):
+    """A stage in centimetres with +Y up: lengths, inertias and the drive's force limit in
+    SI, a linear drive's gains as they are (force per length), the slide along its axis."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "slider.usda"))
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    root = UsdGeom.Xform.Define(stage, "/slider").GetPrim()
+    stage.SetDefaultPrim(root)
+    UsdPhysics.ArticulationRootAPI.Apply(root)
+    for name, y, inertia in (("base", 0.0, 200.0), ("carriage", 30.0, 100.0)):
+        link = UsdGeom.Xform.Define(stage, f"/slider/{name}")
+        link.AddTranslateOp().Set(Gf.Vec3d(0, y, 0))
+        UsdPhysics.RigidBodyAPI.Apply(link.GetPrim())
+        mass = UsdPhysics.MassAPI.Apply(link.GetPrim())
+        mass.CreateMassAttr(2.0 if name == "base" else 1.0)
+        mass.CreateDiagonalInertiaAttr(Gf.Vec3f(inertia, inertia, inertia))
+    UsdPhysics.CollisionAPI.Apply(UsdGeom.Cube.Define(stage, "/slider/base/box").GetPrim())
+    stage.GetPrimAtPath("/slider/base/box").GetAttribute("size").Set(20.0)
+    capsule = UsdGeom.Capsule.Define(stage, "/slider/carriage/shape")
+    capsule.CreateRadiusAttr(5.0)
+    capsule.CreateHeightAttr(10.0)
+    capsule.CreateAxisAttr("X")
+    UsdPhysics.CollisionAPI.Apply(capsule.GetPrim())
+    UsdPhysics.FixedJoint.Define(stage, "/slider/root_joint").CreateBody1Rel().SetTargets(
+        [Sdf.Path("/slider/base")])
+    rail = UsdPhysics.PrismaticJoint.Define(stage, "/slider/rail")
+    rail.CreateAxisAttr("X")
+    rail.CreateBody0Rel().SetTargets([Sdf.Path("/slider/base")])
+    rail.CreateBody1Rel().SetTargets([Sdf.Path("/slider/carriage")])
+    rail.CreateLocalPos0Attr(Gf.Vec3f(0, 30, 0))
+    rail.CreateLowerLimitAttr(-50.0)
+    rail.CreateUpperLimitAttr(50.0)
+    drive = UsdPhysics.DriveAPI.Apply(rail.GetPrim(), "linear")
+    drive.CreateStiffnessAttr(400.0)
+    drive.CreateDampingAttr(40.0)
+    drive.CreateMaxForceAttr(1000.0)  # kg cm / s^2: 10 N
+    stage.GetRootLayer().Save()
+
+    loaded = load_usd(tmp_path / "slider.usda")
+    model = loaded.spec.compile()
+    assert not loaded.model.mobile and [(a.joint, a.interface) for a in
+                                        loaded.model.actuated] == [("rail", "position")]
+
+    def named(kind, name):
+        return mujoco.mj_name2id(model, kind, name)
+
+    rail_id = named(mujoco.mjtObj.mjOBJ_JOINT, "rail")
+    assert model.jnt_type[rail_id] == mujoco.mjtJoint.mjJNT_SLIDE
+    assert model.jnt_range[rail_id].tolist() == pytest.approx([-0.5, 0.5])
+    assert model.jnt_axis[rail_id].tolist() == pytest.approx([1, 0, 0])
+    carriage = named(mujoco.mjtObj.mjOBJ_BODY, "carriage")
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    assert data.xpos[carriage].tolist() == pytest.approx([0, 0, 0.3])  # +Y up is +Z
+    assert model.body_inertia[carriage].tolist() == pytest.approx([0.01] * 3)
+    act = named(mujoco.mjtObj.mjOBJ_ACTUATOR, "rail_position")
+    assert model.actuator_gainprm[act, 0] == pytest.approx(400)
+    assert model.actuator_biasprm[act, 2] == pytest.approx(-40)
+    assert model.actuator_forcerange[act].tolist() == pytest.approx([-10, 10])
+    shape = named(mujoco.mjtObj.mjOBJ_GEOM, "carriage_collision_0")
+    assert model.geom_type[shape] == mujoco.mjtGeom.mjGEOM_CAPSULE
+    assert model.geom_size[shape, :2].tolist() == pytest.approx([0.05, 0.05])
+    box = named(mujoco.mjtObj.mjOBJ_GEOM, "base_collision_0")
+    assert model.geom_size[box].tolist() == pytest.approx([0.1, 0.1, 0.1])
