@@ -11,6 +11,9 @@ extra), with what the importer lacks added here:
 - robots from MJCF: any prim with the attribute ``asset cosim:robot:mjcf = @robot.xml@``
   (for example ``/World/Robot``) gets that MJCF attached at the prim's world pose
   (``MjSpec.attach`` at a frame, no name prefix, so joint and body names stay as in the MJCF);
+- robots described in USD: a prim referencing a robot asset (``PhysicsArticulationRootAPI``
+  inside, as Isaac Sim's ``add_reference_to_stage`` places one) is left out of the import; a
+  robots: section runs it (descriptions/usd_robot.py), at the prim's pose;
 - lights: ``UsdLux`` distant and sphere lights become MuJoCo lights (the importer skips them);
 - checks: colliders, rigid bodies and joints the importer would drop silently or mistake
   (a cone, a collider on an Xform, a non-Z plane, a spherical or D6 joint, ...) are refused
@@ -80,9 +83,16 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None,
     if not is_usd(path):
         return _mjcf_spec(path)
     stage = open_stage(path)
+    usd_robots = _set_aside_usd_robots(stage)
+    if stage_robots_too and usd_robots:
+        raise WorldError(path, f"the prim references a robot described in USD "
+                         f"({usd_robots[0].mjcf.name}); such a robot runs from a robots: "
+                         "section (its description defaults to the asset, its start to the "
+                         "prim's pose).", usd_robots[0].prim)
     check_stage(stage, path)
     spec = _import(stage, path)
-    named = stage_robots(stage, path) if stage_robots_too else []
+    named = [m for m in stage_robots(stage, path) if not is_usd(m.mjcf)] \
+        if stage_robots_too else []
     for mount in [*named, *(robots or [])]:
         _attach_robot(spec, stage, mount, path)
     add_lights(spec, stage)
@@ -185,9 +195,48 @@ def _default_prim_name(stage) -> str:
     return prim.GetName() if prim else "World"
 
 
-def stage_robots(stage, path: Path) -> list[RobotMount]:
-    """The MJCF robots named on prims by ``cosim:robot:mjcf`` asset attributes."""
+def usd_robot_mounts(stage) -> list[RobotMount]:
+    """Prims that reference a robot described in USD (a file whose prims carry
+    ``PhysicsArticulationRootAPI``), as Isaac Sim's ``add_reference_to_stage`` places one:
+    the referenced file and the prim (descriptions.usd_robot reads the file)."""
+    from pxr import Usd, UsdPhysics
+
     mounts = []
+    every = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), every))
+    for prim in it:
+        asset = _referenced_file(prim)
+        if asset is None or not is_usd(asset):
+            continue
+        if any(q.HasAPI(UsdPhysics.ArticulationRootAPI) for q in Usd.PrimRange(prim, every)):
+            mounts.append(RobotMount(asset, str(prim.GetPath())))
+            it.PruneChildren()
+    return mounts
+
+
+def _referenced_file(prim) -> Path | None:
+    for spec in prim.GetPrimStack():
+        op = spec.referenceList
+        for ref in [*op.explicitItems, *op.prependedItems, *op.appendedItems, *op.addedItems]:
+            if ref.assetPath:
+                return Path(spec.layer.ComputeAbsolutePath(ref.assetPath))
+    return None
+
+
+def _set_aside_usd_robots(stage) -> list[RobotMount]:
+    """Deactivate (in the in-memory root layer) the prims that reference a USD robot, so
+    that MuJoCo's importer does not take their bodies into the world; the swarm world attaches
+    the robots (descriptions.swarm_world)."""
+    mounts = usd_robot_mounts(stage)
+    for mount in mounts:
+        stage.GetPrimAtPath(mount.prim).SetActive(False)
+    return mounts
+
+
+def stage_robots(stage, path: Path) -> list[RobotMount]:
+    """The MJCF robots named on prims by ``cosim:robot:mjcf`` asset attributes, and the
+    robots described in USD that prims reference (``usd_robot_mounts``)."""
+    mounts = usd_robot_mounts(stage)
     for prim in stage.Traverse():
         attr = prim.GetAttribute(ROBOT_ATTR)
         if not attr or not attr.HasAuthoredValue():

@@ -367,3 +367,31 @@ def test_a_centimetre_y_up_robot_with_a_prismatic_drive_reads_in_si_units(tmp_pa
     assert model.geom_size[shape, :2].tolist() == pytest.approx([0.05, 0.05])
     box = named(mujoco.mjtObj.mjOBJ_GEOM, "base_collision_0")
     assert model.geom_size[box].tolist() == pytest.approx([0.1, 0.1, 0.1])
+
+
+def test_a_stage_referencing_a_usd_robot_runs_one_copy_per_prim(tmp_path):
+    """Prims referencing the robot asset, as Isaac Sim's add_reference_to_stage places them
+    (scenarios/worlds/swarm_usd_robots.usda): one robot per prim, named and placed by it;
+    without a robots: section the prim is named as the problem."""
+    scenario = ROOT / "scenarios" / "swarm_usd_robots.yaml"
+    loaded = load_scenario(scenario)
+    assert loaded.robots.description == USD / "mybot_isaac.usda"
+    starts = {r.name: r.start for r in loaded.robots.robots}
+    assert starts["robot_0"][:2] == pytest.approx((2.96, 1.22))
+    swarm = swarm_model(loaded.world, loaded.robots)
+    assert mujoco.mj_name2id(swarm, mujoco.mjtObj.mjOBJ_JOINT, "robot_7/wheel_left_joint") >= 0
+    assert not [swarm.body(b).name for b in range(swarm.nbody)
+                if swarm.body(b).name.startswith("/World/Robots")]  # not imported by MuJoCo
+    result = run(scenario, in_process=True, out=tmp_path, duration="0.2s")
+    assert result.ticks == 11 and result.last("/robot_3/odom") is not None
+    doc = yaml.safe_load(scenario.read_text())
+    doc.pop("robots")
+    doc.update(goal={"x": 1.0, "y": 1.0}, world=str(ROOT / "scenarios" / "worlds" /
+                                                    "swarm_usd_robots.usda"))
+    for node in doc["nodes"]:
+        node.pop("for_each", None)
+    path = tmp_path / "no_robots.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ScenarioError, match="prim /World/Robots/robot_0: the prim references "
+                                            "a robot described in USD"):
+        load_scenario(path)
