@@ -181,8 +181,9 @@ def _num(v: float) -> str:
 
 
 def write_urdf(robot: StageRobot, notes: list[str]) -> tuple[str, Path]:
-    """The robot as URDF text, written with its meshes (binary STL) to a cache folder named
-    by the content (every process writes, or finds, the same files); (text, folder)."""
+    """The robot as URDF text, written with its meshes (binary STL, named relative to it, so
+    the text and /robot_description hold no machine's path) to a cache folder named by the
+    content (every process writes, or finds, the same files); (text, folder)."""
     frames = _frame_poses(robot, notes)
     root = ET.Element("robot", name=robot.name)
     meshes: dict[str, bytes] = {}
@@ -239,10 +240,9 @@ def write_urdf(robot: StageRobot, notes: list[str]) -> tuple[str, Path]:
     digest = hashlib.sha256()
     for key in sorted(meshes):
         digest.update(key.encode() + meshes[key])
-    body = ET.tostring(root, encoding="unicode")
-    digest.update(body.encode())
+    text = ET.tostring(root, encoding="unicode")
+    digest.update(text.encode())
     folder = Path(tempfile.gettempdir()) / CACHE / digest.hexdigest()[:20]
-    text = body.replace("@MESHES@", str(folder))
     for name, data in meshes.items():
         _write(folder / name, data)
     _write(folder / "robot.urdf", text.encode())
@@ -289,7 +289,7 @@ def _geom(el: ET.Element, geom: Geom, frame: np.ndarray, meshes: dict[str, bytes
         data = stl_bytes(geom.vertices, geom.faces)
         file = f"{hashlib.sha256(data).hexdigest()[:20]}.stl"
         meshes[file] = data
-        ET.SubElement(shape, "mesh", filename=f"file://@MESHES@/{file}")
+        ET.SubElement(shape, "mesh", filename=file)  # beside robot.urdf: no machine's path
     if geom.role == "visual" and geom.rgba is not None:
         material = ET.SubElement(g, "material", name=f"{name}_colour")
         ET.SubElement(material, "color", rgba=" ".join(_num(v) for v in geom.rgba))
