@@ -517,6 +517,10 @@ def _joint(prim, kind: str, parent: str, child: str, units: tuple[float, float],
         if value is not None and value > 0:
             joint.velocity = value * scale
             break
+    for attr in ("physxJoint:jointFriction", "physxJoint:armature", "mjc:frictionloss",
+                 "mjc:armature"):
+        if _get(prim, attr):
+            notes.append(f"joint {name!r}: {attr} {_get(prim, attr):g} not read")
     for attr, scale in (("newton:damping", gain_scale), ("mjc:damping", 1.0)):
         value = _get(prim, attr)
         if value is not None and value > 0:
