@@ -12,6 +12,7 @@ the world (``WorldObjects``).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from typing import Annotated, Literal
@@ -266,3 +267,21 @@ def applied_by(events: tuple[EventSpec, ...] | list[EventSpec], time_ns: int) ->
     """How many of the (time-ordered) events have happened by ``time_ns``: the world's
     version at that time."""
     return sum(1 for e in events if e.at <= time_ns)
+
+
+def edit_event(item: dict) -> EventSpec:
+    """One edit a client asked for (``{"spawn": {...}}`` or ``{"delete": name}``) as an
+    event of no particular time: it happens at the tick it enters."""
+    return EventSpec.model_validate({"at": 0, **item})
+
+
+def edits_text(edits: list[EventSpec]) -> str:
+    """Edits as the /cosim/world_edits message carries them: a JSON list, each as
+    ``edit_event`` reads it (stable text: sorted keys, no spaces)."""
+    return json.dumps([e.model_dump(exclude={"at"}, exclude_none=True, mode="json")
+                       for e in edits], sort_keys=True, separators=(",", ":"))
+
+
+def parse_edits(text: str) -> list[EventSpec]:
+    """The edits a /cosim/world_edits message carries (none for an empty message)."""
+    return [edit_event(item) for item in json.loads(text)] if text else []

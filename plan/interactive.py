@@ -10,7 +10,10 @@ the inputs that the orchestrator's ROS 2 servers feed through the scenario's ext
   in ``description`` which request it is) into every node that takes it (physics):
   SetEntityState teleports;
 - ``/cosim/params/<node>`` (rcl_interfaces/msg/ParameterEvent) into every node whose class
-  has runtime parameters: ROS 2 parameter sets.
+  has runtime parameters: ROS 2 parameter sets;
+- ``/cosim/world_edits`` (std_msgs/msg/String: every SpawnEntity and DeleteEntity request
+  accepted so far, as JSON, ``plan.events.parse_edits``) into every node that takes it
+  (physics): objects put into and taken out of the world.
 
 Whatever a client sends enters at the external node's next activation and is recorded and
 hashed like any message, so a run replays. The wiring is part of the plan, whatever the
@@ -23,12 +26,15 @@ from __future__ import annotations
 GOAL_TOPIC = "/goal_pose"
 SET_POSE_TOPIC = "/cosim/set_pose"
 PARAMS_PREFIX = "/cosim/params/"
+WORLD_EDITS_TOPIC = "/cosim/world_edits"
 
 GOAL_TYPE = "geometry_msgs/msg/PoseStamped"
 SET_POSE_TYPE = "simulation_interfaces/msg/NamedPose"
 PARAMS_TYPE = "rcl_interfaces/msg/ParameterEvent"
+WORLD_EDITS_TYPE = "std_msgs/msg/String"
 
-FED_INPUTS = {GOAL_TOPIC: GOAL_TYPE, SET_POSE_TOPIC: SET_POSE_TYPE}
+FED_INPUTS = {GOAL_TOPIC: GOAL_TYPE, SET_POSE_TOPIC: SET_POSE_TYPE,
+              WORLD_EDITS_TOPIC: WORLD_EDITS_TYPE}
 """Inputs a node takes from clients when its class accepts them, with their types."""
 
 

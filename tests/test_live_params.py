@@ -23,10 +23,11 @@ def test_an_interactive_scenario_feeds_goal_teleport_and_parameters_from_outside
     scenario = load_scenario(NAV, {"interactive": True})
     inputs = {name: [i.topic for i in plan.inputs] for name, plan in scenario.nodes.items()}
     assert inputs["control"] == ["/odom", "/scan", "/goal_pose", "/cosim/params/control"]
-    assert inputs["physics"] == ["/cmd_vel", "/cosim/set_pose"]
+    assert inputs["physics"] == ["/cmd_vel", "/cosim/set_pose", "/cosim/world_edits"]
     assert inputs["lidar"] == ["/cosim/world_state"]  # sensors have no runtime parameters
     external = scenario.nodes["external"]
-    assert set(external.outputs) == {"/goal_pose", "/cosim/set_pose", "/cosim/params/control"}
+    assert set(external.outputs) == {"/goal_pose", "/cosim/set_pose", "/cosim/params/control",
+                                     "/cosim/world_edits"}
     assert external.spec.period_ns == 20_000_000  # the fastest node's rate: physics, 50 Hz
     assert "external" not in load_scenario(NAV).nodes  # not interactive: nothing added
     plain = load_scenario(SCENARIOS / "protocol.yaml", {"interactive": True})

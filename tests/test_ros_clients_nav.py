@@ -159,6 +159,8 @@ def _arrived(msg) -> bool:
     """Whether an external message is a client's, not the default one held before."""
     if hasattr(msg, "header"):  # /goal_pose
         return bool(msg.header.frame_id)
+    if hasattr(msg, "data"):  # /cosim/world_edits
+        return bool(msg.data)
     return bool(msg.name if hasattr(msg, "name") else msg.node)  # teleport, parameters
 
 

@@ -72,27 +72,37 @@ def joint_state(names: list[str], pos: np.ndarray, vel: np.ndarray,
 
 
 WORLD_VERSION = "world_version"  # the layout dimension that carries it (no data of its own)
+WORLD_EDITS = "world_edits:"  # the one that says what is in the world, when not the plan's
 
 
-def world_state(qpos: np.ndarray, qvel: np.ndarray, version: int = 0) -> Float64MultiArray:
+def world_state(qpos: np.ndarray, qvel: np.ndarray, version: int = 0, label: str = ""
+                ) -> Float64MultiArray:
     """The mirror of the world for sensors: data = qpos then qvel, labelled in the layout;
-    once a scenario event changed the world, a third dimension says how many are in it
-    (its ``size``; the qpos layout is that world's)."""
+    once an event or a client's edit changed the world, a third dimension says how many
+    are in it (its ``size``; the qpos layout is that world's) and, where they are not the
+    scenario's first events, a fourth one which (its label after ``world_edits:``,
+    ``nodes.physics.world_events.LiveWorld.label``)."""
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label="qpos", size=len(qpos), stride=len(qpos)),
                       MultiArrayDimension(label="qvel", size=len(qvel), stride=len(qvel))]
     if version:
         msg.layout.dim.append(MultiArrayDimension(label=WORLD_VERSION, size=version, stride=0))
+    if label:
+        msg.layout.dim.append(MultiArrayDimension(label=WORLD_EDITS + label, size=0, stride=0))
     msg.data = f64(np.concatenate([qpos, qvel]))
     return msg
 
 
-def world_version(msg: Float64MultiArray) -> int:
-    """How many scenario events are in the world a world state shows (0: none)."""
+def world_version(msg: Float64MultiArray) -> tuple[int, str]:
+    """(how many events and edits are in the world a world state shows, which: '' for the
+    scenario's first ones); (0, '') for the world as loaded."""
+    version, label = 0, ""
     for dim in msg.layout.dim[2:]:
         if dim.label == WORLD_VERSION:
-            return int(dim.size)
-    return 0
+            version = int(dim.size)
+        elif dim.label.startswith(WORLD_EDITS):
+            label = dim.label[len(WORLD_EDITS):]
+    return version, label
 
 
 def twist_of(msg: Twist | TwistStamped | None) -> tuple[float, float]:

@@ -16,7 +16,10 @@ optional: a digital twin's real robot; once one has arrived the base is a kinema
 placed at its x, y and yaw with its velocities every activation instead of being driven, so
 sensors render from the real robot's pose and contacts are those the real pose would have),
 with /real/joint_states (sensor_msgs/JointState, optional) setting the named joints' positions
-too.
+too; /cosim/world_edits (std_msgs/String, optional: SpawnEntity and DeleteEntity requests of
+an interactive run's clients, every one so far, as JSON) puts objects into the world and
+takes them out, as the scenario's ``events:`` do at their ticks
+(nodes.physics.world_events).
 Outputs at tick k are the state at time t_k: tick 0 publishes the initial state, every later
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
@@ -45,7 +48,7 @@ from nodes.physics.swarm import SwarmPhysics, robot_params
 from nodes.physics.urdf_rig import ROBOT_DESCRIPTION
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
 from nodes.physics.world_events import LiveWorld
-from plan.interactive import SET_POSE_TOPIC
+from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
 from plan.obstacles import place_problem
 from plan.timeutil import format_ns
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
@@ -128,7 +131,8 @@ class PhysicsNode(StepNode):
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
         twist = TwistStamped if params.enable_stamped_cmd_vel else Twist
-        return {CMD_VEL: twist, MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState}
+        return {CMD_VEL: twist, MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState,
+                WORLD_EDITS_TOPIC: String}
 
     @classmethod
     def description_names(cls, params: PhysicsParams) -> dict[str, Any]:
@@ -237,18 +241,19 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: PhysicsParams) -> set[str]:
-        """Joint position commands; with a drive, velocity commands, teleports and a real
-        robot's pose (a twin) too; in a swarm, each robot's (``plan.robots.per_robot``)."""
+        """Joint position commands and clients' world edits (SpawnEntity, DeleteEntity);
+        with a drive, velocity commands, teleports and a real robot's pose (a twin) too; in
+        a swarm, each robot's (``plan.robots.per_robot``)."""
         mobile = ({CMD_VEL, SET_POSE_TOPIC, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC}
                   if params.wheel_joints is not None else set())
-        return mobile | {JOINT_COMMANDS}
+        return mobile | {JOINT_COMMANDS, WORLD_EDITS_TOPIC}
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robots."""
         world = self.config.world
         live = None
         if self.config.events:  # a world that changes: kept as a spec to recompile
-            live = LiveWorld(world, self.config.layout, self.config.events)
+            live = LiveWorld(world, self.config.layout, self.config.events, self.note)
             self.model = live.model
         else:
             self.model = load_model(world, self.config.layout)

@@ -38,8 +38,9 @@ from nodes.physics.urdf_rig import (
     urdf_params,
 )
 from nodes.physics.world import named_id
-from nodes.physics.world_events import geom_map
-from plan.interactive import SET_POSE_TOPIC
+from nodes.physics.world_events import LiveWorld, geom_map
+from plan.events import parse_edits
+from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
 from plan.robots import namespaced, prefixed
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
@@ -295,6 +296,8 @@ class SwarmPhysics:
                  rng: np.random.Generator, substeps: int, dt: float, note, live=None):
         self.model, self.data, self.params = model, data, params
         self.live = live  # nodes.physics.world_events.LiveWorld: the scenario's events
+        self.world, self.layout = config.world, config.layout
+        self._edits_text, self._edits = "", []  # the clients' edits (/cosim/world_edits)
         self.substeps, self.dt, self.note = substeps, dt, note
         layout = config.layout
         self.rigs = [Rig(model, robot, params, rng,
@@ -359,8 +362,11 @@ class SwarmPhysics:
         if teleport is not None:
             for rig in self.rigs:
                 rig.teleport(model, data, teleport)
+        edits = inputs.get(WORLD_EDITS_TOPIC)
+        if edits is not None and edits.data and self.live is None:
+            self._go_live()
         if self.live is not None:
-            self._apply_events(tick)
+            self._apply_events(tick, edits)
         self.book.account(self.data, tick)
         out = self._publish()
         if first and self.params.tf is not None:
@@ -371,11 +377,23 @@ class SwarmPhysics:
                 out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
         return out
 
-    def _apply_events(self, tick: Tick) -> None:
-        """Put in and take out the objects of the events due at this tick's time (after
-        integrating up to it, so the state published at the tick has them)."""
+    def _go_live(self) -> None:
+        """A client's first edit of a world that had no events: from now on the world is
+        kept as a spec to recompile, the state carried over."""
+        live = LiveWorld(self.world, self.layout, (), self.note)
+        self.data = live.take_over(self.model, self.data)
+        self.model, self.live = live.model, live
+        if self.params.threads > 1:
+            mujoco.mju_threadpool(self.data, self.params.threads)
+
+    def _apply_events(self, tick: Tick, edits=None) -> None:
+        """Put in and take out the objects of the events due at this tick's time and of
+        the clients' edits new at this tick (after integrating up to it, so the state
+        published at the tick has them)."""
+        if edits is not None and edits.data != self._edits_text:
+            self._edits_text, self._edits = edits.data, parse_edits(edits.data)
         old = self.model
-        changed = self.live.advance(self.data, tick.time_ns)
+        changed = self.live.advance(self.data, tick.time_ns, self._edits)
         if changed is None:
             return
         self.model, self.data = changed
@@ -385,8 +403,10 @@ class SwarmPhysics:
 
     def _publish(self) -> dict[str, Any]:
         d = self.data
-        version = self.live.version if self.live is not None else 0
-        out: dict[str, Any] = {"/cosim/world_state": m.world_state(d.qpos, d.qvel, version)}
+        live = self.live
+        state = (m.world_state(d.qpos, d.qvel) if live is None else
+                 m.world_state(d.qpos, d.qvel, live.version, live.label))
+        out: dict[str, Any] = {"/cosim/world_state": state}
         transforms = self.book.publish(d, out, self.params.tf is not None)
         if self.params.tf is not None:
             out["/tf"] = TFMessage(transforms=transforms)

@@ -12,6 +12,7 @@ trails, poses the world that its input shows.
 from __future__ import annotations
 
 import functools
+import json
 from pathlib import Path
 
 import mujoco
@@ -20,56 +21,126 @@ import numpy as np
 from descriptions.world_edits import apply_event, world_spec
 from descriptions.worldfile import compile_world
 from nodes.physics.world import load_model
-from plan.events import EventSpec, applied_by
+from plan.events import EventSpec, edit_event
 from plan.robots import RobotsLayout
 
 
 class LiveWorld:
-    """The physics node's world: its spec, the model compiled from it, and how many of
-    the scenario's events are in it."""
+    """The physics node's world: its spec, the model compiled from it, and what is in it:
+    ``sequence``, the scenario's events (by index) and clients' edits (``EventSpec``s from
+    /cosim/world_edits) in the order they were applied."""
 
     def __init__(self, world: Path | str, layout: RobotsLayout | None,
-                 events: tuple[EventSpec, ...]):
+                 events: tuple[EventSpec, ...], note=None):
         self.world, self.events = world, tuple(events)
+        self.note = note or (lambda text: None)
         self.spec = world_spec(world, layout)
         self.model = compile_world(self.spec, world)
-        self.applied = 0
+        self.sequence: list[int | EventSpec] = []
+        self.next_event = 0  # the first scenario event not yet due
+        self.requested = 0  # clients' edits handled so far (applied or refused)
+        self.spawned: set[str] = set()
 
-    def advance(self, data: mujoco.MjData, time_ns: int
+    def take_over(self, model: mujoco.MjModel, data: mujoco.MjData) -> mujoco.MjData:
+        """Data for this world's model holding the state of ``data`` of ``model``, the same
+        world loaded otherwise (a world that had no events until a client asked for one)."""
+        if (model.nq, model.nv, model.na, model.nu) != (self.model.nq, self.model.nv,
+                                                        self.model.na, self.model.nu):
+            raise ValueError(f"world {self.world}: its spec does not compile to the model "
+                             "the run started with")
+        mine = mujoco.MjData(self.model)
+        for key in ("qpos", "qvel", "act", "ctrl", "qacc_warmstart", "mocap_pos",
+                    "mocap_quat", "plugin_state"):
+            getattr(mine, key)[:] = getattr(data, key)
+        mine.time = data.time
+        mujoco.mj_forward(self.model, mine)
+        return mine
+
+    def advance(self, data: mujoco.MjData, time_ns: int, edits: list[EventSpec] = ()
                 ) -> tuple[mujoco.MjModel, mujoco.MjData] | None:
-        """Apply the events due by ``time_ns`` that are not applied yet: the new model and
-        data (every other body's state kept; kinematics and sensors computed), or None
-        when none is due."""
-        due = applied_by(self.events, time_ns)
-        if due == self.applied:
+        """Apply the scenario's events due by ``time_ns`` and the clients' ``edits`` (every
+        one asked for so far) not applied yet: the new model and data (every other body's
+        state kept; kinematics and sensors computed), or None when nothing changed. An edit
+        the world cannot take now (a name taken, a delete of what is not there) changes
+        nothing and is noted."""
+        applied = []
+        while (self.next_event < len(self.events)
+               and self.events[self.next_event].at <= time_ns):
+            if self._apply(self.events[self.next_event], f"events[{self.next_event}]"):
+                applied.append(self.next_event)
+            self.next_event += 1
+        for n in range(self.requested, len(edits)):
+            if self._apply(edits[n], f"client edit {n + 1}"):
+                applied.append(edits[n])
+        self.requested = max(self.requested, len(edits))
+        if not applied:
             return None
-        for event in self.events[self.applied:due]:
-            apply_event(self.spec, event)
         try:
             model, data = self.spec.recompile(self.model, data)
         except (ValueError, mujoco.FatalError) as exc:
-            names = ", ".join(e.name for e in self.events[self.applied:due])
+            names = ", ".join(self._name(a) for a in applied)
             raise ValueError(f"the world with {names} does not compile: {exc}") from exc
         mujoco.mj_forward(model, data)
-        self.model, self.applied = model, due
+        self.model = model
+        self.sequence += applied
         return model, data
+
+    def _name(self, item: int | EventSpec) -> str:
+        return self.events[item].name if isinstance(item, int) else item.name
+
+    def _apply(self, event: EventSpec, what: str) -> bool:
+        name = event.name
+        if event.delete is not None and name not in self.spawned:
+            self.note(f"{what}: delete {name!r} changes nothing: no spawned object has "
+                      "that name now")
+            return False
+        if event.spawn is not None and (name in self.spawned or name == "world" or (
+                self.spec.body(name) is not None or self.spec.geom(name) is not None)):
+            self.note(f"{what}: spawn {name!r} changes nothing: the world has that name")
+            return False
+        apply_event(self.spec, event)
+        if event.spawn is not None:
+            self.spawned.add(name)
+        else:
+            self.spawned.discard(name)
+        return True
 
     @property
     def version(self) -> int:
-        """How many events are in the world now."""
-        return self.applied
+        """How many events and edits are in the world now."""
+        return len(self.sequence)
+
+    @property
+    def label(self) -> str:
+        """What is in the world, for a mirror to build it: '' when it is the scenario's
+        first ``version`` events, else the sequence as JSON (``sequence_text``)."""
+        if all(isinstance(item, int) for item in self.sequence) and \
+                self.sequence == list(range(len(self.sequence))):
+            return ""
+        return sequence_text(self.sequence)
+
+
+def sequence_text(sequence: list[int | EventSpec]) -> str:
+    """A world's sequence as text: a scenario event's index, a client's edit as JSON."""
+    items = [item if isinstance(item, int) else
+             item.model_dump(exclude={"at"}, exclude_none=True, mode="json")
+             for item in sequence]
+    return json.dumps(items, sort_keys=True, separators=(",", ":"))
 
 
 @functools.lru_cache(maxsize=8)
 def model_at(world: str, layout: RobotsLayout | None, events: tuple[EventSpec, ...],
-             version: int) -> mujoco.MjModel:
-    """The world with the first ``version`` events applied, compiled (cached per process:
-    the nodes of a process that mirror one world share its models; they only read them)."""
+             version: int, label: str = "") -> mujoco.MjModel:
+    """The world with what physics had applied when it published ``version`` and ``label``
+    (``LiveWorld.label``: '' for the first ``version`` scenario events), compiled (cached
+    per process: the nodes of a process that mirror one world share its models; they only
+    read them)."""
     if version == 0:
         return load_model(world, layout)
     spec = world_spec(world, layout)
-    for event in events[:version]:
-        apply_event(spec, event)
+    sequence = json.loads(label) if label else list(range(version))
+    for item in sequence:
+        apply_event(spec, events[item] if isinstance(item, int) else edit_event(item))
     return compile_world(spec, world)
 
 

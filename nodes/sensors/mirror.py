@@ -22,7 +22,7 @@ class WorldMirror:
     def __init__(self, world: Path | str, layout: RobotsLayout | None = None,
                  events: tuple[EventSpec, ...] = ()):
         self.world, self.layout, self.events = world, layout, tuple(events)
-        self.version = 0
+        self.version, self.label = 0, ""  # the world shown (nodes.physics.world_events)
         self._show(model_at(str(world), layout, self.events, 0))
 
     @classmethod
@@ -47,14 +47,14 @@ class WorldMirror:
     def update(self, msg: Float64MultiArray) -> None:
         """Show the world version the message names, copy qpos out of it, then recompute
         frames (kinematics only; not again for the very qpos the mirror already shows)."""
-        version = world_version(msg)
-        if version != self.version:
-            if version > len(self.events):
+        version, label = world_version(msg)
+        if (version, label) != (self.version, self.label):
+            if version > len(self.events) and not label:
                 raise ValueError(f"/cosim/world_state shows world {self.world} with "
                                  f"{version} events applied; this node knows "
                                  f"{len(self.events)}")
-            self._show(model_at(str(self.world), self.layout, self.events, version))
-            self.version = version
+            self._show(model_at(str(self.world), self.layout, self.events, version, label))
+            self.version, self.label = version, label
         nq = self.model.nq
         dims = msg.layout.dim
         if not dims or dims[0].label != "qpos" or dims[0].size != nq or len(msg.data) < nq:

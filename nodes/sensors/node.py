@@ -129,7 +129,8 @@ class SensorsNode(StepNode):
                              "input from the physics node)")
         self.mirror.update(state)
         if self.arena is not None:
-            self.arena.update(self.mirror.data.qpos, self.mirror.version, self.mirror.model)
+            m = self.mirror
+            self.arena.update(m.data.qpos, m.version, m.model, m.label)
         out: dict[str, Any] = {}
         if self.lidar:
             out["/scan"] = self.lidar.measure(self.rng)

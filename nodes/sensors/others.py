@@ -72,11 +72,11 @@ class StaticWorld:
                  events: tuple[EventSpec, ...] = ()):
         self.world, self.events = str(world), tuple(events)
         self.layout = dataclasses.replace(layout, robots=())
-        self.version = 0
+        self.version, self.label = 0, ""
         self._build(full)
 
     def _build(self, full: mujoco.MjModel) -> None:
-        self.model = model_at(self.world, self.layout, self.events, self.version)
+        self.model = model_at(self.world, self.layout, self.events, self.version, self.label)
         self.data = mujoco.MjData(self.model)
         # the arena's own joints (a door, a loose box) by name in the swarm's qpos
         src, dst = [], []
@@ -93,12 +93,13 @@ class StaticWorld:
         self.dst = np.array(dst, dtype=np.int64)
         mujoco.mj_kinematics(self.model, self.data)
 
-    def update(self, qpos: np.ndarray, version: int = 0, full: mujoco.MjModel | None = None
-               ) -> None:
+    def update(self, qpos: np.ndarray, version: int = 0, full: mujoco.MjModel | None = None,
+               label: str = "") -> None:
         """Pose the arena's movable parts from the swarm's qpos (nothing to do without);
-        first follow the mirror to world ``version`` (its model ``full``)."""
-        if version != self.version:
-            self.version = version
+        first follow the mirror to the world it shows (``version`` and ``label``, its model
+        ``full``)."""
+        if (version, label) != (self.version, self.label):
+            self.version, self.label = version, label
             self._build(full)
         if self.src.size:
             self.data.qpos[self.dst] = qpos[self.src]

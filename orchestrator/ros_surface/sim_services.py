@@ -4,8 +4,9 @@
   O3DE serve them (or under the scenario's ``simulation_interfaces.namespace``, e.g.
   ``/cosim``, as Gazebo serves them under ``/gzserver/``): ``get_simulator_features``,
   ``get_simulation_state``, ``set_simulation_state``, ``step_simulation``, the
-  ``simulate_steps`` action, ``reset_simulation``, ``get_entities``, ``get_entity_state``
-  and ``set_entity_state``;
+  ``simulate_steps`` action, ``reset_simulation``, ``get_entities``, ``get_entity_state``,
+  ``set_entity_state``, and ``spawn_entity`` and ``delete_entity`` for objects
+  (``orchestrator.ros_surface.sim_spawn``);
 - ``/cosim/pause`` (std_srvs/SetBool), ``/cosim/step`` and ``/cosim/reset``
   (std_srvs/Trigger): the same state machine with plain types, for rosbridge and Foxglove
   clients;
@@ -29,6 +30,7 @@ import time
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures
 from simulation_interfaces.srv import (
+    DeleteEntity,
     GetEntities,
     GetEntityState,
     GetSimulationState,
@@ -36,6 +38,7 @@ from simulation_interfaces.srv import (
     ResetSimulation,
     SetEntityState,
     SetSimulationState,
+    SpawnEntity,
     StepSimulation,
 )
 
@@ -72,6 +75,9 @@ class SimServices:
         self._busy = 0  # requests being served (services, action goals executing)
         self._idle = threading.Condition()
         self.robot = _robot(scenario, control, arrivals, paths)
+        from orchestrator.ros_surface.sim_spawn import object_spawner
+
+        self.spawner = object_spawner(scenario, control, arrivals, self.robot)
         self._built = threading.Event()
         self.thread = threading.Thread(target=self._serve, args=(scenario, arrivals),
                                        name="cosim-ros-interfaces", daemon=True)
@@ -136,7 +142,9 @@ class SimServices:
                 (ResetSimulation, "reset_simulation", self._reset),
                 (GetEntities, "get_entities", self._entities),
                 (GetEntityState, "get_entity_state", self._get_entity),
-                (SetEntityState, "set_entity_state", self._set_entity)):
+                (SetEntityState, "set_entity_state", self._set_entity),
+                (SpawnEntity, "spawn_entity", self._spawn),
+                (DeleteEntity, "delete_entity", self._delete)):
             self.node.create_service(srv, self.prefix + name, self._answering(handler),
                                      callback_group=group)
         from std_srvs.srv import SetBool, Trigger
@@ -224,11 +232,18 @@ class SimServices:
             features.append(F.ENTITY_STATE_GETTING)
             if self.robot.teleport_topic is not None:
                 features.append(F.ENTITY_STATE_SETTING)
+        if self.spawner is not None:
+            features += [F.SPAWNING, F.SPAWNING_RESOURCE_STRING, F.DELETING]
+            from orchestrator.ros_surface.spawn_resources import FORMATS
+
+            response.features.spawn_formats = list(FORMATS)
         response.features.features = sorted(features)
+        objects = ("; objects (one link: box, cylinder, sphere, mesh) can be spawned and "
+                   "deleted" if self.spawner is not None else "")
         response.features.custom_info = (
             "cosim: a deterministic lockstep co-simulation; one tick per step; services "
-            f"under {self.prefix}; a reset covers time and state together; one entity, the robot; "
-            "see docs/how-to/ros-interfaces.md")
+            f"under {self.prefix}; a reset covers time and state together; entities: the "
+            f"robot and spawned objects{objects}; see docs/how-to/ros-interfaces.md")
         return response
 
     def _get_state(self, request, response):
@@ -347,6 +362,8 @@ class SimServices:
                                       f"filter {f.filter!r} is not a regular expression: {exc}")
             return response
         names = [self.robot.name] if self.robot is not None else []
+        if self.spawner is not None:
+            names += sorted(self.spawner.live())
         response.entities = [n for n in names if pattern.search(n)]
         response.result = _result(Result.RESULT_OK, "")
         return response
@@ -370,9 +387,28 @@ class SimServices:
         response.result = _result(*self.robot.set_state(request))
         return response
 
+    def _spawn(self, request, response):
+        if self.spawner is None:
+            response.result = _result(Result.RESULT_FEATURE_UNSUPPORTED, _NO_EDITS)
+            return response
+        code, text, name = self.spawner.spawn(request)
+        response.result, response.entity_name = _result(code, text), name
+        return response
+
+    def _delete(self, request, response):
+        if self.spawner is None:
+            response.result = _result(Result.RESULT_FEATURE_UNSUPPORTED, _NO_EDITS)
+            return response
+        response.result = _result(*self.spawner.delete(request.entity))
+        return response
+
     def _not_found(self, entity: str) -> Result:
         known = f"the only entity is {self.robot.name!r}" if self.robot else "there is none"
         return _result(Result.RESULT_NOT_FOUND, f"no entity {entity!r}: {known}")
+
+
+_NO_EDITS = ("cannot spawn or delete: the scenario is not interactive (set interactive: true), "
+             "has no world, or this run replays recorded inputs.")
 
 
 def service_prefix(namespace: str) -> str:
