@@ -14,7 +14,8 @@ under its own names), ``urdf_robot`` (a scenario's settings, once per process) a
 ``describe`` (``cosim-describe``).
 
 A robot described in USD (docs/how-to/usd-robots.md): ``usd_stage_robot`` (the stage read
-with UsdPhysics into links, joints, drives, geometry and frames, in Isaac Sim's importer,
-urdf-usd-converter's and mujoco-usd-converter's layouts) and ``usd_robot`` (written as the
-URDF it is equivalent to and loaded by ``load_urdf``: ``load_usd``).
+with UsdPhysics into links, frames and cameras, in Isaac Sim's importer, urdf-usd-converter's
+and mujoco-usd-converter's layouts; its joints and drives by ``usd_joints``, its shapes by
+``usd_geometry``, values and poses off prims by ``usd_prims``) and ``usd_robot`` (written as
+the URDF it is equivalent to and loaded by ``load_urdf``: ``load_usd``).
 """

@@ -40,7 +40,9 @@ import numpy as np
 
 from descriptions.description_error import DescriptionError
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
-from descriptions.usd_stage_robot import WORLD, Geom, Link, StageRobot, read_stage_robot
+from descriptions.usd_geometry import Geom
+from descriptions.usd_joints import WORLD
+from descriptions.usd_stage_robot import Link, StageRobot, read_stage_robot
 from plan.errors import WorldError
 
 BODY_CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])  # x fwd, z up
@@ -260,7 +262,7 @@ def _write(path: Path, data: bytes) -> None:
 
 
 def _inertial(el: ET.Element, link: Link, frame: np.ndarray) -> None:
-    from descriptions.usd_stage_robot import quat_matrix
+    from descriptions.usd_prims import quat_matrix
 
     inertial = ET.SubElement(el, "inertial")
     local = np.linalg.inv(frame) @ link.pose
