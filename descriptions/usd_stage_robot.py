@@ -14,7 +14,10 @@ The layouts read (docs/how-to/usd-robots.md):
 - urdf-usd-converter (Isaac Sim 6.1+): links nested by the kinematic tree, joints in a
   ``Physics`` scope, no drives (effort as ``urdf:limit:effort``; ``newton:damping`` and
   ``newton:velocityLimit`` per degree), massless links as plain Xforms, both
-  ``physics:diagonalInertia`` and ``newton:inertia`` (the first is used).
+  ``physics:diagonalInertia`` and ``newton:inertia`` (the first is used);
+- mujoco-usd-converter: bodies nested, joints under their child bodies (fixed ones all named
+  ``PhysicsFixedJoint``), actuators as ``MjcActuator`` prims, MJCF sites as spheres with
+  ``MjcSiteAPI`` (no geometry).
 
 A joint whose ``body0`` is empty, or is the robot prim itself, holds the robot to the world.
 A joint whose ``body0`` is a plain Xform above ``body1`` (urdf-usd-converter's massless root
