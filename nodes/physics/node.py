@@ -154,9 +154,10 @@ class PhysicsNode(StepNode):
         (each is checked as the first one is)."""
         urdf = urdf_robot_in(model, robot)
         if params.robot_description and urdf is None:
-            return [("params.robot_description", "the robot is not described by a URDF or "
-                     "xacro, so there is no URDF to publish.", "robot_description: true with "
-                     "a robots: description that is a .urdf, .xacro or .urdf.xacro.")]
+            return [("params.robot_description", "the robot is not described by a URDF, "
+                     "xacro or USD robot, so there is no URDF to publish.", "robot_description: "
+                     "true with a robots: description that is a .urdf, .xacro, .urdf.xacro or a "
+                     "USD robot (.usd, .usda, .usdc).")]
         if urdf is not None:  # its names are its model's, checked when it was loaded
             if params.imu is not None and not urdf["imu"]:
                 return [("params.imu", "the URDF robot has no IMU.", "imu: null, or an IMU "
