@@ -62,17 +62,22 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
     """The description and its settings as a scenario's ``robots:`` section gives them
-    (``robots.description`` and ``robots.urdf``), read as the run reads them."""
+    (``robots.description`` and ``robots.urdf`` or ``robots.usd``; without a description, the
+    USD robot the world's prims reference), read as the run reads them."""
     import yaml
 
     from descriptions.urdf_robot import urdf_options
     from plan.description_spec import UrdfSpec
 
     scenario = ns.description.resolve()
-    robots = (yaml.safe_load(scenario.read_text()) or {}).get("robots") or {}
-    if not robots.get("description"):
-        raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
-    description = (scenario.parent / robots["description"]).resolve()
+    doc = yaml.safe_load(scenario.read_text()) or {}
+    robots = doc.get("robots") or {}
+    if robots.get("description"):
+        description = (scenario.parent / robots["description"]).resolve()
+    else:  # the robot described in USD that the world's prims reference, if one
+        description = _stage_robot(scenario.parent / str(doc.get("world", "")))
+        if description is None:
+            raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
     if is_usd_description(str(description)):
         from descriptions.usd_robot import usd_options
         from plan.description_spec import UsdSpec
@@ -81,6 +86,16 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
             UsdSpec.model_validate(robots.get("usd") or {}).model_dump())
     spec = UrdfSpec.model_validate(robots.get("urdf") or {})
     return description, urdf_options(spec, scenario.parent)
+
+
+def _stage_robot(world: Path) -> Path | None:
+    """The one USD robot file the prims of a USD world reference (None: none, or several)."""
+    from descriptions.worldfile import is_usd, open_stage, usd_robot_mounts
+
+    if not is_usd(world) or not world.is_file():
+        return None
+    files = {m.mjcf for m in usd_robot_mounts(open_stage(world))}
+    return files.pop() if len(files) == 1 else None
 
 
 def options_of(ns: argparse.Namespace) -> UrdfOptions:

@@ -276,6 +276,8 @@ def test_cosim_describe_describes_a_usd_robot(capsys):
     assert "robot 'myarm' from" in out and "fixed to the world" in out
     assert "elbow: revolute [-2.6, 2.6]" in out and "actuator elbow_position" in out
     assert main([str(USD / "nowhere.usda")]) == 2
+    assert main([str(ROOT / "scenarios" / "swarm_usd_robots.yaml")]) == 0  # the stage's robot
+    assert "mybot_isaac.usda" in capsys.readouterr().out
 
 
 def test_the_load_says_what_the_usd_robot_lost_and_settings_go_with_their_format(tmp_path,
