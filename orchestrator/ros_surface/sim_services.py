@@ -297,7 +297,8 @@ class SimServices:
         if scope not in (ResetSimulation.Request.SCOPE_DEFAULT,) and scope & RESETS != RESETS:
             response.result = _result(Result.RESULT_FEATURE_UNSUPPORTED, (
                 f"scope {scope}: cosim resets time and state together (SCOPE_ALL or "
-                "SCOPE_TIME | SCOPE_STATE; nothing is ever spawned)"))
+                "SCOPE_TIME | SCOPE_STATE; spawned objects go with the state: the world is "
+                "the scenario's again)"))
             return response
         out = self.control.reset()
         if out.ok:
