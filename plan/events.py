@@ -263,12 +263,6 @@ def physics_period(topics_by_node: dict[str, dict[str, type]], periods: dict[str
     return None
 
 
-def applied_by(events: tuple[EventSpec, ...] | list[EventSpec], time_ns: int) -> int:
-    """How many of the (time-ordered) events have happened by ``time_ns``: the world's
-    version at that time."""
-    return sum(1 for e in events if e.at <= time_ns)
-
-
 def edit_event(item: dict) -> EventSpec:
     """One edit a client asked for (``{"spawn": {...}}`` or ``{"delete": name}``) as an
     event of no particular time: it happens at the tick it enters."""

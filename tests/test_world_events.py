@@ -19,11 +19,11 @@ import pytest
 
 from descriptions.load import load_scenario
 from nodes.physics.messages import world_version
-from nodes.physics.world_events import LiveWorld
+from nodes.physics.world_events import LiveWorld, model_at
 from nodes.sensors.mirror import WorldMirror
 from orchestrator.api import run
 from plan.errors import ScenarioError
-from plan.events import EventSpec
+from plan.events import EventSpec, edit_event
 from tests.helpers import ROOT, orchestrate
 
 SCENARIOS = ROOT / "tests" / "scenarios"
@@ -129,6 +129,32 @@ def test_recompiling_keeps_every_other_body_state_bit_for_bit():
     assert model3.nq == model.nq
     assert np.array_equal(data3.qpos, state["qpos"]) and np.array_equal(data3.qvel,
                                                                         state["qvel"])
+
+
+def test_clients_edits_between_events_are_mirrored_and_bad_ones_change_nothing():
+    """A client's edit applied before a scenario event: world states name the sequence, and
+    a mirror built from it has the physics node's layout; an edit the world cannot take
+    (a name it has, a delete of nothing) is noted and changes nothing."""
+    event = EventSpec.model_validate({"at": "40ms", "spawn": {
+        "name": "post", "shape": "cylinder", "size": [0.1, 0.5], "pose": {"x": 2, "y": -3}}})
+    notes = []
+    live = LiveWorld(NAV_WORLD, None, (event,), notes.append)
+    data = mujoco.MjData(live.model)
+    ball = edit_event({"spawn": {"name": "ball", "shape": "sphere", "size": [0.1],
+                                 "pose": {"x": 1, "y": 1}, "static": False, "mass": 1.0}})
+    clash = edit_event({"spawn": {"name": "floor", "shape": "sphere", "size": [0.1],
+                                  "pose": {"x": 1, "y": 2}}})
+    ghost = edit_event({"delete": "ghost"})
+    model, data = live.advance(data, 20_000_000, [ball, clash, ghost])
+    assert live.advance(data, 20_000_000, [ball, clash, ghost]) is None  # each applies once
+    model, data = live.advance(data, 40_000_000, [ball, clash, ghost])
+    assert [n.split(":")[0] for n in notes] == ["client edit 2", "client edit 3"]
+    assert live.version == 2 and live.label
+    mirrored = model_at(str(NAV_WORLD), None, (event,), live.version, live.label)
+    assert mirrored.nq == model.nq == 18
+    assert [mirrored.body(b).name for b in range(mirrored.nbody)] == [
+        model.body(b).name for b in range(model.nbody)]
+    assert [model.body(b).name for b in range(model.nbody)][-2:] == ["ball", "post"]
 
 
 def test_a_shared_mirror_follows_the_version_each_input_shows(short_run):
