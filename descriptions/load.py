@@ -16,10 +16,10 @@ from descriptions.robot_layout import robots_layout
 from descriptions.robot_model import RobotModel
 from descriptions.robot_reader import RobotNames, world_robots
 from descriptions.swarm_world import swarm_model
-from descriptions.world_edits import world_objects
+from descriptions.world_edits import object_problem, world_objects
 from descriptions.worldfile import check_world
 from plan.errors import WorldError
-from plan.events import WorldObjects
+from plan.events import ObjectSpec, WorldObjects
 from plan.load import read_scenario
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
@@ -55,6 +55,10 @@ class MujocoWorlds:
                       ) -> WorldObjects:
         """The world's names, obstacles and movers, for the events' checks."""
         return world_objects(world_model, start)
+
+    def object_problem(self, obj: ObjectSpec) -> str | None:
+        """Why MuJoCo cannot make a spawned object (its mesh), or None."""
+        return object_problem(obj)
 
 
 WORLDS = MujocoWorlds()

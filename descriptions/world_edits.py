@@ -16,6 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from descriptions.mesh_convert import mujoco_meshes
 from descriptions.swarm_world import swarm_spec
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from descriptions.worldfile import load_world_spec
@@ -60,11 +61,25 @@ def add_object(spec: mujoco.MjSpec, obj: ObjectSpec) -> None:
     elif obj.shape == "sphere":
         geom["size"] = [obj.size[0], 0.0, 0.0]
     else:
-        spec.add_mesh(name=MESH_PREFIX + obj.name, file=str(obj.mesh), scale=list(obj.scale))
+        parts = mujoco_meshes(Path(obj.mesh), whole=True)  # ASCII STL, COLLADA: converted
+        spec.add_mesh(name=MESH_PREFIX + obj.name, file=parts[0].path if parts else obj.mesh,
+                      scale=list(obj.scale))
         geom["meshname"] = MESH_PREFIX + obj.name
     if obj.mass is not None:
         geom["mass"] = obj.mass
     body.add_geom(**geom)
+
+
+def object_problem(obj: ObjectSpec) -> str | None:
+    """Why MuJoCo cannot make ``obj`` (a mesh file it cannot read, a degenerate mesh), or
+    None: the object compiled on its own, before it goes into a world."""
+    spec = mujoco.MjSpec()
+    try:
+        add_object(spec, obj)
+        spec.compile()
+    except (ValueError, mujoco.FatalError) as exc:
+        return " ".join(str(exc).split())
+    return None
 
 
 def remove_object(spec: mujoco.MjSpec, name: str) -> None:

@@ -64,8 +64,8 @@ class ObjectSpec(_Strict):
     size: tuple[float, ...] = Field((), description="box: [x, y, z] full lengths in metres; "
                                     "cylinder: [radius, length]; sphere: [radius]; not "
                                     "for a mesh (use scale)")
-    mesh: str | None = Field(None, description="shape mesh: the mesh file (STL, OBJ; "
-                             "relative to the scenario file)")
+    mesh: str | None = Field(None, description="shape mesh: the mesh file (STL, OBJ, "
+                             "COLLADA; relative to the scenario file)")
     scale: tuple[float, float, float] = Field((1.0, 1.0, 1.0), description="shape mesh: "
                                               "scale per axis (0.001: a mesh in millimetres)")
     pose: ObjectPose = Field(description="where it is put")

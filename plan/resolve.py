@@ -42,7 +42,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
-    model = with_event_files(path, model, found)
+    model = with_event_files(path, model, found, worlds)
     where = ScenarioChecks(path, model, origins, worlds, found)
     classes, params = {}, {}
     for i, spec in enumerate(model.nodes):
@@ -104,9 +104,11 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
                     layout)
 
 
-def with_event_files(path: Path, model: ScenarioModel, found: Problems) -> ScenarioModel:
+def with_event_files(path: Path, model: ScenarioModel, found: Problems, worlds: WorldReader
+                     ) -> ScenarioModel:
     """The model with each spawned mesh's file made absolute (every node reads it from its
-    own working directory); a file that does not exist is a problem naming the key."""
+    own working directory); a file that does not exist or does not load is a problem naming
+    the key."""
     events = list(model.events)
     for i, event in enumerate(events):
         obj = event.spawn
@@ -118,7 +120,14 @@ def with_event_files(path: Path, model: ScenarioModel, found: Problems) -> Scena
                 f"events[{i}] ({obj.name}).spawn.mesh", f"mesh file {obj.mesh!r} does not "
                 f"exist ({file}).", "the path of an STL or OBJ file, relative to this file."))
             continue
-        events[i] = event.model_copy(update={"spawn": obj.model_copy(update={"mesh": str(file)})})
+        obj = obj.model_copy(update={"mesh": str(file)})
+        problem = worlds.object_problem(obj)
+        if problem:
+            found.add(ScenarioChecks(path, model).fail(
+                f"events[{i}] ({obj.name}).spawn.mesh", f"mesh file {obj.mesh!r} does not "
+                f"load: {problem}", "an STL or OBJ file MuJoCo reads."))
+            continue
+        events[i] = event.model_copy(update={"spawn": obj})
     return model.model_copy(update={"events": events}) if model.events else model
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Protocol
 
-from plan.events import WorldObjects
+from plan.events import ObjectSpec, WorldObjects
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
 
@@ -43,3 +43,6 @@ class WorldReader(Protocol):
         """What a scenario's events are checked against (``plan.events``): the world's
         names, static obstacles, and its robots and loose objects where they start
         (``start``: a body moved to (x, y) by the physics node's start parameter)."""
+
+    def object_problem(self, obj: ObjectSpec) -> str | None:
+        """Why a spawned object cannot be made (a mesh file that does not load), or None."""

@@ -220,6 +220,20 @@ def test_bad_events_are_refused_naming_the_key(tmp_path, events, key, words):
     assert str(path) in text and key in text and words in text, text
 
 
+def test_a_mesh_that_does_not_load_is_refused_and_an_ascii_one_is_converted(tmp_path):
+    (tmp_path / "empty.stl").write_text("solid x\nendsolid x\n")
+    ascii_stl = ROOT / "tests" / "robots" / "meshbot_description" / "meshes" / "base_ascii.stl"
+    path = tmp_path / "bad.yaml"
+    path.write_text(NAV_EVENTS.format(world=NAV_WORLD, events=textwrap.indent(
+        "- {at: 1s, spawn: {name: a, shape: mesh, mesh: empty.stl, pose: {x: 0, y: 3}}}\n"
+        f"- {{at: 1s, spawn: {{name: b, shape: mesh, mesh: {ascii_stl}, pose: {{x: 0, y: 3}}}}}}",
+        "  ")))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert "events[0] (a).spawn.mesh: mesh file" in str(info.value), str(info.value)
+    assert "holds no triangles" in str(info.value) and "(b)" not in str(info.value)
+
+
 def test_a_bad_event_exits_2_before_anything_starts(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text(NAV_EVENTS.format(world=NAV_WORLD, events="  - {at: 1s, delete: ghost}"))

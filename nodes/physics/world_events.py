@@ -18,7 +18,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from descriptions.world_edits import apply_event, world_spec
+from descriptions.world_edits import apply_event, object_problem, world_spec
 from descriptions.worldfile import compile_world
 from nodes.physics.world import load_model
 from plan.events import EventSpec, edit_event
@@ -97,6 +97,9 @@ class LiveWorld:
         if event.spawn is not None and (name in self.spawned or name == "world" or (
                 self.spec.body(name) is not None or self.spec.geom(name) is not None)):
             self.note(f"{what}: spawn {name!r} changes nothing: the world has that name")
+            return False
+        if event.spawn is not None and (problem := object_problem(event.spawn)):
+            self.note(f"{what}: spawn {name!r} changes nothing: {problem}")
             return False
         apply_event(self.spec, event)
         if event.spawn is not None:

@@ -77,6 +77,11 @@ class ObjectSpawner:
             given, obj = requested_object(request)
         except Refused as exc:
             return exc.code, str(exc), ""
+        from descriptions.world_edits import object_problem
+
+        problem = object_problem(obj)
+        if problem:
+            return R.UNSUPPORTED_ASSETS, f"MuJoCo cannot make the object: {problem}", ""
         with self._lock:
             live = self.live()
             taken = self.world().names | set(live) | {"world"}

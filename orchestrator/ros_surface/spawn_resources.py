@@ -1,7 +1,7 @@
 """What a SpawnEntity request asks to put into the world, read as an object
 (``plan.events.ObjectSpec``): a small SDFormat or URDF model of one link whose collision (or
 else visual) geometry is a box, cylinder, sphere or mesh, given as ``resource_string`` or
-as a file (``uri``), or a mesh file (STL, OBJ) itself. Robots (several links, joints) are
+as a file (``uri``), or a mesh file (STL, OBJ, COLLADA) itself. Robots (several links, joints) are
 not objects; they are refused with ``UNSUPPORTED_FORMAT``.
 
 An SDFormat model is static when it says ``<static>true</static>``, else free with its
@@ -23,8 +23,8 @@ from simulation_interfaces.srv import SpawnEntity
 from plan.events import ObjectSpec
 
 R = SpawnEntity.Response
-FORMATS = ["sdf", "urdf", "stl", "obj"]  # SimulatorFeatures.spawn_formats
-MESHES = (".stl", ".obj")
+FORMATS = ["sdf", "urdf", "stl", "obj", "dae"]  # SimulatorFeatures.spawn_formats
+MESHES = (".stl", ".obj", ".dae")  # ASCII STL and COLLADA converted (descriptions.mesh_convert)
 FRAMES = ("", "world", "map", "odom")
 
 
