@@ -170,6 +170,7 @@ class World:
     polygons: list[np.ndarray] = field(default_factory=list)
     circles: list[tuple[float, float, float]] = field(default_factory=list)
     laser: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    spawned: list[tuple[str, np.ndarray]] = field(default_factory=list)  # (label, outline)
 
 
 def load_world(path: Path | None, laser_frame: str = "laser") -> World:
@@ -216,6 +217,32 @@ def add_obstacles(world: World, model) -> None:
             world.polygons.append(o.polygon)
 
 
+def add_spawned(world: World, events) -> None:
+    """The outlines of the objects a scenario's ``events:`` spawn (a mesh as a small disc),
+    each labelled with its name and when it came (and went)."""
+    gone = {}
+    for event in events:
+        if event.delete is not None:
+            gone.setdefault(event.delete, []).append(event.at)
+    for event in events:
+        obj = event.spawn
+        if obj is None:
+            continue
+        p = obj.pose
+        if obj.shape == "box":
+            hx, hy = obj.size[0] / 2, obj.size[1] / 2
+            c, s = math.cos(p.yaw), math.sin(p.yaw)
+            outline = np.array([[p.x + c * x - s * y, p.y + s * x + c * y]
+                                for x, y in ((-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy))])
+        else:
+            r = obj.footprint_radius or 0.1
+            a = np.linspace(0, 2 * math.pi, 24, endpoint=False)
+            outline = np.column_stack([p.x + r * np.cos(a), p.y + r * np.sin(a)])
+        until = [t for t in gone.get(obj.name, []) if t > event.at]
+        when = f"{event.at / 1e9:g}-{min(until) / 1e9:g} s" if until else f"{event.at / 1e9:g} s"
+        world.spawned.append((f"{obj.name} ({when})", outline))
+
+
 def scan_points(scan, pose: tuple[float, float, float],
                 laser: tuple[float, float, float]) -> np.ndarray:
     """The finite returns of a LaserScan as world points (N x 2), from the robot's pose."""
@@ -239,6 +266,7 @@ def nav_figure(scenario: Scenario, data: BagData, outcome) -> Figure:
     laser_frame = scans[0][1].header.frame_id if scans else "laser"
     world = (robots_world(scenario, laser_frame) if lone_robot(scenario)
              else load_world(getattr(scenario, "world", None), laser_frame or "laser"))
+    add_spawned(world, getattr(getattr(scenario, "model", None), "events", None) or [])
     snaps = snapshot_scans(scans)
     fig = Figure(figsize=(15, 9.5))
     left = fig.add_gridspec(1, 1, left=0.05, right=0.5, top=0.89, bottom=0.2)
@@ -330,6 +358,14 @@ def draw_obstacles(ax, world: World) -> None:
         ax.add_patch(Circle((x, y), r, **style))
     if world.polygons or world.circles:
         ax.add_patch(Polygon(np.zeros((3, 2)), label="obstacles (MJCF)", **style))
+    spawned = {"facecolor": "#9ab3d5", "edgecolor": "#2f4f7f", "hatch": "//", "alpha": 0.8,
+               "zorder": 1}
+    for label, outline in world.spawned:
+        ax.add_patch(Polygon(outline, closed=True, **spawned))
+        ax.annotate(label, outline.mean(axis=0), fontsize=7, ha="center", va="bottom",
+                    xytext=(0, 6), textcoords="offset points", zorder=6)
+    if world.spawned:
+        ax.add_patch(Polygon(np.zeros((3, 2)), label="spawned (events:)", **spawned))
 
 
 def draw_plans(ax, plans: list[tuple[int, object]]) -> None:
