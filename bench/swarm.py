@@ -28,7 +28,10 @@ import json
 import math
 import os
 import tempfile
+import threading
 from pathlib import Path
+
+import psutil
 
 from bench.common import ROOT, run_manifest, write_scenario
 
@@ -106,18 +109,55 @@ def where_time_goes(manifest: dict) -> dict[str, float]:
     return out
 
 
+def dds_participants() -> set[tuple[int, int]]:
+    """(domain, participant id) of every DDS participant of this process's descendants (the
+    run it started): each binds its metatraffic unicast port 7410 + 250 * domain + 2 * id
+    and its user unicast port, one above (RTPS 9.6.1.1); the pair tells it from ephemeral
+    ports."""
+    ours = {p.pid for p in psutil.Process().children(recursive=True)}
+    bound = {(c.pid, c.laddr.port) for c in psutil.net_connections(kind="udp") if c.pid in ours}
+    out = set()
+    for pid, port in bound:
+        offset = port - 7410
+        if 0 <= offset < 250 * 233 and offset % 250 % 2 == 0 and (pid, port + 1) in bound:
+            out.add((offset // 250, offset % 250 // 2))
+    return out
+
+
+class ParticipantCount:
+    """The most DDS participants the run started by this process held at once (sampled
+    every 0.2 s in a thread while the block runs)."""
+
+    def __enter__(self) -> ParticipantCount:
+        self.most = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+        self._thread.start()
+        return self
+
+    def _sample(self) -> None:
+        while not self._stop.wait(0.2):
+            self.most = max(self.most, len(dds_participants()))
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
 def run(n: int, packing: str, path: Path, out: Path, spread: int = SPREAD) -> dict:
     """One run's figures."""
     args = {"none": ("--pack", "node"), "kind": ("--pack", "kind"),
             "spread": ("--pack", "kind", "--spread", str(spread)),
             "robot": ("--pack", "robot"), "in-process": ("--in-process",)}[packing]
-    m = run_manifest(path, *args, out=out)
+    with ParticipantCount() as participants:
+        m = run_manifest(path, *args, out=out)
     split = where_time_goes(m)
     return {"robots": n, "packing": packing, "status": m["outcome"]["status"],
             "digest": m["digest"], "wall_s": m["wall_time_s"], "loop_s": m["loop_s"],
             "real_time_factor": m["real_time_factor"],
             "loop_real_time_factor": m["loop_real_time_factor"],
             "peak_mb_per_robot": round(peak_mb(m) / n, 1),
+            "dds_participants": participants.most,
             "time_s": split,
             "loop_over_physics": (round(m["loop_s"] / split["physics"], 2)
                                   if split["physics"] > 0 else None),
@@ -173,7 +213,8 @@ def line(row: dict) -> str:
             f"RTF {_f(row['real_time_factor'], '>6')} "
             f"(loop {_f(row['loop_real_time_factor'], '>6')})  "
             f"wall {_f(row['wall_s'], '>7.2f')} s = {_f(row['wall_over_in_process'], '>5.2f')}x "
-            f"in-process  {_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot  digest "
+            f"in-process  {_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot  "
+            f"{row['dds_participants']:>3} DDS participants  digest "
             f"{'=' if row['digest_equal'] else 'DIFFERS'}")
     if row["time_s"]:
         t = row["time_s"]

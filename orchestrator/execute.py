@@ -372,6 +372,10 @@ def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
     # its processes
     site = Site(scenario, paths, options, supervisor, layout, external)
     settings = TransportSettings.of(scenario, options)
+    if settings.kind == "ros2":  # every process a DDS participant, the orchestrator two
+        widened = run_domain.widen_discovery(len(layout.processes) + 2)
+        if widened:
+            log.info("%s", widened)
     # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
     # then start as fresh interpreters: a process with a session open must not fork).
     opens_first = settings.kind == "zenoh"

@@ -63,8 +63,9 @@ def tool_environment(domain: int) -> str:
     """The variables a ROS 2 tool in another shell needs to join a run on ``domain`` of this
     process: its domain and discovery range (a tool on the default range, SUBNET, does not
     always find a LOCALHOST run)."""
-    parts = [f"{name}={shlex.quote(os.environ[name])}"
-             for name in (RANGE_VAR, "ROS_LOCALHOST_ONLY") if os.environ.get(name)]
+    chosen = {RANGE_VAR: os.environ.get(TOOL_RANGE_VAR) or os.environ.get(RANGE_VAR),
+              "ROS_LOCALHOST_ONLY": os.environ.get("ROS_LOCALHOST_ONLY")}
+    parts = [f"{name}={shlex.quote(value)}" for name, value in chosen.items() if value]
     return " ".join([*parts, f"ROS_DOMAIN_ID={domain}"])
 
 
@@ -264,3 +265,44 @@ def release(domain: int) -> None:
             item.__exit__(None, None, None)
         else:
             item.close()
+
+
+LOCALHOST_PEERS = 32
+"""Participants that ROS 2's LOCALHOST discovery reaches on one domain (rmw_fastrtps probes
+the ports of participant ids 0..31 on 127.0.0.1; two participants both above that never meet)."""
+TOOL_RANGE_VAR = "COSIM_TOOL_DISCOVERY_RANGE"  # what a tool joining the run should set instead
+
+
+def widen_discovery(participants: int) -> str | None:
+    """Keep a run of ``participants`` DDS participants (its processes and the orchestrator's)
+    discoverable under LOCALHOST discovery when they outnumber what LOCALHOST reaches: a
+    Fast DDS profile that sets up what rmw_fastrtps does for LOCALHOST, probing ports for
+    ``participants`` + 32 ids (at most 120, RTPS's per-domain ports), used through
+    ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` by this process and every process it
+    starts. What was done, for the log; None when nothing needed doing. Only before this
+    process loads rclpy (Fast DDS reads its profile once) and when the user chose no profile."""
+    if os.environ.get(RANGE_VAR) != "LOCALHOST" or participants <= LOCALHOST_PEERS - 4:
+        return None
+    if "rclpy._rclpy_pybind11" in sys.modules or any(
+            os.environ.get(v) for v in ("FASTRTPS_DEFAULT_PROFILES_FILE",
+                                        "FASTDDS_DEFAULT_PROFILES_FILE")):
+        return (f"{participants} DDS participants on one domain with LOCALHOST discovery, "
+                f"which reaches {LOCALHOST_PEERS}: some may never discover each other. Pack "
+                "nodes into fewer processes (--pack kind) or leave the Fast DDS profile to "
+                "cosim.")
+    from runtime.transport.ros2 import PROFILE
+
+    peers = min(120, participants + LOCALHOST_PEERS)
+    template = PROFILE.with_name("fastdds_localhost_profile.xml").read_text()
+    folder = Path(tempfile.gettempdir()) / "cosim-dds-profiles"
+    folder.mkdir(exist_ok=True)
+    path = folder / f"localhost-{peers}.xml"
+    if not path.exists():
+        staged = folder / f".{path.name}.{os.getpid()}"
+        staged.write_text(template.replace("{peers}", str(peers)))
+        staged.replace(path)
+    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(path)
+    os.environ[RANGE_VAR] = "SYSTEM_DEFAULT"
+    os.environ[TOOL_RANGE_VAR] = "LOCALHOST"
+    return (f"{participants} DDS participants: LOCALHOST discovery widened to {peers} "
+            f"participant ports ({path})")
