@@ -87,6 +87,41 @@ def test_requests_are_read_as_objects():
         assert info.value.code == code, (info.value.code, str(info.value))
 
 
+def test_the_spawner_checks_requests_against_what_is_in_the_world_then():
+    """Without a run: the objects in the world at the next boundary are the scenario's due
+    events' and the accepted edits'; a request is checked against them, an accepted one is
+    put into the arrivals with every edit so far."""
+    from descriptions.load import load_scenario
+    from orchestrator.ros_surface.sim_spawn import object_spawner
+    from orchestrator.ros_surface.simcontrol import RunControl
+    from runtime.arrivals import Arrivals
+
+    scenario = load_scenario(ROOT / "tests" / "scenarios" / "spawn_short.yaml",
+                             {"interactive": True})
+    control = RunControl(scenario.tick_ns, paused=True)
+    arrivals = Arrivals(scenario.nodes["external"].outputs)
+    spawner = object_spawner(scenario, control, arrivals)
+    control.boundary = 25  # 0.5 s: the ball (0.2 s) and the post (0.4 s) are in
+    assert sorted(spawner.live()) == ["ball", "post"]
+    on_post = spawner.spawn(request(-2.0, -2.8, name="x", resource=DRUM))
+    assert on_post[0] == R.INVALID_POSE and "'post'" in on_post[1], on_post
+    renamed = spawner.spawn(request(0.0, 3.0, name="ball", resource=DRUM, renaming=True))
+    assert renamed[0] == OK and renamed[2] == "ball_1", renamed
+    from plan.obstacles import place_problem
+
+    (post,) = spawner.static_obstacles()  # what a teleport (SetEntityState) is refused in
+    assert "inside obstacle 'post'" in place_problem([post], -2.0, -2.8, 0.2)
+    assert spawner.delete("post")[0] == OK
+    assert spawner.delete("post")[0] == Result.RESULT_NOT_FOUND  # gone at that boundary
+    assert spawner.delete("wall_n")[0] == Result.RESULT_OPERATION_FAILED
+    (sent,) = arrivals.take().values()
+    assert [(e.name, e.delete is not None) for e in parse_edits(sent.data)] == [
+        ("ball_1", False), ("post", True)]
+    assert [o.name for o in spawner.static_obstacles()] == []  # the drum is free
+    control.boundary = 5  # before the events: only the edits
+    assert sorted(spawner.live()) == ["ball_1"]
+
+
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory):
     """spawn_short without its events and camera, interactive, 2 s."""

@@ -53,6 +53,7 @@ class RobotEntity:
         self._scenario = scenario
         self._obstacles = None
         self.requests = 0  # teleports asked for: each message differs, so each applies once
+        self.spawned_obstacles = list  # () -> the static objects spawned (sim_spawn), if any
         control.reset_listeners.append(self.forget)
 
     # -- state ------------------------------------------------------------------------------
@@ -133,7 +134,7 @@ class RobotEntity:
             self._obstacles = static_obstacles(load_world_model(self._scenario.world))
             (robot,) = scenario_robots(self._scenario)  # the robot model's footprint
             self._radius = robot.footprint_radius
-        return place_problem(self._obstacles, x, y, self._radius)
+        return place_problem([*self._obstacles, *self.spawned_obstacles()], x, y, self._radius)
 
 
 def entity_state(odom: Odometry) -> EntityState:

@@ -78,6 +78,8 @@ class SimServices:
         from orchestrator.ros_surface.sim_spawn import object_spawner
 
         self.spawner = object_spawner(scenario, control, arrivals, self.robot)
+        if self.spawner is not None and self.robot is not None:  # no teleport into them
+            self.robot.spawned_obstacles = self.spawner.static_obstacles
         self._built = threading.Event()
         self.thread = threading.Thread(target=self._serve, args=(scenario, arrivals),
                                        name="cosim-ros-interfaces", daemon=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import threading
 
+import numpy as np
 from simulation_interfaces.msg import Result
 from simulation_interfaces.srv import SpawnEntity
 from std_msgs.msg import String
@@ -20,6 +21,7 @@ from orchestrator.ros_surface.simcontrol import RunControl
 from orchestrator.ros_surface.spawn_resources import Refused, requested_object
 from plan.events import EventSpec, ObjectSpec, edit_event, edits_text, object_problems
 from plan.interactive import WORLD_EDITS_TOPIC
+from plan.obstacles import Obstacle
 from plan.scenario import EXTERNAL_NAME, Scenario
 from plan.timeutil import tick_time_ns
 from runtime.arrivals import Arrivals
@@ -65,6 +67,28 @@ class ObjectSpawner:
                 out[event.name] = event.spawn
             else:
                 out.pop(event.name, None)
+        return out
+
+    def static_obstacles(self) -> list[Obstacle]:
+        """The static objects in the world at the next boundary, as obstacles seen from
+        above (a mesh's extent is not known here: left out)."""
+        out = []
+        for obj in self.live().values():
+            radius = obj.footprint_radius
+            if not obj.static or radius is None:
+                continue
+            z = obj.pose.z if obj.pose.z is not None else obj.half_height
+            band = (z - obj.half_height, z + obj.half_height)
+            common = dict(name=obj.name, geom=-1, kind=obj.shape, z_range=band,
+                          centre=(obj.pose.x, obj.pose.y))
+            if obj.shape == "box":
+                hx, hy = obj.size[0] / 2, obj.size[1] / 2
+                c, s = math.cos(obj.pose.yaw), math.sin(obj.pose.yaw)
+                corners = [(obj.pose.x + c * x - s * y, obj.pose.y + s * x + c * y)
+                           for x, y in ((-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy))]
+                out.append(Obstacle(polygon=np.array(corners), **common))
+            else:
+                out.append(Obstacle(radius=radius, **common))
         return out
 
     def spawn(self, request: SpawnEntity.Request) -> tuple[int, str, str]:
