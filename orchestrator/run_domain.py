@@ -63,7 +63,7 @@ def tool_environment(domain: int) -> str:
     """The variables a ROS 2 tool in another shell needs to join a run on ``domain`` of this
     process: its domain and discovery range (a tool on the default range, SUBNET, does not
     always find a LOCALHOST run)."""
-    chosen = {RANGE_VAR: os.environ.get(TOOL_RANGE_VAR) or os.environ.get(RANGE_VAR),
+    chosen = {RANGE_VAR: "LOCALHOST" if widened() else os.environ.get(RANGE_VAR),
               "ROS_LOCALHOST_ONLY": os.environ.get("ROS_LOCALHOST_ONLY")}
     parts = [f"{name}={shlex.quote(value)}" for name, value in chosen.items() if value]
     return " ".join([*parts, f"ROS_DOMAIN_ID={domain}"])
@@ -270,7 +270,14 @@ def release(domain: int) -> None:
 LOCALHOST_PEERS = 32
 """Participants that ROS 2's LOCALHOST discovery reaches on one domain (rmw_fastrtps probes
 the ports of participant ids 0..31 on 127.0.0.1; two participants both above that never meet)."""
-TOOL_RANGE_VAR = "COSIM_TOOL_DISCOVERY_RANGE"  # what a tool joining the run should set instead
+PROFILES = "cosim-dds-profiles"  # the folder of widen_discovery's profiles, under $TMPDIR
+
+
+def widened() -> bool:
+    """Whether this process runs on widen_discovery's profile (a tool joining its run sets
+    LOCALHOST, not the SYSTEM_DEFAULT the profile is used with)."""
+    profile = Path(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", ""))
+    return os.environ.get(RANGE_VAR) == "SYSTEM_DEFAULT" and profile.parent.name == PROFILES
 
 
 def widen_discovery(participants: int) -> str | None:
@@ -294,7 +301,7 @@ def widen_discovery(participants: int) -> str | None:
 
     peers = min(120, participants + LOCALHOST_PEERS)
     template = PROFILE.with_name("fastdds_localhost_profile.xml").read_text()
-    folder = Path(tempfile.gettempdir()) / "cosim-dds-profiles"
+    folder = Path(tempfile.gettempdir()) / PROFILES
     folder.mkdir(exist_ok=True)
     path = folder / f"localhost-{peers}.xml"
     if not path.exists():
@@ -303,6 +310,5 @@ def widen_discovery(participants: int) -> str | None:
         staged.replace(path)
     os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(path)
     os.environ[RANGE_VAR] = "SYSTEM_DEFAULT"
-    os.environ[TOOL_RANGE_VAR] = "LOCALHOST"
     return (f"{participants} DDS participants: LOCALHOST discovery widened to {peers} "
             f"participant ports ({path})")
