@@ -63,7 +63,9 @@ def test_a_paced_multi_process_run_holds_back_clock_and_gives_the_unpaced_digest
     due = (max(slow) - min(slow)) * 0.01 / 2.0
     assert paced.digest == reference.digest
     assert abs(ticks_span_s(slow) - due) <= due * 0.05 + ALLOWANCE_S, ticks_span_s(slow)
-    assert due <= paced.loop_s <= due * 1.05 + ALLOWANCE_S, paced.loop_s
+    # the loop (from the first /clock to the last tick's reports): never before its time;
+    # its end also waits for the last tick's round trip, so the span above bounds it instead
+    assert paced.loop_s >= due, paced.loop_s
 
 
 def test_the_run_api_paces_and_records_the_factor(tmp_path):
