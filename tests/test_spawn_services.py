@@ -14,11 +14,13 @@ import numpy as np
 import pytest
 import yaml
 from geometry_msgs.msg import PoseStamped
-from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures
+from simulation_interfaces.msg import Resource, Result, SimulationState, SimulatorFeatures
+from simulation_interfaces.msg import SpawnEntity as SpawnEntityMsg
 from simulation_interfaces.srv import (
     DeleteEntity,
     GetEntities,
     GetSimulatorFeatures,
+    SpawnEntities,
     SpawnEntity,
 )
 
@@ -161,6 +163,13 @@ def session(sim: SimClient, checks: bool) -> int:
         "wall": delete("wall_n"),
         "ghost": delete("ghost"),
     }
+    many = SpawnEntities.Request()
+    for req in (request(0.5, -3.5, name="drum2", resource=DRUM),
+                request(1.6, 2.6, name="y", resource=DRUM)):  # pillar_a
+        many.spawn_requests.append(SpawnEntityMsg(
+            name=req.name, initial_pose=req.initial_pose,
+            entity_resource=Resource(resource_string=req.resource_string)))
+    both = sim.call(SpawnEntities, "/spawn_entities", many)
     entities = sim.call(GetEntities, "/get_entities", GetEntities.Request()).entities
     assert sim.step(20).result == OK
     deleted = delete("crate_1")
@@ -168,7 +177,8 @@ def session(sim: SimClient, checks: bool) -> int:
     stop = sim.set_state(SimulationState.STATE_STOPPED)
     if checks:
         assert {SimulatorFeatures.SPAWNING, SimulatorFeatures.DELETING,
-                SimulatorFeatures.SPAWNING_RESOURCE_STRING} <= set(features.features)
+                SimulatorFeatures.SPAWNING_RESOURCE_STRING,
+                SimulatorFeatures.SPAWNING_ENTITIES} <= set(features.features)
         assert "sdf" in features.spawn_formats and "urdf" in features.spawn_formats
         assert crate.result.result == OK and crate.entity_name == "crate", crate.result
         assert "tick 10" in crate.result.error_message
@@ -182,7 +192,10 @@ def session(sim: SimClient, checks: bool) -> int:
                          "ghost": Result.RESULT_NOT_FOUND}, {k: r.error_message
                                                              for k, r in refused.items()}
         assert "pillar_a" in refused["obstacle"].error_message
-        assert list(entities) == ["base_link", "crate", "crate_1"]
+        assert both.result.result == SpawnEntities.Response.ENTITIES_SPAWN_FAILED
+        assert [r.result.result for r in both.results] == [OK, R.INVALID_POSE]
+        assert both.results[0].entity_name == "drum2"
+        assert list(entities) == ["base_link", "crate", "crate_1", "drum2"]
         assert deleted.result == OK, deleted.error_message
         assert stop.result == OK, stop.error_message
     return int(stop.error_message.split("before tick ")[1].split()[0])
@@ -199,10 +212,11 @@ def test_clients_spawn_and_delete_objects_recorded_and_replayed(tmp_path, ros_no
             "/cosim/world_state", message_class("std_msgs/msg/Float64MultiArray"))}
         scans = {s // TICK_NS: np.frombuffer(m.ranges, dtype=np.float32) for s, m in
                  bag.messages("/scan", message_class("sensor_msgs/msg/LaserScan"))}
-    assert edits[9] == "" and [e.name for e in parse_edits(edits[10])] == ["crate", "crate_1"]
-    assert [e.delete for e in parse_edits(edits[30])] == [None, None, "crate_1"]
-    assert states[9].layout.dim[0].size == 11 and states[10].layout.dim[0].size == 18
-    assert states[30].layout.dim[0].size == 11  # the free drum taken out at tick 30
+    assert edits[9] == "" and [e.name for e in parse_edits(edits[10])] == [
+        "crate", "crate_1", "drum2"]
+    assert [e.delete for e in parse_edits(edits[30])] == [None, None, None, "crate_1"]
+    assert states[9].layout.dim[0].size == 11 and states[10].layout.dim[0].size == 25
+    assert states[30].layout.dim[0].size == 18  # one free drum taken out at tick 30
     ahead = slice(41, 47)
     assert scans[5][ahead].min() > 3.5 and scans[10][ahead].min() < 1.0  # the crate
     # --replay from the run directory alone, in-process: the recorded requests, one digest

@@ -5,7 +5,8 @@
   ``/cosim``, as Gazebo serves them under ``/gzserver/``): ``get_simulator_features``,
   ``get_simulation_state``, ``set_simulation_state``, ``step_simulation``, the
   ``simulate_steps`` action, ``reset_simulation``, ``get_entities``, ``get_entity_state``,
-  ``set_entity_state``, and ``spawn_entity`` and ``delete_entity`` for objects
+  ``set_entity_state``, and ``spawn_entity``, ``spawn_entities`` and ``delete_entity`` for
+  objects
   (``orchestrator.ros_surface.sim_spawn``);
 - ``/cosim/pause`` (std_srvs/SetBool), ``/cosim/step`` and ``/cosim/reset``
   (std_srvs/Trigger): the same state machine with plain types, for rosbridge and Foxglove
@@ -38,6 +39,7 @@ from simulation_interfaces.srv import (
     ResetSimulation,
     SetEntityState,
     SetSimulationState,
+    SpawnEntities,
     SpawnEntity,
     StepSimulation,
 )
@@ -146,6 +148,7 @@ class SimServices:
                 (GetEntityState, "get_entity_state", self._get_entity),
                 (SetEntityState, "set_entity_state", self._set_entity),
                 (SpawnEntity, "spawn_entity", self._spawn),
+                (SpawnEntities, "spawn_entities", self._spawn_many),
                 (DeleteEntity, "delete_entity", self._delete)):
             self.node.create_service(srv, self.prefix + name, self._answering(handler),
                                      callback_group=group)
@@ -235,7 +238,8 @@ class SimServices:
             if self.robot.teleport_topic is not None:
                 features.append(F.ENTITY_STATE_SETTING)
         if self.spawner is not None:
-            features += [F.SPAWNING, F.SPAWNING_RESOURCE_STRING, F.DELETING]
+            features += [F.SPAWNING, F.SPAWNING_RESOURCE_STRING, F.SPAWNING_ENTITIES,
+                         F.DELETING]
             from orchestrator.ros_surface.spawn_resources import FORMATS
 
             response.features.spawn_formats = list(FORMATS)
@@ -396,6 +400,26 @@ class SimServices:
             return response
         code, text, name = self.spawner.spawn(request)
         response.result, response.entity_name = _result(code, text), name
+        return response
+
+    def _spawn_many(self, request, response):
+        from simulation_interfaces.msg import SpawnResult
+
+        if self.spawner is None:
+            response.result = _result(Result.RESULT_FEATURE_UNSUPPORTED, _NO_EDITS)
+            return response
+        failed = 0
+        for one in request.spawn_requests:
+            code, text, name = self.spawner.spawn(SpawnEntity.Request(
+                name=one.name, allow_renaming=one.allow_renaming,
+                uri=one.entity_resource.uri,
+                resource_string=one.entity_resource.resource_string,
+                entity_namespace=one.entity_namespace, initial_pose=one.initial_pose))
+            response.results.append(SpawnResult(result=_result(code, text), entity_name=name))
+            failed += code != Result.RESULT_OK
+        response.result = (_result(Result.RESULT_OK, "") if not failed else _result(
+            SpawnEntities.Response.ENTITIES_SPAWN_FAILED,
+            f"{failed} of {len(request.spawn_requests)} refused: see results"))
         return response
 
     def _delete(self, request, response):
