@@ -69,6 +69,9 @@ def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
             checked = cls.Params.model_validate(params,
                                                 context={"scenario_dir": scenario_dir})
             own |= set(cls.outputs(checked)) | set(cls.latched_outputs(checked))
+            # what clients feed it (a controller manager's switches, a controller's goals)
+            # is the robot's too: /robot_2/controller_manager/..., as a namespaced node's
+            own |= set(cls.client_inputs(checked))
         except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
             pass
     remap = {topic: namespaced(robot, spec.remap.get(topic, topic)) for topic in own}
