@@ -155,6 +155,7 @@ def run(n: int, packing: str, path: Path, out: Path, spread: int = SPREAD) -> di
     return {"robots": n, "packing": packing, "status": m["outcome"]["status"],
             "digest": m["digest"], "wall_s": m["wall_time_s"], "loop_s": m["loop_s"],
             "real_time_factor": m["real_time_factor"],
+            "startup_s": (m.get("startup") or {}).get("command_to_first_tick_s"),
             "loop_real_time_factor": m["loop_real_time_factor"],
             "peak_mb_per_robot": round(peak_mb(m) / n, 1),
             "dds_participants": participants.most,
@@ -213,7 +214,8 @@ def line(row: dict) -> str:
             f"RTF {_f(row['real_time_factor'], '>6')} "
             f"(loop {_f(row['loop_real_time_factor'], '>6')})  "
             f"wall {_f(row['wall_s'], '>7.2f')} s = {_f(row['wall_over_in_process'], '>5.2f')}x "
-            f"in-process  {_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot  "
+            f"in-process  start-up {_f(row['startup_s'], '>6.2f')} s  "
+            f"{_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot  "
             f"{row['dds_participants']:>3} DDS participants  digest "
             f"{'=' if row['digest_equal'] else 'DIFFERS'}")
     if row["time_s"]:
