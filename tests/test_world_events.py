@@ -170,6 +170,32 @@ def test_a_shared_mirror_follows_the_version_each_input_shows(short_run):
         stranger.update(states[200_000_000])
 
 
+def test_a_swarm_robots_lidar_sees_an_object_spawned_before_it(tmp_path):
+    """In a swarm each lidar casts against the arena without robots (StaticWorld): that
+    arena gets the spawned object too, at the version the world state names."""
+    import yaml
+
+    doc = yaml.safe_load((SCENARIOS / "swarm_small.yaml").read_text())
+    doc["world"] = str(ROOT / "scenarios" / "worlds" / "arena.xml")
+    doc["robots"]["description"] = str(ROOT / "scenarios" / "worlds" / "robot.xml")
+    doc["duration"] = "300ms"
+    path = tmp_path / "swarm.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    x, y, yaw = load_scenario(path).robots.robots[0].start
+    ahead = (x + 0.8 * math.cos(yaw), y + 0.8 * math.sin(yaw))
+    doc["events"] = [{"at": "200ms", "spawn": {"name": "post", "shape": "cylinder",
+                                               "size": [0.1, 1.0],
+                                               "pose": {"x": ahead[0], "y": ahead[1]}}}]
+    path.write_text(yaml.safe_dump(doc))
+    result = run(path, in_process=True, out=tmp_path / "runs")
+    assert result.success, result.error
+    scans = {t: np.frombuffer(m.ranges, dtype=np.float32)
+             for t, m in result.messages("/robot_0/scan")}
+    front = len(scans[0]) // 2  # angle 0: straight ahead
+    assert scans[100_000_000][front] > 1.0  # nothing there yet
+    assert scans[200_000_000][front] == pytest.approx(0.7, abs=0.15)  # the post's near side
+
+
 NAV_EVENTS = """
 name: bad_events
 duration: 2s
