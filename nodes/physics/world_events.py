@@ -1,12 +1,13 @@
 """A world that changes while the run goes: the scenario's events (``plan.events``) applied
-at their ticks, the same in every node that holds a copy of the world.
+at their ticks, and clients' edits (SpawnEntity, DeleteEntity) at the tick they enter, the
+same in every node that holds a copy of the world.
 
-The physics node keeps the world's MjSpec and recompiles it at each event
-(``LiveWorld``: MjSpec.recompile keeps the state of every body already there, bit for
-bit); a mirror (the sensors') asks for the model of a version, the number of events
-applied (``model_at``), which the physics node publishes with every world state
-(``nodes.physics.messages.world_version``), so a node that reaches the tick first, or
-trails, poses the world that its input shows.
+The physics node keeps the world's MjSpec and recompiles it at each change (``LiveWorld``:
+MjSpec.recompile keeps the state of every body already there, bit for bit); a mirror (the
+sensors') asks for the model of what physics publishes with every world state: how many
+changes are in the world and, when they are not the scenario's first events, which
+(``nodes.physics.messages.world_version``, ``model_at``), so a node that reaches the tick
+first, or trails, poses the world that its input shows.
 """
 
 from __future__ import annotations
