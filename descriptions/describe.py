@@ -23,10 +23,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: render o
 
 from descriptions.description_error import DescriptionError  # noqa: E402
 from descriptions.packages import PackageResolver  # noqa: E402
+from descriptions.readers import USD, is_usd_file, reader_for  # noqa: E402
 from descriptions.urdf import LoadedUrdf, UrdfOptions, guess_wheels, load_urdf  # noqa: E402
 from descriptions.urdf_parse import parse_urdf  # noqa: E402
 from descriptions.xacro_expand import expand  # noqa: E402
-from plan.description_spec import is_usd_description  # noqa: E402
 
 
 def _pairs(values: list[str], sep: str, what: str) -> dict[str, str]:
@@ -78,7 +78,7 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
         description = _stage_robot(scenario.parent / str(doc.get("world", "")))
         if description is None:
             raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
-    if is_usd_description(str(description)):
+    if reader_for(description) is USD:
         from descriptions.usd_robot import usd_options
         from plan.description_spec import UsdSpec
 
@@ -90,9 +90,9 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
 
 def _stage_robot(world: Path) -> Path | None:
     """The one USD robot file the prims of a USD world reference (None: none, or several)."""
-    from descriptions.worldfile import is_usd, open_stage, usd_robot_mounts
+    from descriptions.worldfile import open_stage, usd_robot_mounts
 
-    if not is_usd(world) or not world.is_file():
+    if not is_usd_file(world) or not world.is_file():
         return None
     files = {m.mjcf for m in usd_robot_mounts(open_stage(world))}
     return files.pop() if len(files) == 1 else None
@@ -106,7 +106,7 @@ def options_of(ns: argparse.Namespace) -> UrdfOptions:
     wheels = None
     if ns.wheels:
         wheels = tuple(w.strip() for w in ns.wheels.split(","))
-    elif not ns.no_drive and is_usd_description(str(ns.description)):
+    elif not ns.no_drive and reader_for(ns.description) is USD:
         from descriptions.usd_robot import load_usd
 
         wheels = guess_wheels(load_usd(ns.description, options).urdf)
@@ -225,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
             ns.description, options = from_scenario(ns)
         else:
             options = options_of(ns)
-        if is_usd_description(str(ns.description)):
+        if reader_for(ns.description) is USD:
             from descriptions.usd_robot import load_usd
 
             loaded = load_usd(ns.description, options)

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from plan.errors import ScenarioError
+
 
 class DescriptionError(ValueError):
     """A description that cannot be loaded: the file, the link or joint (when one is to
@@ -28,3 +32,8 @@ class DescriptionError(ValueError):
         if fix:
             text += f". Fix: {fix}"
         super().__init__(text)
+
+
+def scenario_error(exc: DescriptionError, file: Path | str, key: str) -> ScenarioError:
+    """The ScenarioError (exit 2) a DescriptionError is in scenario ``file`` at ``key``."""
+    return ScenarioError(file, key, str(exc) + ("" if str(exc).endswith(".") else "."))

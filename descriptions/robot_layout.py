@@ -8,20 +8,25 @@ from pathlib import Path
 
 import mujoco
 
-from descriptions.description_error import DescriptionError
+from descriptions.description_error import DescriptionError, scenario_error
+from descriptions.readers import (
+    READERS,
+    Reader,
+    is_usd_file,
+    layout_settings,
+    load_robot,
+    reader_for,
+)
 from descriptions.swarm_world import swarm_model
-from descriptions.urdf_robot import layout_robot, layout_settings, scenario_error
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from descriptions.worldfile import (
     WorldError,
     compile_world,
-    is_usd,
     load_world_spec,
     open_stage,
     stage_robots,
 )
 from plan import poses
-from plan.description_spec import UsdSpec, is_urdf_description, is_usd_description
 from plan.errors import ScenarioError
 from plan.model import RobotsSpec, ScenarioModel
 from plan.robot_placement import place_robots
@@ -50,27 +55,19 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     obstacles, world = _arena(where, path, model, spec.base_body)
     mounts = _stage_robots(where, world)
     description = _description(where, path, spec, mounts)
+    reader = reader_for(description)
+    for other in READERS:  # settings for another format than the description's
+        key = other.settings_key
+        if key is not None and other is not reader and getattr(spec, key) is not None:
+            raise where.fail(f"robots.{key}", f"{key}: settings for {reader.title} "
+                             f"description, not {other.title} one.",
+                             f"{key}: only with a {other.files} description.")
     urdf, base_body = "", spec.base_body
-    if is_urdf_description(str(description)):
-        urdf = layout_settings(spec.urdf, path.parent)
-        try:
-            robot = layout_robot(description, urdf).model
-        except DescriptionError as exc:
-            key = f"robots.urdf.args.{exc.arg}" if exc.arg else "robots.description"
-            raise scenario_error(exc, path, key) from None
-        footprint, base_body = robot.footprint_radius, robot.base_link
-    elif is_usd_description(str(description)):
-        urdf, robot = _usd_robot(where, path, spec, description)
+    if reader.described:
+        urdf, robot = _described_robot(path, spec, description, reader)
         footprint, base_body = robot.footprint_radius, robot.base_link
     else:
-        if spec.urdf is not None:
-            raise where.fail("robots.urdf", "urdf: settings for a description that is not a "
-                             "URDF or xacro.", "urdf: only with a .urdf, .xacro or .urdf.xacro "
-                             "description.")
         footprint = _footprint(where, description, spec.base_body)
-    if spec.usd is not None and not is_usd_description(str(description)):
-        raise where.fail("robots.usd", "usd: settings for a description that is not USD.",
-                         "usd: only with a .usd, .usda or .usdc description.")
     robots = place_robots(path, spec, obstacles, footprint, model.seed, mounts)
     layout = RobotsLayout(description, base_body, tuple(robots), spec.position_tolerance,
                           spec.yaw_tolerance, spec.success_fraction, urdf)
@@ -82,30 +79,27 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     return layout
 
 
-def _usd_robot(where: _Where, path: Path, spec: RobotsSpec, description: Path):
-    """A USD robot description read with its ``usd:`` settings: (the settings as the
-    layout carries them, the robot model); its losses said once, here."""
+def _described_robot(path: Path, spec: RobotsSpec, description: Path, reader: Reader):
+    """A described robot (URDF, xacro, USD) read with its settings: (the settings as the
+    layout carries them, the robot model); its losses said once, here, where its reader
+    says them."""
     import sys
 
-    from descriptions.usd_robot import layout_usd_robot
-
-    if spec.urdf is not None:
-        raise where.fail("robots.urdf", "urdf: settings for a USD description.",
-                         "usd: (base, wheels, sensors, interfaces, gains) for a .usd, .usda "
-                         "or .usdc description.")
-    settings = (spec.usd or UsdSpec()).model_dump_json()
+    key = reader.settings_key
+    settings = layout_settings(description, getattr(spec, key), path.parent)
     try:
-        robot = layout_usd_robot(description, settings).model
+        robot = load_robot(description, settings).model
     except DescriptionError as exc:
-        raise scenario_error(exc, path, "robots.description") from None
-    if robot.notes and (description, settings) not in _SAID:
+        where = f"robots.{key}.args.{exc.arg}" if exc.arg else "robots.description"
+        raise scenario_error(exc, path, where) from None
+    if reader.says_notes and robot.notes and (description, settings) not in _SAID:
         _SAID.add((description, settings))
-        print(f"cosim: {description.name} read as a USD robot; changed or not kept: "
-              + "; ".join(robot.notes), file=sys.stderr)
+        print(f"cosim: {description.name} read as a {reader.name.upper()} robot; changed or "
+              "not kept: " + "; ".join(robot.notes), file=sys.stderr)
     return settings, robot
 
 
-_SAID: set[tuple[Path, str]] = set()  # the USD robots whose losses this process has said
+_SAID: set[tuple[Path, str]] = set()  # the robots whose losses this process has said
 
 
 def _description(where: _Where, path: Path, spec: RobotsSpec, mounts) -> Path:
@@ -163,7 +157,7 @@ def _stage_robots(where: _Where, world: Path) -> list[tuple[str, Path, tuple]]:
     """The robot prims of a USD stage (``cosim:robot:mjcf``) as (name, MJCF, (x, y, yaw)):
     named by the prim (``/World/Robots/robot_3`` -> robot_3), at its world pose; [] for an
     MJCF world."""
-    if not is_usd(world):
+    if not is_usd_file(world):
         return []
     from pxr import Gf, Usd, UsdGeom
 

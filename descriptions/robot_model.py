@@ -108,17 +108,15 @@ class RobotModel:
     source: str = ""  # the description file it came from
     base_body: str = ""
     notes: tuple[str, ...] = field(default=(), compare=False)  # what the conversion changed
-    reader: str = ""  # the description reader that made it, where not the file's suffix says
-    # ('usd'); '' for URDF, xacro and a robot read from a compiled MJCF world
+    reader: str = ""  # the description reader that made it (descriptions.readers: 'urdf',
+    # 'usd'); '' for a robot read from a compiled MJCF or USD world by its names
 
     @property
     def described(self) -> bool:
         """Whether a description reader made it (URDF, xacro, USD): its joints and links
         carry the description's own names (unprefixed on /joint_states), its footprint is
         read from its collision geometry; False for a robot read from an MJCF world."""
-        from plan.description_spec import is_urdf_description
-
-        return bool(self.reader) or is_urdf_description(self.source)
+        return bool(self.reader)
 
     def sensor(self, kind: SensorKind, name: str | None = None) -> Sensor | None:
         """The robot's first sensor of ``kind`` (or the one named ``name``), None if absent."""

@@ -10,7 +10,6 @@ from pathlib import Path
 import mujoco
 
 from descriptions.robot_model import RobotModel, SensorKind
-from plan.description_spec import is_urdf_description
 
 GAZEBO_TYPES = {"lidar": "ray", "camera": "camera", "imu": "imu"}
 MJCF_OBJECTS = {"lidar": "site", "camera": "camera", "imu": "site"}
@@ -35,7 +34,7 @@ def missing_sensor(robot: RobotModel, kind: SensorKind, key: str, mjcf_name: str
                  f"add robots.usd.sensors: {{{kind}: PRIM}} (the name of the link or frame "
                  f"prim it hangs on)" + (", or a UsdGeom.Camera prim under a link."
                                          if kind == "camera" else "."))]
-    if is_urdf_description(robot.source):
+    if robot.reader == "urdf":
         gazebo = GAZEBO_TYPES[kind]
         return [(key, f"the robot has no {kind}: {source} hangs none on a link (no Gazebo "
                  f"{gazebo} sensor tag, no robots.urdf.sensors entry).",

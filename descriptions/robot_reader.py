@@ -25,6 +25,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from descriptions.readers import load_robot, reader_for
 from descriptions.robot_model import (
     ActuatedJoint,
     Drive,
@@ -174,10 +175,8 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
         if mujoco.mj_name2id(model, BODY, names.base_body) < 0:
             return ()
         return (read_robot(model, names, source=str(world)),)
-    if layout.urdf:  # the description's own model: its links, sensors and drive
-        from descriptions.urdf_robot import layout_robot
-
-        robot = layout_robot(layout.description, layout.urdf).model
+    if reader_for(layout.description).described:  # its own model: links, sensors, drive
+        robot = load_robot(layout.description, layout.urdf).model
         return tuple(robot.scoped(r) for r in layout.names)
     model = swarm_model(Path(world), layout)
     return tuple(read_robot(model, names.scoped(r), r, str(layout.description))

@@ -1,9 +1,10 @@
-"""What robot_state_publisher and joint_state_broadcaster would publish for a description
-robot, read from the MuJoCo state: a transform per URDF joint (parent link -> child link,
+"""What robot_state_publisher and joint_state_broadcaster would publish for a described
+robot (one a reader of descriptions.readers made, any format: only its robot model is read),
+read from the MuJoCo state: a transform per URDF joint (parent link -> child link,
 fixed joints once for /tf_static, moving ones per tick for /tf), ``odom -> root link`` for a
 mobile robot, and the joint states of every movable joint. Frame names are the model's link
 names (``robot_3/base_scan`` in a swarm, as ``frame_prefix`` gives them); joint names in
-joint states are the URDF's own (the topic is namespaced instead)."""
+joint states are the description's own (the topic is namespaced instead)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ class LinkTransform:
 
 @dataclass(frozen=True)
 class JointStates:
-    """The movable joints' names (the URDF's), positions, velocities and efforts."""
+    """The movable joints' names (the description's), positions, velocities and efforts."""
 
     names: tuple[str, ...]
     position: tuple[float, ...]
@@ -68,7 +69,7 @@ def _relative(data: mujoco.MjData, parent: tuple[bool, int], child: tuple[bool, 
     return tuple(float(v) for v in pos), tuple(float(v) for v in quat)
 
 
-class UrdfFrames:
+class RobotStateFrames:
     """The transforms and joint states of one robot (its model possibly scoped) in a
     compiled world: ids looked up once, values read per state."""
 

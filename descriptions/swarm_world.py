@@ -9,6 +9,7 @@ from pathlib import Path
 
 import mujoco
 
+from descriptions.readers import robot_spec
 from descriptions.worldfile import compile_world, load_world_spec
 from plan.robots import RobotsLayout
 
@@ -22,12 +23,7 @@ def swarm_model(world: Path, layout: RobotsLayout) -> mujoco.MjModel:
 def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
     """The arena with one prefixed copy of the description per robot, at its start."""
     spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
-    if layout.urdf:  # a URDF or xacro description: expanded and converted once per process
-        from descriptions.urdf_robot import layout_robot
-
-        robot = layout_robot(layout.description, layout.urdf).spec
-    else:
-        robot = mujoco.MjSpec.from_file(str(layout.description))
+    robot = robot_spec(layout.description, layout.urdf)  # a described one: once per process
     spec.copy_during_attach = True
     for r in layout.robots:
         x, y, yaw = r.start

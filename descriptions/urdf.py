@@ -15,8 +15,8 @@ name or by ``wheel``, ``position``, ``velocity``, ``effort``):
   ``JOINT_velocity`` (kv) within ``<limit velocity>``, ``effort`` a motor ``JOINT_effort``
   within ``<limit effort>`` (a ros2_control ``min``/``max`` param narrows the range).
 
-The robot carries a MuJoCo custom text ``cosim_urdf`` (its root link), so a compiled world
-says which of its robots came from a URDF (``urdf_robot_in``).
+The robot carries the mark of a described robot (``descriptions.robot_marker``), so a
+compiled world says which of its robots a description reader made.
 
 Sensors: a lidar and an IMU read the site of their link (an IMU gets MuJoCo gyro,
 accelerometer and framequat sensors ``LINK_gyro``, ``LINK_accel``, ``LINK_quat``), a camera
@@ -26,7 +26,6 @@ convention) or, for an optical frame (REP-103, a link named ``*optical*``), alon
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ import numpy as np
 from descriptions import urdf_geometry as geo
 from descriptions.description_error import DescriptionError
 from descriptions.packages import PackageResolver
+from descriptions.robot_marker import mark
 from descriptions.robot_model import (
     ActuatedJoint,
     Drive,
@@ -56,7 +56,6 @@ INTERFACES = ("position", "velocity", "effort")
 DEFAULT_GAINS = {"wheel": {"kv": 2.0}, "position": {"kp": 60.0, "kv": 6.0},
                  "velocity": {"kv": 10.0}, "effort": {}}
 SENSOR_KINDS = ("lidar", "camera", "imu")
-MARKER = "cosim_urdf"  # a MuJoCo custom text in the robot (prefixed ROBOT/ in a swarm)
 BODY_CAMERA = (0.5, -0.5, -0.5, 0.5)  # looks along +x, image up +z
 OPTICAL_CAMERA = (0.0, 1.0, 0.0, 0.0)  # looks along +z, image down +y (REP-103)
 
@@ -122,7 +121,7 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
             _add_wheel(spec, urdf, joint, options.gains)
     sensors = _sensors(spec, urdf, description, options.sensors, notes)
     imu = next((x.link for x in sensors if x.kind == "imu"), "")
-    spec.add_text(name=MARKER, data=json.dumps({"root": urdf.root, "imu": imu}))
+    mark(spec, urdf.root, imu)
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -143,7 +142,7 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         joints=tuple(Joint(j.name, j.kind, j.parent, j.child,
                            JointLimits(j.lower, j.upper, j.effort, j.velocity))
                      for j in urdf.joints.values()),
-        source=description, notes=tuple(notes))
+        source=description, notes=tuple(notes), reader="urdf")
     return LoadedUrdf(expanded.urdf, spec, urdf, robot, notes)
 
 
@@ -336,14 +335,3 @@ def _drive(model: mujoco.MjModel, data: mujoco.MjData, wheels: tuple[str, str],
         separation = geo.wheel_separation(model, data, ids[0], ids[1], geoms[0], geoms[1])
     return Drive(wheels[0], wheels[1], f"{wheels[0]}_velocity", f"{wheels[1]}_velocity",
                  round(radius, 6), round(separation, 6))
-
-
-def urdf_robot_in(model: mujoco.MjModel, robot: str = "") -> dict[str, str] | None:
-    """What a compiled world says of its robot ``robot`` (the unnamed one: '') when a URDF
-    described it: its root link and IMU link ('' without one); None for another robot."""
-    name = f"{robot}/{MARKER}" if robot else MARKER
-    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name)
-    if i < 0:
-        return None
-    adr, size = int(model.text_adr[i]), int(model.text_size[i])
-    return json.loads(bytes(model.text_data[adr:adr + size - 1]).decode())

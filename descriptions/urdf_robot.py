@@ -1,17 +1,15 @@
 """A scenario's URDF robot, loaded once per process: the scenario's ``urdf:`` settings
 (plan.description_spec.UrdfSpec) as :class:`UrdfOptions`, the load cached by file and
-settings (every node of a process reads the same robot), and a DescriptionError worded as
-the ScenarioError it is (exit 2, naming the scenario file and key)."""
+settings (every node of a process reads the same robot; descriptions.readers' URDF
+reader)."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from descriptions.description_error import DescriptionError
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
-from plan.description_spec import UrdfSpec, is_usd_description
-from plan.errors import ScenarioError
+from plan.description_spec import UrdfSpec
 
 
 def urdf_options(spec: UrdfSpec | None, scenario_dir: Path) -> UrdfOptions:
@@ -45,11 +43,6 @@ def _cached(path: str, key: str, options: UrdfOptions) -> LoadedUrdf:
     return _CACHE[(path, key)]
 
 
-def scenario_error(exc: DescriptionError, file: Path | str, key: str) -> ScenarioError:
-    """The ScenarioError (exit 2) a DescriptionError is in scenario ``file`` at ``key``."""
-    return ScenarioError(file, key, str(exc) + ("" if str(exc).endswith(".") else "."))
-
-
 def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
     """A scenario's ``urdf:`` settings as the swarm layout carries them: JSON, the package
     folders made absolute (every process reads the same robot wherever it runs from)."""
@@ -58,13 +51,8 @@ def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
     return spec.model_copy(update={"packages": packages}).model_dump_json()
 
 
-def layout_robot(description: Path | str, settings: str) -> LoadedUrdf:
+def layout_urdf_robot(description: Path | str, settings: str) -> LoadedUrdf:
     """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
-    ``layout_settings``'s JSON), or USD (``robots.usd``'s JSON: descriptions.usd_robot),
-    loaded once per process."""
-    if is_usd_description(str(description)):
-        from descriptions.usd_robot import layout_usd_robot
-
-        return layout_usd_robot(description, settings)
+    ``layout_settings``'s JSON), loaded once per process (descriptions.readers)."""
     spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
     return load_robot(description, urdf_options(spec, Path("/")))

@@ -325,6 +325,14 @@ def usd_options(settings: Mapping) -> UrdfOptions:
 _CACHE: dict[tuple[str, str], LoadedUrdf] = {}
 
 
+def layout_settings(spec, scenario_dir: Path) -> str:
+    """A scenario's ``robots.usd`` settings (plan.description_spec.UsdSpec; None: the
+    defaults) as the swarm layout carries them: JSON (nothing in them is a path)."""
+    from plan.description_spec import UsdSpec
+
+    return (spec or UsdSpec()).model_dump_json()
+
+
 def layout_usd_robot(description: Path | str, settings: str) -> LoadedUrdf:
     """The robot of a swarm layout whose description is USD (``settings``: the
     ``robots.usd`` JSON), loaded once per process."""

@@ -36,9 +36,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from descriptions.readers import is_usd_file
 from plan.errors import WorldError
 
-USD_SUFFIXES = (".usd", ".usda", ".usdc")
 ROBOT_ATTR = "cosim:robot:mjcf"
 PREFIX_ATTR = "cosim:robot:prefix"
 SUPPORTED_COLLIDERS = ("Cube", "Sphere", "Cylinder", "Capsule", "Plane", "Mesh")
@@ -56,14 +56,9 @@ class RobotMount:
     prefix: str = ""
 
 
-def is_usd(path: Path | str) -> bool:
-    """True for a USD world file (by suffix)."""
-    return Path(path).suffix.lower() in USD_SUFFIXES
-
-
 def load_world_model(path: Path | str) -> mujoco.MjModel:
     """Compile the world (MJCF or USD); a :class:`WorldError` saying why when it cannot."""
-    if not is_usd(path):
+    if not is_usd_file(path):
         try:
             return mujoco.MjModel.from_xml_path(str(path))
         except ValueError as exc:
@@ -80,7 +75,7 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None,
     prefixed: descriptions.swarm_world).
     """
     path = Path(path).resolve()
-    if not is_usd(path):
+    if not is_usd_file(path):
         return _mjcf_spec(path)
     stage = open_stage(path)
     usd_robots = _set_aside_usd_robots(stage)
@@ -91,7 +86,7 @@ def load_world_spec(path: Path | str, robots: list[RobotMount] | None = None,
                          "prim's pose).", usd_robots[0].prim)
     check_stage(stage, path)
     spec = _import(stage, path)
-    named = [m for m in stage_robots(stage, path) if not is_usd(m.mjcf)] \
+    named = [m for m in stage_robots(stage, path) if not is_usd_file(m.mjcf)] \
         if stage_robots_too else []
     for mount in [*named, *(robots or [])]:
         _attach_robot(spec, stage, mount, path)
@@ -206,7 +201,7 @@ def usd_robot_mounts(stage) -> list[RobotMount]:
     it = iter(Usd.PrimRange(stage.GetPseudoRoot(), every))
     for prim in it:
         asset = _referenced_file(prim)
-        if asset is None or not is_usd(asset):
+        if asset is None or not is_usd_file(asset):
             continue
         if any(q.HasAPI(UsdPhysics.ArticulationRootAPI) for q in Usd.PrimRange(prim, every)):
             mounts.append(RobotMount(asset, str(prim.GetPath())))

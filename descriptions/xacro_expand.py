@@ -13,8 +13,8 @@ from pathlib import Path
 
 from descriptions.description_error import DescriptionError
 from descriptions.packages import PackageNotFound, PackageResolver
+from descriptions.readers import is_xacro_file
 
-URDF_SUFFIXES = (".urdf", ".xacro")
 _XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
 
 
@@ -26,16 +26,6 @@ class Expanded:
     warnings: tuple[str, ...] = ()
     declared: tuple[str, ...] = ()  # the <xacro:arg> names the description declares
     unused: frozenset[str] = frozenset()  # arguments given that it neither declares nor reads
-
-
-def is_urdf(path: Path | str) -> bool:
-    """True for a URDF or xacro description (by suffix: .urdf, .xacro, .urdf.xacro)."""
-    return Path(path).suffix.lower() in URDF_SUFFIXES
-
-
-def is_xacro(path: Path | str) -> bool:
-    """True for a xacro description (.xacro, .urdf.xacro)."""
-    return Path(path).suffix.lower() == ".xacro"
 
 
 def expand(path: Path | str, args: Mapping[str, str] | None = None,
@@ -51,7 +41,7 @@ def expand(path: Path | str, args: Mapping[str, str] | None = None,
         raise DescriptionError(str(path), "the file does not exist", path=str(path),
                                fix="give the path of a .urdf or .xacro file")
     text = path.read_text(encoding="utf-8")
-    if not is_xacro(path) and not _declares_xacro(text):
+    if not is_xacro_file(path) and not _declares_xacro(text):
         if args:
             raise DescriptionError(str(path), "xacro arguments given for a plain .urdf",
                                    fix="drop the arguments, or name the .xacro file")

@@ -9,25 +9,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-URDF_SUFFIXES = (".urdf", ".xacro")
-USD_SUFFIXES = (".usd", ".usda", ".usdc")
-
 
 class Strict(BaseModel):
     """Unknown keys are errors (as every scenario section; plan.model imports this module)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-def is_urdf_description(path: str) -> bool:
-    """True for a URDF or xacro description (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
-    return path.lower().endswith(URDF_SUFFIXES)
-
-
-def is_usd_description(path: str) -> bool:
-    """True for a robot described in OpenUSD (``.usd``, ``.usda``, ``.usdc``) when it is a
-    ``robots.description`` (UsdPhysics bodies, joints and drives: descriptions/usd_robot.py)."""
-    return path.lower().endswith(USD_SUFFIXES)
 
 
 class GainsSpec(Strict):

@@ -392,3 +392,88 @@ def test_the_controller_type_check_sees_a_branch():
     assert "a controller's type compared" in found
     assert "JointStateBroadcaster'" not in found  # a docstring names a type; it does not branch
     assert not controller_type_branches([("nodes/ros2_control/registry.py", probe)])
+
+
+NEUTRAL_DESCRIPTIONS = {
+    "descriptions.robot_model",  # the robot model: plain data
+    "descriptions.robot_reader",  # the model of a robot read from a compiled world, by names
+    "descriptions.robot_needs",  # what a node needs of the model, worded for the user
+    "descriptions.robot_state",  # TF and joint states of a described robot, from its model
+    "descriptions.robot_marker",  # a described robot's mark in a compiled world
+    "descriptions.readers",  # the registry of description readers
+    "descriptions.swarm_world", "descriptions.worldfile",  # the world, with its robots
+    "descriptions.world_geometry", "descriptions.world_edits",
+}
+FORMAT_MODULE = re.compile(r"descriptions\.(urdf|usd|xacro|mesh)")
+
+
+def format_imports(graph: dict[str, set[str]]) -> list[str]:
+    """``nodes`` modules importing a descriptions module that is not format-neutral."""
+    return sorted(f"{module} imports {target}" + (" (a description format's module)"
+                                                   if FORMAT_MODULE.match(target) else "")
+                  for module, targets in graph.items() if module.split(".")[0] == "nodes"
+                  for target in targets if target.split(".")[0] == "descriptions"
+                  and target not in NEUTRAL_DESCRIPTIONS)
+
+
+def test_nodes_import_no_description_format_module():
+    # a node sees the robot model, whatever format described the robot (issue 47 item 1):
+    # formats are read behind descriptions.readers
+    assert not format_imports(import_graph()), "\n".join(format_imports(import_graph()))
+
+
+def test_the_format_import_check_sees_a_format_module():
+    graph = {"nodes.physics.x": {"descriptions.urdf_robot", "descriptions.robot_model"},
+             "descriptions.readers": {"descriptions.usd_robot"}}
+    assert format_imports(graph) == [
+        "nodes.physics.x imports descriptions.urdf_robot (a description format's module)"]
+
+
+DESCRIPTION_SUFFIXES = {".urdf", ".xacro", ".urdf.xacro", ".usd", ".usda", ".usdc"}
+SUFFIX_CHECK_ALLOWED = {
+    "descriptions/readers.py",  # the registry: where a description's format is recognised
+    # SpawnEntity's object files (one-link SDFormat or URDF models of an object, told apart
+    # by their root element), not robot descriptions
+    "orchestrator/ros_surface/spawn_resources.py",
+}
+
+
+def suffix_checks(files: dict[str, Path], root: Path = ROOT) -> list[str]:
+    """Every description file suffix tested outside the allowed modules (compared, in a
+    table of suffixes, or given to ``endswith``): a format told by its file name where the
+    registry is not asked. A suffix in a message or a file name written is no test."""
+    found = []
+    for path in files.values():
+        where = str(path.relative_to(root))
+        if where in SUFFIX_CHECK_ALLOWED:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            tested = []
+            if isinstance(node, ast.Compare):
+                tested = [node.left, *node.comparators]
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                    and node.func.attr == "endswith":
+                tested = node.args
+            elif isinstance(node, ast.Assign):
+                tested = [node.value]
+            for value in tested:
+                items = value.elts if isinstance(value, (ast.Tuple, ast.List, ast.Set)) \
+                    else [value]
+                found += [f"{where}:{item.lineno} {item.value!r}" for item in items
+                          if isinstance(item, ast.Constant) and isinstance(item.value, str)
+                          and item.value.lower() in DESCRIPTION_SUFFIXES]
+    return sorted(found)
+
+
+def test_formats_are_recognised_by_the_reader_registry_only():
+    wrong = suffix_checks(project_files())
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_suffix_check_sees_a_suffix_test(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text('S = (".usd", ".obj")\n'
+                     'def f(p):\n    return p.endswith((".xacro", ".sdf")) or p.suffix == ".urdf"\n'
+                     'def g(p):\n    return p.with_suffix(".usda"), f"{p}.usdc", "a .urdf"\n')
+    assert suffix_checks({"probe": probe}, tmp_path) == [
+        "probe.py:1 '.usd'", "probe.py:3 '.urdf'", "probe.py:3 '.xacro'"]

@@ -125,7 +125,8 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(path, params):
             q = rig.base_pose(data)
             same(out[rig.topics[ODOM]], m.odometry(q, data.qvel[rig.vadr:rig.vadr + 6],
                                                    rig.odom_frame, rig.base_frame))
-            same(out[rig.topics[JOINT_STATES]], rig.urdf.joint_state(data) if rig.urdf else
+            described = rig.described
+            same(out[rig.topics[JOINT_STATES]], described.joint_state(data) if described else
                  m.joint_state(rig.joint_names, data.qpos[rig.joint_q], data.qvel[rig.joint_v],
                                data.qfrc_actuator[rig.joint_v]))
             if rig.imu is None:
@@ -138,7 +139,7 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(path, params):
                     rig.imu.rng = kept
             transforms += rig.frames.dynamic(data, q)
         assert len(out["/tf"].transforms) == len(transforms)
-        if not rigs[0].urdf:
+        if not rigs[0].described:
             per_robot = 3 + (swarm.params.tf.map_frame is not None)  # (map,) base, head
             assert len(transforms) == per_robot * len(rigs)
         for a, b in zip(out["/tf"].transforms, transforms, strict=True):

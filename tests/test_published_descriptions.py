@@ -24,7 +24,7 @@ ARM_JOINTS = ["shoulder_pan", "shoulder_lift", "elbow"]
 # -- a root link named 'world' ---------------------------------------------------------
 
 def test_a_world_rooted_arm_is_fixed_where_it_is_placed():
-    from descriptions.urdf_state import UrdfFrames
+    from descriptions.robot_state import RobotStateFrames
 
     loaded = load_urdf(WORLDARM, UrdfOptions(env={}, args={"base_height": "0.05"}))
     robot = loaded.model
@@ -45,7 +45,7 @@ def test_a_world_rooted_arm_is_fixed_where_it_is_placed():
     assert int(model.body_parentid[base]) == 0
     assert data.xpos[base] == pytest.approx([1.0, 2.0, 0.05])  # the placement, then origin
     # TF as robot_state_publisher gives it: world -> base_link is the joint's origin
-    frames = UrdfFrames(model, robot.scoped("ur"))
+    frames = RobotStateFrames(model, robot.scoped("ur"))
     fixed = {(t.parent, t.child): t for t in frames.static(data)}
     world = fixed[("ur/world", "ur/base_link")]
     assert world.pos == pytest.approx((0, 0, 0.05)) and world.quat == pytest.approx((1, 0, 0, 0))

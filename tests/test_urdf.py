@@ -312,7 +312,7 @@ def test_describe_exits_2_naming_the_problem(tmp_path):
 # -- what robot_state_publisher would publish ---------------------------------------------
 
 def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
-    from descriptions.urdf_state import UrdfFrames
+    from descriptions.robot_state import RobotStateFrames
 
     spec = mujoco.MjSpec()
     spec.copy_during_attach = True
@@ -321,7 +321,7 @@ def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    frames = UrdfFrames(model, mybot.model.scoped("robot_1"))
+    frames = RobotStateFrames(model, mybot.model.scoped("robot_1"))
     static = {(t.parent, t.child): t for t in frames.static(data)}
     scan = static[("robot_1/base_link", "robot_1/base_scan")]
     assert scan.pos == pytest.approx((0.08, 0, 0.14)) and scan.quat == pytest.approx((1, 0, 0, 0))
@@ -338,7 +338,7 @@ def test_urdf_frames_and_joint_states_under_the_urdfs_own_names(mybot):
 
 
 def test_a_world_root_link_is_the_world(tmp_path):
-    from descriptions.urdf_state import UrdfFrames
+    from descriptions.robot_state import RobotStateFrames
 
     path = write_urdf(tmp_path, '<link name="world"/><joint name="fix" type="fixed">'
                       '<parent link="world"/><child link="base"/><origin xyz="0 0 0.5"/>'
@@ -348,14 +348,15 @@ def test_a_world_root_link_is_the_world(tmp_path):
     model = loaded.spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    (fix,) = UrdfFrames(model, loaded.model).static(data)
+    (fix,) = RobotStateFrames(model, loaded.model).static(data)
     assert (fix.parent, fix.child, fix.pos) == ("world", "base", (0.0, 0.0, 0.5))
     with pytest.raises(DescriptionError, match="root link is 'world'"):
         load_urdf(path, UrdfOptions(base="free"))
 
 
 def test_scenario_urdf_settings_become_options_and_errors_exit_2():
-    from descriptions.urdf_robot import load_robot, scenario_error, urdf_options
+    from descriptions.description_error import scenario_error
+    from descriptions.urdf_robot import load_robot, urdf_options
     from plan.description_spec import UrdfSpec
 
     spec = UrdfSpec.model_validate({

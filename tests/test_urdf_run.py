@@ -102,7 +102,7 @@ def write_scenario(tmp_path, change) -> str:
 def test_a_urdf_robot_without_an_imu_is_named_in_the_physics_params(tmp_path):
     path = write_scenario(tmp_path, lambda d: d["robots"]["urdf"]["args"].update(
         with_imu="false"))
-    with pytest.raises(ScenarioError, match="the URDF robot has no IMU") as exc:
+    with pytest.raises(ScenarioError, match="the robot has no IMU") as exc:
         load_scenario(path)
     assert exc.value.key == "nodes[0] (physics).params.imu"
 

@@ -18,9 +18,9 @@ import yaml
 
 import nodes  # noqa: F401  (the node kinds, for loading scenarios)
 from descriptions.load import load_scenario
+from descriptions.readers import load_robot
 from descriptions.swarm_world import swarm_model
 from descriptions.urdf import UrdfOptions
-from descriptions.urdf_robot import layout_robot
 from descriptions.usd_robot import load_usd
 from descriptions.usd_robot_write import write_robot_usd
 from orchestrator.api import run
@@ -39,7 +39,7 @@ COMPARED = ("body_pos", "body_quat", "body_mass", "body_inertia", "body_ipos", "
 
 def _loaded(scenario: str):
     robots = load_scenario(SCENARIOS / scenario).robots
-    return layout_robot(robots.description, robots.urdf)
+    return load_robot(robots.description, robots.urdf)
 
 
 def _joints(model):

@@ -110,13 +110,13 @@ class SwarmBook:
         self.joint_bounds = list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
         # moving frames: every robot's, in rig order then each robot's own order
         moving = [(i, mb) for i, r in enumerate(rigs) if r.frames is not None
-                  and r.urdf is None for mb in r.frames.moving]
+                  and r.described is None for mb in r.frames.moving]
         self.moving = moving
         self.moving_body = np.array([mb.body for _, mb in moving], dtype=np.int64)
         self.moving_parent = np.array([mb.parent for _, mb in moving], dtype=np.int64)
         self.map_to_odom = []
         for r in rigs:
-            mo = None if r.frames is None or r.urdf is not None else r.frames.map_to_odom
+            mo = None if r.frames is None or r.described is not None else r.frames.map_to_odom
             if mo is not None:
                 frame, pos, quat = mo
                 mo = (frame, tuple(float(v) for v in pos), tuple(float(v) for v in quat))
@@ -199,8 +199,8 @@ class SwarmBook:
         for i, rig in enumerate(rigs):
             out[rig.topics[ODOM]] = fm.odometry(poses[i], linear[i], angular[i], COVARIANCE,
                                                 rig.odom_frame, rig.base_frame)
-            if rig.urdf is not None:  # the URDF's joints, under its names
-                out[rig.topics[JOINT_STATES]] = rig.urdf.joint_state(data)
+            if rig.described is not None:  # the description's joints, under its names
+                out[rig.topics[JOINT_STATES]] = rig.described.joint_state(data)
                 continue
             a, b = self.joint_bounds[i]
             out[rig.topics[JOINT_STATES]] = fm.joint_state(
@@ -228,7 +228,8 @@ class SwarmBook:
 
     def _frames(self, data: mujoco.MjData, poses: list) -> list:
         """RobotFrames.dynamic for every robot: map -> odom, odom -> base, moving bodies (a
-        URDF robot's frames, one robot at a time, as nodes.physics.urdf_rig gives them)."""
+        described robot's frames, one robot at a time, as nodes.physics.described_rig gives
+        them)."""
         moved: list[list] = [[] for _ in self.rigs]
         if self.moving:
             body, parent = self.moving_body, self.moving_parent
@@ -250,7 +251,7 @@ class SwarmBook:
         for k, rig in enumerate(self.rigs):
             if rig.frames is None:
                 continue
-            if rig.urdf is not None:
+            if rig.described is not None:
                 out += rig.frames.dynamic(data, poses[k])
                 continue
             mo = self.map_to_odom[k]

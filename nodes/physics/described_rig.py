@@ -1,9 +1,9 @@
-"""The physics node's side of a robot described in URDF or xacro (descriptions/urdf.py): its
-names taken from its robot model instead of the physics parameters' conventions, and what
-robot_state_publisher and joint_state_broadcaster would publish for it: TF for every link
-under the URDF's own names (fixed joints on /tf_static, moving ones and ``odom -> root`` on
-/tf), joint states of every movable joint under the URDF's joint names, and the expanded
-URDF on /robot_description."""
+"""The physics node's side of a described robot (one a reader of descriptions.readers made,
+whatever its format: URDF, xacro, USD): its names taken from its robot model instead of the
+physics parameters' conventions, and what robot_state_publisher and joint_state_broadcaster
+would publish for it: TF for every link under the description's own names (fixed joints on
+/tf_static, moving ones and ``odom -> root`` on /tf), joint states of every movable joint
+under its joint names, and its URDF on /robot_description."""
 
 from __future__ import annotations
 
@@ -13,14 +13,14 @@ from geometry_msgs.msg import TransformStamped
 from std_msgs.msg import String
 
 from descriptions.robot_model import RobotModel
-from descriptions.urdf_state import UrdfFrames
+from descriptions.robot_state import RobotStateFrames
 from nodes.physics import messages as m
 from nodes.physics.frames import TfParams, transform
 
 ROBOT_DESCRIPTION = "/robot_description"
 
 
-def urdf_params(params, robot: RobotModel):
+def described_params(params, robot: RobotModel):
     """The physics parameters with the robot model's names (already scoped to the robot):
     its root link as base body and frame, its drive, its commanded joints and its IMU."""
     imu = params.imu
@@ -46,13 +46,14 @@ def _msg(t) -> TransformStamped:
     return transform(t.parent, t.child, t.pos, t.quat)
 
 
-class UrdfRobotFrames:
-    """``nodes.physics.frames.RobotFrames``' interface for a URDF robot: ``static`` (every
-    fixed joint, once), ``dynamic`` (map -> odom, odom -> root link, every moving joint)."""
+class DescribedRobotFrames:
+    """``nodes.physics.frames.RobotFrames``' interface ``static`` (every
+    fixed joint, once), ``dynamic`` (map -> odom, odom -> root link, every moving joint), for
+    a described robot."""
 
     def __init__(self, model: mujoco.MjModel, params: TfParams, robot: RobotModel,
                  odom_frame: str):
-        self.frames = UrdfFrames(model, robot, odom_frame)
+        self.frames = RobotStateFrames(model, robot, odom_frame)
         self.odom_frame, self.base_frame = robot.prefix + odom_frame, robot.base_link
         self.mobile = robot.mobile
         data = mujoco.MjData(model)
@@ -81,12 +82,13 @@ class UrdfRobotFrames:
         return out + [_msg(t) for t in self.frames.moving(data)]
 
     def joint_state(self, data: mujoco.MjData):
-        """sensor_msgs/JointState of every movable joint, under the URDF's joint names."""
+        """sensor_msgs/JointState of every movable joint, under the description's names."""
         s = self.frames.joint_states(data)
         return m.joint_state(list(s.names), np.array(s.position), np.array(s.velocity),
                              np.array(s.effort))
 
 
 def robot_description(urdf_text: str) -> String:
-    """The /robot_description message: the expanded URDF, as robot_state_publisher serves it."""
+    """The /robot_description message: the robot's URDF (expanded, or written from its USD),
+    as robot_state_publisher serves it."""
     return String(data=urdf_text)

@@ -39,13 +39,13 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
-from descriptions.urdf import urdf_robot_in
+from descriptions.robot_marker import described_robot_in
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from nodes.contract import StepNode, Tick
+from nodes.physics.described_rig import ROBOT_DESCRIPTION
 from nodes.physics.frames import TfParams, frame_problems, on_robot
 from nodes.physics.imu import ImuParams, imu_problems
 from nodes.physics.swarm import SwarmPhysics, robot_params
-from nodes.physics.urdf_rig import ROBOT_DESCRIPTION
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
 from nodes.physics.world_events import LiveWorld
 from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
@@ -152,16 +152,17 @@ class PhysicsNode(StepNode):
         """The robot's bodies and joints exist; the start pose is inside the world, clear of
         every obstacle by the robot's footprint radius. In a swarm, robot ``robot``'s copy
         (each is checked as the first one is)."""
-        urdf = urdf_robot_in(model, robot)
-        if params.robot_description and urdf is None:
+        described = described_robot_in(model, robot)
+        if params.robot_description and described is None:
             return [("params.robot_description", "the robot is not described by a URDF, "
                      "xacro or USD robot, so there is no URDF to publish.", "robot_description: "
                      "true with a robots: description that is a .urdf, .xacro, .urdf.xacro or a "
                      "USD robot (.usd, .usda, .usdc).")]
-        if urdf is not None:  # its names are its model's, checked when it was loaded
-            if params.imu is not None and not urdf["imu"]:
-                return [("params.imu", "the URDF robot has no IMU.", "imu: null, or an IMU "
-                         "link in robots.urdf.sensors (imu: LINK) or a Gazebo imu sensor tag.")]
+        if described is not None:  # its names are its model's, checked when it was loaded
+            if params.imu is not None and not described["imu"]:
+                return [("params.imu", "the robot has no IMU: its description hangs none on a "
+                         "link.", "imu: null, or an IMU on a link: robots.urdf.sensors or "
+                         "robots.usd.sensors (imu: LINK), or a Gazebo imu sensor tag.")]
             return []
         if robot:
             return cls.world_problems(robot_params(params, robot), model, goal)

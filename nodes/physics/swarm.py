@@ -22,21 +22,21 @@ import mujoco
 import numpy as np
 from tf2_msgs.msg import TFMessage
 
+from descriptions.readers import robot_description_text
 from descriptions.robot_model import RobotModel
-from descriptions.urdf import urdf_robot_in
 from descriptions.world_geometry import floor_mask
 from nodes.contract import Tick
 from nodes.physics import messages as m
 from nodes.physics.batch import IMU, SwarmBook, SwarmDrives
+from nodes.physics.described_rig import (
+    ROBOT_DESCRIPTION,
+    DescribedRobotFrames,
+    described_params,
+    robot_description,
+)
 from nodes.physics.drive import DiffDrive
 from nodes.physics.frames import CameraFrames, RobotFrames, TfParams
 from nodes.physics.imu import SimulatedImu
-from nodes.physics.urdf_rig import (
-    ROBOT_DESCRIPTION,
-    UrdfRobotFrames,
-    robot_description,
-    urdf_params,
-)
 from nodes.physics.world import named_id
 from nodes.physics.world_events import LiveWorld, geom_map
 from plan.events import parse_edits
@@ -87,11 +87,11 @@ class Rig:
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, params, rng: np.random.Generator,
                  goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
         self.name = robot.name
-        self.urdf = None  # a URDF robot's frames and joint states (nodes.physics.urdf_rig)
-        if urdf_robot_in(model, robot.name) is not None:
+        self.described = None  # a described robot's frames and joint states (its model's)
+        if robot.described:
             tf, odom = params.tf, params.odom_frame
-            self.params = params = urdf_params(params, robot)
-            self.urdf = UrdfRobotFrames(model, tf or TfParams(), robot, odom)
+            self.params = params = described_params(params, robot)
+            self.described = DescribedRobotFrames(model, tf or TfParams(), robot, odom)
         else:
             self.params = params = robot_params(params, robot.name)
         self.base = named_id(model, BODY, robot.base)
@@ -125,8 +125,8 @@ class Rig:
                         JOINT_STATES, IMU, ROBOT_DESCRIPTION)}
         self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
         self.frames = None
-        if params.tf is not None and self.urdf is not None:
-            self.frames = self.urdf
+        if params.tf is not None and self.described is not None:
+            self.frames = self.described
         elif params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
             self.frames = RobotFrames(model, params.tf, robot.base, self.base_frame,
@@ -306,10 +306,8 @@ class SwarmPhysics:
                      for robot in config.robots]
         self.names = [rig.name for rig in self.rigs]
         self.urdf_text = ""
-        if params.robot_description:  # the layout's URDF, expanded (once per process)
-            from descriptions.urdf_robot import layout_robot
-
-            self.urdf_text = layout_robot(layout.description, layout.urdf).urdf_text
+        if params.robot_description:  # the layout's robot as URDF (read once per process)
+            self.urdf_text = robot_description_text(layout.description, layout.urdf)
         self.needed = layout.needed if layout is not None else 1
         self.goals = config.goal is not None or config.joint_goal is not None
         start = params.start

@@ -27,8 +27,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from descriptions.readers import is_usd_file
 from descriptions.swarm_world import swarm_spec
-from descriptions.worldfile import compile_world, is_usd, load_world_spec, open_stage
+from descriptions.worldfile import compile_world, load_world_spec, open_stage
 from plan.timeutil import NS_PER_S, Ns, tick_at_ns
 
 log = logging.getLogger(__name__)
@@ -118,14 +119,12 @@ def _robot_links(stage, asset: Path, robots, model: mujoco.MjModel) -> list:
 def export_robot_usd(robots, folder: Path) -> Path | None:
     """The description of ``robots`` (plan.robots.RobotsLayout), when URDF, xacro or USD,
     written as ``folder/ROBOT.usda`` in Isaac Sim's importer layout; None for an MJCF one."""
-    from descriptions.urdf_robot import layout_robot
+    from descriptions.readers import load_robot, reader_for
     from descriptions.usd_robot_write import write_robot_usd
-    from plan.description_spec import is_urdf_description, is_usd_description
 
-    description = str(robots.description)
-    if not (is_urdf_description(description) or is_usd_description(description)):
+    if not reader_for(robots.description).described:
         return None
-    loaded = layout_robot(robots.description, robots.urdf)
+    loaded = load_robot(robots.description, robots.urdf)
     out = folder / f"{loaded.urdf.name or 'robot'}.usda"
     for note in write_robot_usd(loaded, out):
         log.warning("%s: %s", out.name, note)
@@ -136,7 +135,7 @@ def _stage_for(world: Path, spec: mujoco.MjSpec):
     """The stage to write into and its (empty, strongest) sample layer as the edit target."""
     from pxr import Sdf, Usd, UsdGeom
 
-    if is_usd(world):
+    if is_usd_file(world):
         stage = open_stage(world)
     else:
         stage = Usd.Stage.CreateInMemory()
