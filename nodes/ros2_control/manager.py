@@ -10,7 +10,12 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from nodes.ros2_control.config import ControllersFile
-from nodes.ros2_control.interface import ControllerInterface, HardwareState, Update
+from nodes.ros2_control.interface import (
+    ControllerInterface,
+    HardwareState,
+    LifecycleState,
+    Update,
+)
 from nodes.ros2_control.registry import controller_class
 
 
@@ -23,12 +28,53 @@ def load(file: ControllersFile) -> dict[str, ControllerInterface | None]:
     """Every controller of the file, configured (None: a type cosim does not serve)."""
     out: dict[str, ControllerInterface | None] = {}
     for entry in file.controllers:
-        cls = controller_class(entry.type)
-        ctrl = None if cls is None or entry.params is None else cls(entry.name, entry.params)
+        ctrl = load_one(file, entry.name)
         if ctrl is not None:
             ctrl.configure()
         out[entry.name] = ctrl
     return out
+
+
+def load_one(file: ControllersFile, name: str) -> ControllerInterface | None:
+    """Controller ``name`` of the file, unconfigured (None: a type cosim does not serve)."""
+    entry = file.named(name)
+    cls = controller_class(entry.type)
+    return None if cls is None or entry.params is None else cls(entry.name, entry.params)
+
+
+STATE_CODES = {"unloaded": 0.0, "unconfigured": 1.0, "inactive": 2.0, "active": 3.0}
+"""A controller's state as the ``state:<name>`` metric carries it."""
+
+
+def state_of(ctrl: ControllerInterface | None) -> str:
+    """A loaded controller's lifecycle state as list_controllers says it (a type cosim does
+    not serve is loaded and never configured)."""
+    return "unconfigured" if ctrl is None else ctrl.lifecycle.value
+
+
+def lifecycle_problem(file: ControllersFile, controllers: Mapping[str, object],
+                      states: Mapping[str, str], verb: str, name: str) -> str | None:
+    """Why ``verb`` (load, unload, configure) of controller ``name`` cannot be done, given
+    the loaded controllers' ``states``, or None (upstream's refusals)."""
+    if verb == "load":
+        if name in states:
+            return f"A controller named '{name}' was already loaded inside the controller manager"
+        if name not in controllers:
+            return (f"The 'type' param was not defined for '{name}' in the controllers file "
+                    f"{file.file.name}: controllers: " + ", ".join(controllers))
+        return None
+    if name not in states:
+        return (f"Could not {verb} controller with name '{name}' because no controller with "
+                "this name exists")
+    if verb == "unload" and states[name] == "active":
+        return f"Could not unload controller with name '{name}' because it is still active"
+    if verb == "configure":
+        if states[name] == "active":
+            return f"Controller '{name}' can not be configured from 'active' state."
+        if controllers.get(name) is None:
+            return (f"controller '{name}' has type {file.named(name).type!r}, which cosim "
+                    "cannot run (it is loaded and stays unconfigured)")
+    return None
 
 
 def claim_conflict(controllers: Mapping[str, ControllerInterface | None],
@@ -67,6 +113,33 @@ class ControllerManager:
     def __init__(self, file: ControllersFile):
         self.file = file
         self.controllers = load(file)
+        self.unloaded: set[str] = set()
+
+    def states(self) -> dict[str, str]:
+        """Every loaded controller's state, in file order."""
+        return {n: state_of(c) for n, c in self.controllers.items() if n not in self.unloaded}
+
+    def lifecycle(self, verb: str, name: str) -> str | None:
+        """load_controller (unconfigured), unload_controller (an inactive or unconfigured
+        one goes), configure_controller (-> inactive; an inactive one is configured again);
+        why not (and nothing done), or None."""
+        problem = lifecycle_problem(self.file, self.controllers, self.states(), verb, name)
+        if problem:
+            return problem
+        if verb == "load":
+            self.controllers[name] = load_one(self.file, name)
+            self.unloaded.discard(name)
+        elif verb == "unload":
+            ctrl = self.controllers[name]
+            if ctrl is not None:
+                ctrl.finalize()
+            self.unloaded.add(name)
+        else:
+            ctrl = self.controllers[name]
+            if ctrl.lifecycle is LifecycleState.INACTIVE:  # cleaned up, then configured
+                ctrl.lifecycle = LifecycleState.UNCONFIGURED
+            ctrl.configure()
+        return None
 
     def active(self) -> list[str]:
         """The active controllers, in file order."""
@@ -94,6 +167,10 @@ class ControllerManager:
         (or None)."""
         problem = switch_problem(self.file, self.controllers, self.active(), activate,
                                  deactivate)
+        states = self.states()
+        if problem is None:
+            problem = next((f"controller {n!r} is {states.get(n, 'not loaded')}" for n in
+                            activate if states.get(n) not in ("inactive", "active")), None)
         if problem:
             return Update(), problem
         out = Update()
@@ -126,6 +203,9 @@ class ControllerManager:
         (``<metric>:<name>``)."""
         out = {f"active:{n}": float(c is not None and c.active)
                for n, c in self.controllers.items()}
+        out.update({f"state:{n}": STATE_CODES["unloaded" if n in self.unloaded else
+                                              state_of(c)]
+                    for n, c in self.controllers.items()})
         for name, ctrl in self.controllers.items():
             if ctrl is not None:
                 out.update({f"{k}:{name}": v for k, v in ctrl.metrics().items()})

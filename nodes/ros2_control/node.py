@@ -15,7 +15,9 @@ declared topic at every activation, its topics carry an empty message of their t
 (a JointTrajectoryControllerState with no joints, an Odometry with no frame).
 
 Switches (controller_manager/switch_controller) enter on ``/controller_manager/cosim/switch``
-(std_msgs/String: ``+name`` activates, ``-name`` deactivates).
+(std_msgs/String: ``+name`` activates, ``-name`` deactivates), and so do load_controller,
+unload_controller and configure_controller (``load:name``, ``unload:name``,
+``configure:name``).
 The metrics report each controller's state and the trajectory controllers' goals, which the
 orchestrator's controller manager services answer from.
 """
@@ -46,6 +48,7 @@ from nodes.ros2_control.registry import served_types
 
 SWITCH_TOPIC = "/controller_manager/cosim/switch"
 SWITCH_TYPE = "std_msgs/msg/String"  # '+name' activates, '-name' deactivates, space-separated
+LIFECYCLE_VERBS = ("load", "unload", "configure")  # 'load:name', one a message
 
 
 class ControllerManagerParams(BaseModel):
@@ -252,6 +255,12 @@ class ControllerManagerNode(StepNode):
         if msg is None or not self.fresh(SWITCH_TOPIC, msg):
             return {}
         words = msg.data.split()
+        verb, _, name = msg.data.partition(":")
+        if verb in LIFECYCLE_VERBS and len(words) == 1:
+            problem = self.manager.lifecycle(verb, name)
+            if problem:
+                self.note(f"{verb}_controller refused: {problem}")
+            return {}
         activate = [w[1:] for w in words if w.startswith("+")]
         deactivate = [w[1:] for w in words if w.startswith("-")]
         if len(activate) + len(deactivate) != len(words):
@@ -264,7 +273,8 @@ class ControllerManagerNode(StepNode):
         return done.commands
 
     def metrics(self) -> dict[str, float]:
-        """Each controller's state (active:<name> 1 or 0) and each trajectory controller's
+        """Each controller's state (active:<name> 1 or 0; state:<name> 0 unloaded,
+        1 unconfigured, 2 inactive, 3 active) and each trajectory controller's
         newest action goal: its number, state (0 none, 1 active, 2 succeeded, 3 aborted,
         4 cancelled or preempted), result code and the joint that broke a tolerance."""
         return self.manager.metrics()

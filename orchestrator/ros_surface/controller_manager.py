@@ -1,8 +1,13 @@
 """The controller manager's face of an interactive run with a ``ros2_control`` node: the
-services ``/controller_manager/list_controllers``, ``list_controller_types`` and
-``switch_controller``, and the actions controllers offer (a trajectory controller's
-``~/follow_joint_trajectory``, a parallel gripper's ``~/gripper_cmd``: their faces in
-``controller_actions``).
+services of controller_manager_msgs under ``/controller_manager/`` (``list_controllers``
+with claimed interfaces, ``list_controller_types``, ``list_hardware_interfaces``,
+``list_hardware_components``, ``switch_controller`` with upstream's strictness,
+``load_controller``, ``unload_controller``, ``configure_controller``) and the actions
+controllers offer (a trajectory controller's ``~/follow_joint_trajectory``, a parallel
+gripper's ``~/gripper_cmd``: their faces in ``controller_actions``). A robot's manager in a
+swarm (``for_each: robot``) serves them under the robot's namespace, as a namespaced
+ros2_control_node does: ``/robot_2/controller_manager/list_controllers``,
+``/robot_2/joint_trajectory_controller/follow_joint_trajectory``.
 
 What changes the run (a goal, a cancel, a switch) is put into the run's external arrivals and
 enters the controller manager node at its next activation, at a tick boundary, recorded like
@@ -17,7 +22,16 @@ import threading
 from collections import deque
 
 from controller_manager_msgs.msg import ControllerState
-from controller_manager_msgs.srv import ListControllers, ListControllerTypes, SwitchController
+from controller_manager_msgs.srv import (
+    ConfigureController,
+    ListControllers,
+    ListControllerTypes,
+    ListHardwareComponents,
+    ListHardwareInterfaces,
+    LoadController,
+    SwitchController,
+    UnloadController,
+)
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile
 from std_msgs.msg import String
@@ -29,16 +43,21 @@ from nodes.ros2_control.controllers.joint_trajectory_controller import (
     GOAL,
     GOAL_ID,
 )
-from nodes.ros2_control.manager import load, resolve, switch_problem
+from nodes.ros2_control.manager import STATE_CODES, lifecycle_problem, load, resolve
 from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
 from nodes.ros2_control.registry import BASE_CLASS, served_types
+from nodes.ros2_control.switching import STRICTNESS, plan_switch
+from orchestrator.ros_surface import controller_hardware as hardware
 from orchestrator.ros_surface.controller_actions import FACES
 from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
 WAIT_S = 0.1
-PREFIX = "/controller_manager/"
+STATE_NAMES = {code: name for name, code in STATE_CODES.items()}
+LIFECYCLE = {"load": (LoadController, "unconfigured"),
+             "unload": (UnloadController, "unloaded"),
+             "configure": (ConfigureController, "inactive")}
 log = logging.getLogger("cosim")
 
 
@@ -46,19 +65,26 @@ class ControllerManagerServer:
     """list/switch controllers and the trajectory controllers' actions of one node."""
 
     def __init__(self, node, group, control: RunControl, arrivals: Arrivals, plan,
-                 answering=lambda handler: handler):
+                 answering=lambda handler: handler, scenario: Scenario | None = None):
         """``answering`` wraps the handlers that wait on the run (switch_controller, a goal's
         execution) so that the end of the run waits for their answers before the servers go
-        (``SimServices.close``): a goal open when the run ends gets its result."""
+        (``SimServices.close``): a goal open when the run ends gets its result.
+        ``scenario``: where the hardware lists find the robot's hardware."""
         self.control = control
         self.arrivals = arrivals
         self.manager = plan.name
+        self.scenario = scenario
         self.file = read(plan.params)
         self.topics = {inp.topic: inp.graph_topic for inp in plan.inputs
                        if inp.producer == EXTERNAL_NAME}
+        # a robot's manager lives under its namespace: '/robot_2' ('' for the scenario's own)
+        self.ns = self.topics[SWITCH_TOPIC][:-len(SWITCH_TOPIC)]
+        prefix = f"{self.ns}/controller_manager/"
         self.controllers = load(self.file)  # what each claims and offers, from its parameters
-        self.active = {name: name in at_start(plan.params, self.file)
-                       and self.controllers[name] is not None for name in self.controllers}
+        starting = at_start(plan.params, self.file)
+        self.states = {name: ("unconfigured" if ctrl is None else "active" if name in starting
+                              else "inactive") for name, ctrl in self.controllers.items()}
+        self._hardware = None
         self._cond = threading.Condition()
         self._reports: deque[tuple[int, dict[str, float]]] = deque(maxlen=4096)
         self._seq = 0
@@ -67,12 +93,19 @@ class ControllerManagerServer:
         self._sent = 0  # goals and cancels put, which name them
         self._seq_of: dict[int, int] = {}  # id of a goal request -> its number
         self._never_entered: dict[int, str] = {}  # id of a goal request -> why
-        node.create_service(ListControllers, PREFIX + "list_controllers", self._list,
+        node.create_service(ListControllers, prefix + "list_controllers", self._list,
                             callback_group=group)
-        node.create_service(ListControllerTypes, PREFIX + "list_controller_types", self._types,
+        node.create_service(ListControllerTypes, prefix + "list_controller_types", self._types,
                             callback_group=group)
-        node.create_service(SwitchController, PREFIX + "switch_controller",
+        node.create_service(ListHardwareInterfaces, prefix + "list_hardware_interfaces",
+                            self._hardware_interfaces, callback_group=group)
+        node.create_service(ListHardwareComponents, prefix + "list_hardware_components",
+                            self._hardware_components, callback_group=group)
+        node.create_service(SwitchController, prefix + "switch_controller",
                             answering(self._switch), callback_group=group)
+        for verb, (srv, _) in LIFECYCLE.items():
+            node.create_service(srv, f"{prefix}{verb}_controller",
+                                answering(self._lifecycle(verb)), callback_group=group)
         self.actions = []
         self._active_handles: dict[str, object] = {}  # controller -> its executing goal
         self.faces = {}  # controller -> the face of the action it offers
@@ -83,12 +116,13 @@ class ControllerManagerServer:
                     continue
                 self.faces[name] = face
                 if face.feedback_topic is not None:
-                    topic = resolve(name, face.feedback_topic)
+                    own = resolve(name, face.feedback_topic)
+                    topic = plan.output_names.get(own, self.ns + own)
                     node.create_subscription(
                         ctrl.publications()[face.feedback_topic], topic, self._feedback(name),
                         QoSProfile(depth=10), callback_group=group)
                 self.actions.append(ActionServer(
-                    node, action, resolve(name, action_name),
+                    node, action, self.ns + resolve(name, action_name),
                     answering(self._executor(name)), callback_group=group,
                     goal_callback=self._goal_callback(name),
                     cancel_callback=self._cancel_callback(name)))
@@ -101,26 +135,61 @@ class ControllerManagerServer:
         with self._cond:
             self._seq += 1
             self._reports.append((self._seq, dict(done.metrics)))
-            for name in self.active:
-                if f"active:{name}" in done.metrics:
-                    self.active[name] = bool(done.metrics[f"active:{name}"])
+            for name in self.controllers:
+                code = done.metrics.get(f"state:{name}")
+                if code is None:
+                    continue
+                if code == STATE_CODES["unloaded"]:
+                    self.states.pop(name, None)
+                else:
+                    self.states[name] = STATE_NAMES[code]
             self._cond.notify_all()
+
+    def active(self, name: str) -> bool:
+        """Whether controller ``name`` is active (as of the newest tick seen)."""
+        return self.states.get(name) == "active"
+
+    def _claimed(self) -> list[str]:
+        return [i for n, c in self.controllers.items() if c is not None and self.active(n)
+                for i in c.claim().command]
 
     def _list(self, request, response):
         with self._cond:
-            active = dict(self.active)
+            states = dict(self.states)
         for entry in self.file.controllers:
+            if entry.name not in states:  # unloaded
+                continue
             ctrl = self.controllers[entry.name]
-            state = ControllerState(name=entry.name, type=entry.type,
-                                    state=_state(ctrl, active[entry.name]),
+            state = ControllerState(name=entry.name, type=entry.type, state=states[entry.name],
                                     update_rate=self.file.update_rate)
             if ctrl is not None:
                 claim = ctrl.claim()
                 state.required_command_interfaces = list(claim.command)
                 state.required_state_interfaces = list(claim.state)
-                if active[entry.name]:  # an inactive controller claims nothing
+                if states[entry.name] == "active":  # an inactive controller claims nothing
                     state.claimed_interfaces = list(claim.command)
             response.controller.append(state)
+        return response
+
+    def hardware(self):
+        """The robot's hardware (read from the world once, at the first question)."""
+        if self._hardware is None:
+            self._hardware = hardware.manager_hardware(self.scenario, self.manager)
+        return self._hardware
+
+    def _hardware_interfaces(self, request, response):
+        with self._cond:
+            claimed = self._claimed()
+        response.command_interfaces, response.state_interfaces = hardware.interfaces(
+            self.hardware(), claimed)
+        return response
+
+    def _hardware_components(self, request, response):
+        with self._cond:
+            claimed = self._claimed()
+        name = self.ns.strip("/") or "cosim"
+        response.component = [hardware.component(self.hardware(), f"{name}_mujoco_system",
+                                                  claimed, self.file.update_rate)]
         return response
 
     def _types(self, request, response):
@@ -129,39 +198,73 @@ class ControllerManagerServer:
         return response
 
     def _switch(self, request, response):
+        """As upstream's: the strictness decides what is switched; the switch enters at the
+        next tick (activate_asap or not: every switch happens at the update it enters, so
+        the timeout is not waited on)."""
         with self._cond:
-            active = [n for n, a in self.active.items() if a]
-        problem = switch_problem(self.file, self.controllers, active,
-                                 list(request.activate_controllers),
-                                 list(request.deactivate_controllers))
-        if problem:
-            response.ok = False
-            response.message = problem
+            states = dict(self.states)
+        claims = {n: c.claim().command for n, c in self.controllers.items() if c is not None}
+        unrunnable = {n: f"its type {self.file.named(n).type!r} is one cosim cannot run (it "
+                      "is loaded and stays inactive)" for n, c in self.controllers.items()
+                      if c is None}
+        done = plan_switch(states, claims, list(request.activate_controllers),
+                           list(request.deactivate_controllers), request.strictness, unrunnable)
+        log.info("%sswitch_controller (%s) at %s: %s", self.ns + "/controller_manager/",
+                 STRICTNESS.get(request.strictness, "default: BEST_EFFORT"), self.control.at(),
+                 done.message.replace("\n", "; "))
+        response.ok, response.message = done.ok, done.message
+        if not done.ok or not (done.activate or done.deactivate):
             return response
-        msg = String(data=" ".join([*(f"-{n}" for n in request.deactivate_controllers),
-                                    *(f"+{n}" for n in request.activate_controllers)]))
+        msg = String(data=" ".join([*(f"-{n}" for n in done.deactivate),
+                                    *(f"+{n}" for n in done.activate)]))
+        wanted = {**{n: "inactive" for n in done.deactivate},
+                  **{n: "active" for n in done.activate}}
+        return self._enter(msg, wanted, response, "switch")
+
+    def _lifecycle(self, verb: str):
+        """load_controller, unload_controller or configure_controller, as upstream's."""
+        after = LIFECYCLE[verb][1]
+
+        def handle(request, response):
+            with self._cond:
+                states = dict(self.states)
+            problem = lifecycle_problem(self.file, self.controllers, states, verb,
+                                        request.name)
+            if problem:
+                log.warning("%s/controller_manager/%s_controller refused at %s: %s", self.ns,
+                            verb, self.control.at(), problem)
+                response.ok = False
+                return response
+            return self._enter(String(data=f"{verb}:{request.name}"), {request.name: after},
+                               response, f"{verb} of {request.name}")
+        return handle
+
+    def _enter(self, msg: String, wanted: dict[str, str], response, what: str):
+        """Put ``msg`` into the run and answer once a tick shows every controller in
+        ``wanted`` in its state (a paused run: at once, saying when it enters)."""
         with self._cond:
             seen = self._seq
             self.arrivals.put(self.topics[SWITCH_TOPIC], msg)
         if self.control.state == PAUSED:  # it cannot wait for a tick nobody asks for
             response.ok = True
-            response.message = f"the switch enters at {self.control.at()} (the run is paused)"
+            if hasattr(response, "message"):
+                response.message += f"\n(the {what} enters at {self.control.at()}: the run " \
+                    "is paused)"
             return response
-        wanted = {**{n: False for n in request.deactivate_controllers},
-                  **{n: True for n in request.activate_controllers}}
+        codes = {n: STATE_CODES[s] for n, s in wanted.items()}
         while True:
             ended = self.control.ended
             with self._cond:
                 if self._seq == seen:
                     self._cond.wait(WAIT_S)
                 fresh = [m for s, m in self._reports if s > seen]
-            if any(all(m.get(f"active:{n}") == float(v) for n, v in wanted.items())
-                   for m in fresh):
+            if any(all(m.get(f"state:{n}") == c for n, c in codes.items()) for m in fresh):
                 response.ok = True
                 return response
             if ended is not None:
                 response.ok = False
-                response.message = f"the run ended before the switch: {ended}"
+                if hasattr(response, "message"):
+                    response.message = f"the run ended before the {what}: {ended}"
                 return response
 
     def _goal_callback(self, name: str):
@@ -170,7 +273,7 @@ class ControllerManagerServer:
 
         def on_goal(request) -> GoalResponse:
             with self._cond:
-                if not self.active[name]:  # as upstream: nothing would ever answer it
+                if not self.active(name):  # as upstream: nothing would ever answer it
                     log.warning("%s: goal for %s rejected at %s: the controller is not "
                                 "running (activate it with /controller_manager/"
                                 "switch_controller)", label, name, self.control.at())
@@ -271,14 +374,6 @@ class ControllerManagerServer:
         return execute
 
 
-def _state(ctrl, active: bool) -> str:
-    """A controller's lifecycle state as list_controllers says it (a type cosim cannot run
-    is loaded and never configured)."""
-    if ctrl is None:
-        return "unconfigured"
-    return "active" if active else "inactive"
-
-
 def controller_managers(node, group, scenario: Scenario, control: RunControl,
                         arrivals: Arrivals | None, answering
                         ) -> list[ControllerManagerServer]:
@@ -286,7 +381,7 @@ def controller_managers(node, group, scenario: Scenario, control: RunControl,
     live (an interactive run); ``answering``: see ``ControllerManagerServer``."""
     if arrivals is None:
         return []
-    return [ControllerManagerServer(node, group, control, arrivals, plan, answering)
+    return [ControllerManagerServer(node, group, control, arrivals, plan, answering, scenario)
             for plan in scenario.nodes.values() if plan.class_ref == KINDS["ros2_control"]
             and any(inp.topic == SWITCH_TOPIC and inp.producer == EXTERNAL_NAME
                     for inp in plan.inputs)]

@@ -1,0 +1,57 @@
+"""What list_hardware_interfaces and list_hardware_components answer for one controller
+manager: the hardware of its robot (``nodes.ros2_control.hardware.hardware_info``, from the
+compiled world as the node builds it), each command interface claimed or not by the active
+controllers.
+
+cosim simulates whatever hardware plugin the robot names with one MuJoCo system: one
+component, active from the start, read and written at the manager's update rate; every
+joint of the robot has position, velocity and effort state interfaces (what its
+``HardwareState`` carries), every command interface is one a MuJoCo actuator realises.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from controller_manager_msgs.msg import HardwareComponentState, HardwareInterface
+from lifecycle_msgs.msg import State
+
+from nodes.ros2_control.hardware import HardwareInfo, hardware_info
+from nodes.ros2_control.interface import INTERFACES
+
+PLUGIN = "cosim/MujocoSystem"
+"""The plugin list_hardware_components names: cosim's MuJoCo system stands for the robot's."""
+
+
+def manager_hardware(scenario, name: str) -> HardwareInfo:
+    """The hardware controller manager node ``name`` of ``scenario`` drives (its robot's in a
+    swarm), as the node finds it at setup."""
+    from nodes.physics.world import load_model
+    from runtime.build import node_config
+
+    config = node_config(scenario, name)
+    robot = config.robots[0] if config.robots else None
+    model = load_model(config.world, config.layout)
+    return hardware_info(model, robot, config.params.command_joints)
+
+
+def interfaces(info: HardwareInfo, claimed: Iterable[str]
+               ) -> tuple[list[HardwareInterface], list[HardwareInterface]]:
+    """(command interfaces, state interfaces), sorted by name as the manager lists them."""
+    taken = set(claimed)
+    command = [HardwareInterface(name=n, data_type="double", is_available=True,
+                                 is_claimed=n in taken)
+               for n in sorted(info.command_interfaces())]
+    state = [HardwareInterface(name=f"{j}/{i}", data_type="double", is_available=True)
+             for j in sorted(info.joints) for i in INTERFACES]
+    return command, state
+
+
+def component(info: HardwareInfo, name: str, claimed: Iterable[str], rate: int
+              ) -> HardwareComponentState:
+    """The one hardware component: cosim's MuJoCo system, active."""
+    command, state = interfaces(info, claimed)
+    return HardwareComponentState(
+        name=name, type="system", is_async=False, rw_rate=rate, plugin_name=PLUGIN,
+        state=State(id=State.PRIMARY_STATE_ACTIVE, label="active"),
+        command_interfaces=command, state_interfaces=state)
