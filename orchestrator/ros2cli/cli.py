@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from orchestrator.ros2cli import action, param, service, topic
+from orchestrator.ros2cli import action, control, param, service, topic
 from orchestrator.ros2cli.attach import domain_to_use
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
-GROUPS = {"topic": topic, "service": service, "action": action, "param": param}
+GROUPS = {"topic": topic, "service": service, "action": action, "param": param,
+          "control": control}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,140 @@
+"""ros2_control in a swarm: each robot's controller manager and controllers under its
+namespace, from one controllers file (its /** wildcard blocks), as namespaced
+ros2_control_nodes would serve them."""
+
+from __future__ import annotations
+
+from orchestrator.outputs.bag import BagReader
+from plan.ros_types import message_class
+from tests.helpers import ROOT
+
+SWARM = ROOT / "scenarios" / "swarm_urdf_control.yaml"
+ROBOTS = [f"robot_{i}" for i in range(4)]
+
+
+def test_four_urdf_robots_reach_their_goals_through_their_own_diff_drive_controllers(
+        tmp_path):
+    from descriptions.load import load_scenario
+    from orchestrator.api import run
+
+    scenario = load_scenario(SWARM)
+    for robot in ROBOTS:  # what clients feed a robot's manager is the robot's too
+        graph = {i.topic: i.graph_topic for i in
+                 scenario.nodes[f"controller_manager@{robot}"].inputs}
+        assert graph["/controller_manager/cosim/switch"] == \
+            f"/{robot}/controller_manager/cosim/switch"
+        assert graph["/diff_drive_controller/cmd_vel"] == \
+            f"/{robot}/diff_drive_controller/cmd_vel"
+    done = run(SWARM, in_process=True, out=tmp_path / "a")
+    assert done.success
+    metrics = done.outcome.result.metrics
+    assert metrics["physics"]["robots_arrived"] == 4.0
+    twist = message_class("geometry_msgs/msg/Twist")
+    with BagReader(done.run_dir / "bag") as bag:
+        for robot in ROBOTS:
+            assert metrics[f"controller_manager@{robot}"][
+                "active:diff_drive_controller"] == 1.0
+            # the robot's base moved only by its own diff drive controller's wheel speeds,
+            # limited by its linear.x.max_velocity (0.8) from the one file's /** block
+            commands = [m for _, m in bag.messages(f"/{robot}/cmd_vel", twist)]
+            assert len(commands) == bag.counts[f"/{robot}/joint_states"]
+            assert max(abs(c.linear.x) for c in commands) <= 0.8 + 1e-9
+            assert max(abs(c.linear.x) for c in commands) > 0.3
+            assert bag.counts[f"/{robot}/diff_drive_controller/odom"] > 0
+            assert bag.counts[f"/{robot}/diff_drive_controller/cmd_vel"] > 0
+
+
+def test_the_swarm_gives_one_digest_in_process_and_multi_process(tmp_path):
+    from orchestrator.api import run
+    from plan.options import RunOptions
+
+    short = run(SWARM, in_process=True, out=tmp_path / "a", duration="1s")
+    # the four managers in one process of their kind, over ROS 2 with the other kinds'
+    multi = run(SWARM, out=tmp_path / "b", duration="1s", options=RunOptions(pack="kind"))
+    assert multi.digest == short.digest
+
+
+def control(*args: str) -> str:
+    """cosim-ros2 control ... against robot 2's manager; its standard output (exit 0)."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "orchestrator.ros2cli", "control", *args,
+                           "-c", "/robot_2/controller_manager"], capture_output=True,
+                          text=True, timeout=60, cwd=ROOT, env=_plain_output())
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def _plain_output() -> dict[str, str]:
+    import os
+
+    return {**os.environ, "RCUTILS_COLORIZED_OUTPUT": "0"}
+
+
+def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path, ros_node):
+    """cosim-ros2 control against a paused swarm: robot 2's controllers and hardware under
+    /robot_2/controller_manager; a switch enters at the next tick, for robot 2 only; unload,
+    load, configure and activate again, as upstream's manager takes them."""
+    from controller_manager_msgs.srv import (
+        ConfigureController,
+        ListControllers,
+        ListHardwareComponents,
+        LoadController,
+        SwitchController,
+        UnloadController,
+    )
+
+    from tests.sim_client import OK, SimClient, orchestrate
+
+    ddc = "diff_drive_controller"
+    cm = "/robot_2/controller_manager/"
+    sim = SimClient(ros_node)
+
+    def states(robot: str = "robot_2") -> dict[str, str]:
+        listed = sim.call(ListControllers, f"/{robot}/controller_manager/list_controllers",
+                          ListControllers.Request()).controller
+        return {c.name: c.state for c in listed}
+
+    with orchestrate(SWARM, tmp_path / "out", "--paused", "--pack", "kind"):
+        assert sim.step(2).result == OK
+        assert control("list_controllers", "--claimed-interfaces") == (
+            f"{ddc} diff_drive_controller/DiffDriveController  active\n"
+            "\tclaimed interfaces:\n\t\twheel_left_joint/velocity\n"
+            "\t\twheel_right_joint/velocity\n")
+        hardware = control("list_hardware_interfaces")
+        assert hardware.startswith(
+            "command interfaces\n\twheel_left_joint/velocity [available] [claimed]\n"
+            "\twheel_right_joint/velocity [available] [claimed]\nstate interfaces\n")
+        assert "\twheel_left_joint/effort\n" in hardware
+        assert control("switch_controllers", "--deactivate", ddc, "--strict").startswith(
+            "Successfully switched controllers!")
+        assert states() == {ddc: "active"}  # it enters at the next tick
+        assert sim.step(1).result == OK
+        assert states() == {ddc: "inactive"} and states("robot_1") == {ddc: "active"}
+
+        strict = sim.call(SwitchController, cm + "switch_controller", SwitchController.Request(
+            activate_controllers=[ddc, "nope"], strictness=SwitchController.Request.STRICT))
+        assert not strict.ok and "'nope' because no controller" in strict.message
+        assert sim.call(UnloadController, cm + "unload_controller",
+                        UnloadController.Request(name=ddc)).ok
+        assert sim.step(1).result == OK
+        assert states() == {}
+        assert not sim.call(ConfigureController, cm + "configure_controller",
+                            ConfigureController.Request(name=ddc)).ok  # not loaded
+        for verb, srv, after in (("load", LoadController, "unconfigured"),
+                                 ("configure", ConfigureController, "inactive")):
+            assert sim.call(srv, f"{cm}{verb}_controller", srv.Request(name=ddc)).ok
+            assert sim.step(1).result == OK
+            assert states() == {ddc: after}
+        assert control("switch_controllers", "--activate", ddc, "--activate-asap") \
+            .startswith("Successfully switched controllers!\nActivated controllers: "
+                        f"[ {ddc} ]")
+        assert sim.step(1).result == OK
+        assert states() == {ddc: "active"}
+        component, = sim.call(ListHardwareComponents, cm + "list_hardware_components",
+                              ListHardwareComponents.Request()).component
+        assert component.state.label == "active" and component.rw_rate == 50
+        assert {i.name for i in component.command_interfaces if i.is_claimed} == {
+            "wheel_left_joint/velocity", "wheel_right_joint/velocity"}
+    sim.close()
