@@ -24,7 +24,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 INTERFACES = ROOT / "interfaces"
-PACKAGES = ("tf2_msgs", "simulation_interfaces", "nav2_msgs")
+PACKAGES = ("tf2_msgs", "simulation_interfaces", "nav2_msgs", "controller_manager_msgs")
 
 # RIHS01 hashes of ROS 2 Jazzy (see the module docstring for where they come from).
 JAZZY_HASHES = {
