@@ -6,12 +6,16 @@ This is the wing of cosim that loads MuJoCo and OpenUSD; ``plan/`` below it stay
 and reads a world through ``plan.world_reader`` (``descriptions.load.load_scenario`` gives it
 this wing's loader).
 
+Every robot description format has one reader behind one registry, ``readers`` (the only
+place a file's format is recognised); what a reader gives nodes is format-neutral: the robot
+model, its TF and joint states (``robot_state``), its mark in a compiled world
+(``robot_marker``).
+
 A URDF or xacro robot (docs/tutorials/own-robot.md): ``xacro_expand`` (xacro, ``$(find)``),
 ``packages`` (``package://``), ``urdf_parse`` (the document as data), ``urdf_to_mjcf`` (the
 faithful MjSpec), ``urdf`` (actuators, sensors and its robot model: ``load_urdf``),
-``urdf_geometry`` (wheel radius, separation, footprint), ``urdf_state`` (TF and joint states
-under its own names), ``urdf_robot`` (a scenario's settings, once per process) and
-``describe`` (``cosim-describe``).
+``urdf_geometry`` (wheel radius, separation, footprint), ``urdf_robot`` (a scenario's
+settings, once per process) and ``describe`` (``cosim-describe``).
 
 A robot described in USD (docs/how-to/usd-robots.md): ``usd_stage_robot`` (the stage read
 with UsdPhysics into links, frames and cameras, in Isaac Sim's importer, urdf-usd-converter's

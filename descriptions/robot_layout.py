@@ -62,15 +62,15 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
             raise where.fail(f"robots.{key}", f"{key}: settings for {reader.title} "
                              f"description, not {other.title} one.",
                              f"{key}: only with a {other.files} description.")
-    urdf, base_body = "", spec.base_body
+    settings, base_body = "", spec.base_body
     if reader.described:
-        urdf, robot = _described_robot(path, spec, description, reader)
+        settings, robot = _described_robot(path, spec, description, reader)
         footprint, base_body = robot.footprint_radius, robot.base_link
     else:
         footprint = _footprint(where, description, spec.base_body)
     robots = place_robots(path, spec, obstacles, footprint, model.seed, mounts)
     layout = RobotsLayout(description, base_body, tuple(robots), spec.position_tolerance,
-                          spec.yaw_tolerance, spec.success_fraction, urdf)
+                          spec.yaw_tolerance, spec.success_fraction, settings)
     try:
         swarm_model(world, layout)
     except WorldError as exc:

@@ -176,7 +176,7 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
             return ()
         return (read_robot(model, names, source=str(world)),)
     if reader_for(layout.description).described:  # its own model: links, sensors, drive
-        robot = load_robot(layout.description, layout.urdf).model
+        robot = load_robot(layout.description, layout.settings).model
         return tuple(robot.scoped(r) for r in layout.names)
     model = swarm_model(Path(world), layout)
     return tuple(read_robot(model, names.scoped(r), r, str(layout.description))

@@ -23,7 +23,7 @@ def swarm_model(world: Path, layout: RobotsLayout) -> mujoco.MjModel:
 def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
     """The arena with one prefixed copy of the description per robot, at its start."""
     spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
-    robot = robot_spec(layout.description, layout.urdf)  # a described one: once per process
+    robot = robot_spec(layout.description, layout.settings)  # a described one: once per process
     spec.copy_during_attach = True
     for r in layout.robots:
         x, y, yaw = r.start

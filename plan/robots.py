@@ -52,8 +52,8 @@ class RobotsLayout:
     position_tolerance: float
     yaw_tolerance: float
     success_fraction: float
-    urdf: str = ""  # a URDF or xacro description's settings (plan.description_spec.UrdfSpec)
-    # as JSON, its package folders absolute; a USD description's (UsdSpec); '' for an MJCF one
+    settings: str = ""  # how its reader reads the description (descriptions.readers): the
+    # scenario's robots.urdf or robots.usd as JSON, package folders absolute; '' for MJCF
 
     @property
     def names(self) -> list[str]:

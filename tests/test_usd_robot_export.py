@@ -39,7 +39,7 @@ COMPARED = ("body_pos", "body_quat", "body_mass", "body_inertia", "body_ipos", "
 
 def _loaded(scenario: str):
     robots = load_scenario(SCENARIOS / scenario).robots
-    return load_robot(robots.description, robots.urdf)
+    return load_robot(robots.description, robots.settings)
 
 
 def _joints(model):

@@ -307,7 +307,7 @@ class SwarmPhysics:
         self.names = [rig.name for rig in self.rigs]
         self.urdf_text = ""
         if params.robot_description:  # the layout's robot as URDF (read once per process)
-            self.urdf_text = robot_description_text(layout.description, layout.urdf)
+            self.urdf_text = robot_description_text(layout.description, layout.settings)
         self.needed = layout.needed if layout is not None else 1
         self.goals = config.goal is not None or config.joint_goal is not None
         start = params.start

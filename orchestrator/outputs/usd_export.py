@@ -124,7 +124,7 @@ def export_robot_usd(robots, folder: Path) -> Path | None:
 
     if not reader_for(robots.description).described:
         return None
-    loaded = load_robot(robots.description, robots.urdf)
+    loaded = load_robot(robots.description, robots.settings)
     out = folder / f"{loaded.urdf.name or 'robot'}.usda"
     for note in write_robot_usd(loaded, out):
         log.warning("%s: %s", out.name, note)
