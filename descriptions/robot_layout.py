@@ -58,7 +58,7 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     reader = reader_for(description)
     for other in READERS:  # settings for another format than the description's
         key = other.settings_key
-        if key is not None and other is not reader and getattr(spec, key) is not None:
+        if key not in (None, reader.settings_key) and getattr(spec, key) is not None:
             raise where.fail(f"robots.{key}", f"{key}: settings for {reader.title} "
                              f"description, not {other.title} one.",
                              f"{key}: only with a {other.files} description.")
@@ -86,11 +86,12 @@ def _described_robot(path: Path, spec: RobotsSpec, description: Path, reader: Re
     import sys
 
     key = reader.settings_key
-    settings = layout_settings(description, getattr(spec, key), path.parent)
+    section = None if key is None else getattr(spec, key)
+    settings = layout_settings(description, section, path.parent)
     try:
         robot = load_robot(description, settings).model
     except DescriptionError as exc:
-        where = f"robots.{key}.args.{exc.arg}" if exc.arg else "robots.description"
+        where = f"robots.{key}.args.{exc.arg}" if exc.arg and key else "robots.description"
         raise scenario_error(exc, path, where) from None
     if reader.says_notes and robot.notes and (description, settings) not in _SAID:
         _SAID.add((description, settings))
