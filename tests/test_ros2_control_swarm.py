@@ -4,17 +4,21 @@ ros2_control_nodes would serve them."""
 
 from __future__ import annotations
 
+import json
+
+from descriptions.load import load_scenario
+from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.outputs.bag import BagReader
 from plan.ros_types import message_class
 from tests.helpers import ROOT
 
 SWARM = ROOT / "scenarios" / "swarm_urdf_control.yaml"
 ROBOTS = [f"robot_{i}" for i in range(4)]
+TICK_MS = 20
 
 
 def test_four_urdf_robots_reach_their_goals_through_their_own_diff_drive_controllers(
         tmp_path):
-    from descriptions.load import load_scenario
     from orchestrator.api import run
 
     scenario = load_scenario(SWARM)
@@ -84,6 +88,7 @@ def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path
         SwitchController,
         UnloadController,
     )
+    from simulation_interfaces.msg import SimulationState
 
     from tests.sim_client import OK, SimClient, orchestrate
 
@@ -96,7 +101,7 @@ def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path
                           ListControllers.Request()).controller
         return {c.name: c.state for c in listed}
 
-    with orchestrate(SWARM, tmp_path / "out", "--paused", "--pack", "kind"):
+    with orchestrate(SWARM, tmp_path / "out", "--paused", "--pack", "kind") as proc:
         assert sim.step(2).result == OK
         assert control("list_controllers", "--claimed-interfaces") == (
             f"{ddc} diff_drive_controller/DiffDriveController  active\n"
@@ -137,4 +142,33 @@ def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path
         assert component.state.label == "active" and component.rw_rate == 50
         assert {i.name for i in component.command_interfaces if i.is_claimed} == {
             "wheel_left_joint/velocity", "wheel_right_joint/velocity"}
+        stop = sim.set_state(SimulationState.STATE_STOPPED)
+        _, err = proc.communicate(timeout=120)
     sim.close()
+    # the switches, unload, load and configure were recorded where they entered: fed again,
+    # an in-process run gives the run's digest
+    stopped_at = int(stop.error_message.split("before tick ")[1].split()[0])
+    run_dir = next((tmp_path / "out").iterdir())
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert manifest["ticks"] == stopped_at, err
+    scenario = load_scenario(SWARM, {"duration": f"{(stopped_at - 1) * TICK_MS}ms"})
+    inputs = recorded_inputs(run_dir, scenario)
+    entered = [inputs[k][f"{cm}cosim/switch"].data for k in sorted(inputs)]
+    assert [d for i, d in enumerate(entered) if d and d != entered[i - 1]] == [
+        f"-{ddc}", f"unload:{ddc}", f"load:{ddc}", f"configure:{ddc}", f"+{ddc}"]
+    assert not any(inputs[k]["/robot_1/controller_manager/cosim/switch"].data for k in inputs)
+    assert run_in_process(scenario, external=lambda k: inputs.get(k, {})).digest == \
+        manifest["digest"]
+    assert run_in_process(scenario).digest != manifest["digest"]  # they changed the run
+
+
+def recorded_inputs(run_dir, scenario) -> dict[int, dict]:
+    """What the external node published at each tick where a client sent something, from
+    the run's bag."""
+    inputs: dict[int, dict] = {}
+    with BagReader(run_dir / "bag") as bag:
+        for topic in scenario.nodes["external"].outputs:
+            cls = message_class(bag.msgtype(topic))
+            for stamp, msg in bag.messages(topic, cls):
+                inputs.setdefault(stamp // (TICK_MS * 1_000_000), {})[topic] = msg
+    return inputs
