@@ -92,6 +92,11 @@ class RobotStateFrames:
                 self._joints.append((j.name[len(robot.prefix):], int(model.jnt_qposadr[jid]),
                                      int(model.jnt_dofadr[jid])))
 
+    @property
+    def joints(self) -> list[tuple[str, int, int]]:
+        """Every movable joint as (its name in joint states, qpos address, dof address)."""
+        return list(self._joints)
+
     def static(self, data: mujoco.MjData) -> list[LinkTransform]:
         """The fixed joints' transforms (for /tf_static, once)."""
         return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._fixed]

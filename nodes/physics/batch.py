@@ -102,21 +102,21 @@ class SwarmBook:
                                        dtype=np.float64)
         self.joint_goal_rigs = [r for r in rigs if r.joint_goal is not None]
         # joints: one gather for every robot, split per robot
-        self.joint_q = np.concatenate([np.asarray(r.joint_q, dtype=np.int64) for r in rigs]
+        self.joint_q = np.concatenate([np.asarray(r.state_q, dtype=np.int64) for r in rigs]
                                       or [np.zeros(0, np.int64)])
-        self.joint_v = np.concatenate([np.asarray(r.joint_v, dtype=np.int64) for r in rigs]
+        self.joint_v = np.concatenate([np.asarray(r.state_v, dtype=np.int64) for r in rigs]
                                       or [np.zeros(0, np.int64)])
-        bounds = np.cumsum([0] + [len(r.joint_names) for r in rigs])
+        bounds = np.cumsum([0] + [len(r.state_names) for r in rigs])
         self.joint_bounds = list(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
         # moving frames: every robot's, in rig order then each robot's own order
         moving = [(i, mb) for i, r in enumerate(rigs) if r.frames is not None
-                  and r.described is None for mb in r.frames.moving]
+                  for mb in r.frames.moving]
         self.moving = moving
         self.moving_body = np.array([mb.body for _, mb in moving], dtype=np.int64)
         self.moving_parent = np.array([mb.parent for _, mb in moving], dtype=np.int64)
         self.map_to_odom = []
         for r in rigs:
-            mo = None if r.frames is None or r.described is not None else r.frames.map_to_odom
+            mo = None if r.frames is None else r.frames.map_to_odom
             if mo is not None:
                 frame, pos, quat = mo
                 mo = (frame, tuple(float(v) for v in pos), tuple(float(v) for v in quat))
@@ -199,12 +199,9 @@ class SwarmBook:
         for i, rig in enumerate(rigs):
             out[rig.topics[ODOM]] = fm.odometry(poses[i], linear[i], angular[i], COVARIANCE,
                                                 rig.odom_frame, rig.base_frame)
-            if rig.described is not None:  # the description's joints, under its names
-                out[rig.topics[JOINT_STATES]] = rig.described.joint_state(data)
-                continue
             a, b = self.joint_bounds[i]
             out[rig.topics[JOINT_STATES]] = fm.joint_state(
-                rig.joint_names, _f64(jq, a, b), _f64(jv, a, b), _f64(je, a, b))
+                rig.state_names, _f64(jq, a, b), _f64(jv, a, b), _f64(je, a, b))
         if self.imus:
             self._imu(data, out)
         return self._frames(data, poses) if tf else []
@@ -227,9 +224,9 @@ class SwarmBook:
                                                    gyro[k], accel[k], unit.covariance)
 
     def _frames(self, data: mujoco.MjData, poses: list) -> list:
-        """RobotFrames.dynamic for every robot: map -> odom, odom -> base, moving bodies (a
-        described robot's frames, one robot at a time, as nodes.physics.described_rig gives
-        them)."""
+        """``dynamic`` of every robot's frames: map -> odom, odom -> base (where its frames
+        publish it), its moving bodies (batched) and moving links (a described robot's, as
+        nodes.physics.described_rig gives them), every robot through the same path."""
         moved: list[list] = [[] for _ in self.rigs]
         if self.moving:
             body, parent = self.moving_body, self.moving_parent
@@ -251,17 +248,16 @@ class SwarmBook:
         for k, rig in enumerate(self.rigs):
             if rig.frames is None:
                 continue
-            if rig.described is not None:
-                out += rig.frames.dynamic(data, poses[k])
-                continue
             mo = self.map_to_odom[k]
             frames = rig.frames
             if mo is not None:
                 out.append(fm.transform_stamped(mo[0], frames.odom_frame, mo[1], mo[2]))
-            p = poses[k]
-            out.append(fm.transform_stamped(frames.odom_frame, frames.base_frame, p[:3],
-                                            p[3:7]))
+            if frames.publishes_base:
+                p = poses[k]
+                out.append(fm.transform_stamped(frames.odom_frame, frames.base_frame, p[:3],
+                                                p[3:7]))
             out += moved[k]
+            out += frames.links(data)
         return out
 
 

@@ -55,7 +55,8 @@ class DescribedRobotFrames:
                  odom_frame: str):
         self.frames = RobotStateFrames(model, robot, odom_frame)
         self.odom_frame, self.base_frame = robot.prefix + odom_frame, robot.base_link
-        self.mobile = robot.mobile
+        self.mobile = self.publishes_base = robot.mobile  # odom -> base: a mobile robot's
+        self.moving: list = []  # no body pairs: its moving links are ``links``
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)  # fixed joints: the same in every state
         self.static = [_msg(t) for t in self.frames.static(data)]
@@ -79,7 +80,18 @@ class DescribedRobotFrames:
         if self.mobile:
             out.append(transform(self.odom_frame, self.base_frame, base_qpos[:3],
                                  base_qpos[3:7]))
-        return out + [_msg(t) for t in self.frames.moving(data)]
+        return out + self.links(data)
+
+    def links(self, data: mujoco.MjData) -> list[TransformStamped]:
+        """The moving joints' transforms, parent link -> child link."""
+        return [_msg(t) for t in self.frames.moving(data)]
+
+    @property
+    def state_joints(self) -> tuple[list[str], list[int], list[int]]:
+        """The joints /joint_states carries: names (the description's), qpos and dof
+        addresses."""
+        joints = self.frames.joints
+        return [n for n, _, _ in joints], [q for _, q, _ in joints], [d for _, _, d in joints]
 
     def joint_state(self, data: mujoco.MjData):
         """sensor_msgs/JointState of every movable joint, under the description's names."""

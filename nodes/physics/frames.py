@@ -162,10 +162,16 @@ class RobotFrames:
                             (params.map_frame, (m.x, m.y, 0.0),
                              (np.cos(m.yaw / 2), 0.0, 0.0, np.sin(m.yaw / 2))))
 
+    publishes_base = True  # odom -> base, for a base fixed to the world too
+
     @property
     def needs_kinematics(self) -> bool:
         """Whether any transform depends on body positions (a moving body)."""
         return bool(self.moving)
+
+    def links(self, data: mujoco.MjData) -> list[TransformStamped]:
+        """Transforms beyond the moving bodies' (a described robot's moving links): none."""
+        return []
 
     def _frame_of(self, body: int) -> str:
         return self.base_frame if body == self.base else self.model.body(body).name

@@ -118,6 +118,10 @@ class Rig:
         joints = [named_id(model, JOINT, j) for j in self.joint_names]
         self.joint_q = model.jnt_qposadr[joints]
         self.joint_v = model.jnt_dofadr[joints]
+        # what /joint_states carries: the commanded joints, or a described robot's movable ones
+        self.state_names, self.state_q, self.state_v = (
+            (self.joint_names, self.joint_q, self.joint_v) if self.described is None
+            else self.described.state_joints)
         self.odom_frame = params.odom_frame
         self.base_frame = robot.base_link
         self.topics = {t: robot_topic(robot.name, t) for t in
