@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.metadata
 import os
 import struct
 import tempfile
@@ -47,19 +48,33 @@ class MeshPart:
     rgba: tuple[float, float, float, float] | None = None
 
 
-def cache_dir() -> Path:
-    """Where converted meshes are kept (created when missing); a folder under the system's
-    temporary folder where the cache folder cannot be written."""
-    folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cosim" / "meshes"
+def cache_dir(kind: str = "meshes") -> Path:
+    """This user's folder of derived files of one ``kind`` (converted meshes; USD robots as
+    URDF), created when missing; one under the system's temporary folder, named by the user,
+    where the cache folder cannot be written."""
+    folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cosim" / kind
     try:
         folder.mkdir(parents=True, exist_ok=True)
         if os.access(folder, os.W_OK):
             return folder
     except OSError:
         pass
-    folder = Path(tempfile.gettempdir()) / f"cosim-meshes-{os.getuid()}"
+    folder = Path(tempfile.gettempdir()) / f"cosim-{kind}-{os.getuid()}"
     folder.mkdir(parents=True, exist_ok=True)
     return folder
+
+
+@functools.lru_cache(maxsize=1)
+def converter_id() -> bytes:
+    """What a conversion's result depends on besides the file: cosim's conversion and the
+    versions of the libraries that read the meshes (an upgrade converts again)."""
+    versions = []
+    for name in ("trimesh", "pycollada"):
+        try:
+            versions.append(f"{name}-{importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            versions.append(f"{name}-none")
+    return " ".join([CONVERTER, *versions]).encode()
 
 
 def is_ascii_stl(path: Path) -> bool:
@@ -91,7 +106,7 @@ def mujoco_meshes(path: Path, whole: bool = False) -> list[MeshPart] | None:
 def _converted(path: str, mtime_ns: int, size: int, whole: bool) -> tuple[MeshPart, ...]:
     source = Path(path)
     data = source.read_bytes()
-    digest = hashlib.sha256(CONVERTER.encode() + b"\0" + data).hexdigest()[:16]
+    digest = hashlib.sha256(converter_id() + b"\0" + data).hexdigest()[:16]
     stem = f"{source.stem}-{digest}" + ("-whole" if whole else "")
     folder = cache_dir()
     index = folder / f"{stem}.parts"
@@ -105,11 +120,11 @@ def _converted(path: str, mtime_ns: int, size: int, whole: bool) -> tuple[MeshPa
     parts = []
     for i, (triangles, rgba) in enumerate(groups):
         name = f"{stem}.stl" if len(groups) == 1 else f"{stem}-{i}.stl"
-        _write_atomic(folder / name, _binary_stl(triangles))
+        write_atomic(folder / name, _binary_stl(triangles))
         parts.append(MeshPart(str(folder / name), rgba))
     lines = [f"{Path(p.path).name} {' '.join(f'{c:.6g}' for c in p.rgba) if p.rgba else '-'}"
              for p in parts]
-    _write_atomic(index, ("\n".join(lines) + "\n").encode())
+    write_atomic(index, ("\n".join(lines) + "\n").encode())
     return tuple(parts)
 
 
@@ -197,7 +212,9 @@ def _binary_stl(triangles: np.ndarray) -> bytes:
     return header + struct.pack("<I", len(tri)) + record.tobytes()
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write ``path`` whole or not at all (processes converting the same file at once each
+    write their own temporary file and rename it in place)."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     try:
         with os.fdopen(fd, "wb") as f:

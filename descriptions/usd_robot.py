@@ -28,9 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import struct
-import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import replace
@@ -39,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from descriptions.description_error import DescriptionError
+from descriptions.mesh_convert import cache_dir, write_atomic
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
 from descriptions.usd_geometry import Geom
 from descriptions.usd_joints import WORLD
@@ -47,7 +46,7 @@ from plan.errors import WorldError
 
 BODY_CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])  # x fwd, z up
 OPTICAL_CAMERA = np.diag([1.0, -1.0, -1.0])  # z forward, y down (REP-103)
-CACHE = "cosim-usd-robots"
+
 
 
 def load_usd(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrdf:
@@ -174,12 +173,26 @@ def _xyz_rpy(t: np.ndarray) -> dict[str, str]:
     pitch = math.asin(max(-1.0, min(1.0, -r[2, 0])))
     yaw = math.atan2(r[1, 0], r[0, 0])
     return {"xyz": " ".join(_num(v) for v in t[:3, 3]),
-            "rpy": " ".join(_num(v) for v in (roll, pitch, yaw))}
+            "rpy": " ".join(_angle(v) for v in (roll, pitch, yaw))}
+
+
+def _angle(v: float) -> str:
+    """An angle of the URDF text: a multiple of 90 degrees (within 1e-9 rad, as USD's
+    float32 leaves one) exactly, so that a wheel turned on its side stays square to the
+    floor; any other to 12 significant digits (``_num``)."""
+    quarters = round(v / (math.pi / 2))
+    if abs(v - quarters * (math.pi / 2)) < 1e-9:
+        return "0" if quarters == 0 else repr(quarters * (math.pi / 2))
+    return _num(v)
 
 
 def _num(v: float) -> str:
+    """A number of the URDF text, to 12 significant digits: far below the float32 tilt that
+    usd_prims.snapped removes, and above the last bits by which matrix products and
+    decompositions (BLAS, LAPACK) differ between CPUs: the text is in /robot_description,
+    so in the digest."""
     v = float(v)
-    return "0" if abs(v) < 1e-15 else repr(v)  # every digit: see usd_stage_robot.snapped
+    return "0" if abs(v) < 1e-12 else repr(float(f"{v:.12g}"))
 
 
 def write_urdf(robot: StageRobot, notes: list[str]) -> tuple[str, Path]:
@@ -244,7 +257,7 @@ def write_urdf(robot: StageRobot, notes: list[str]) -> tuple[str, Path]:
         digest.update(key.encode() + meshes[key])
     text = ET.tostring(root, encoding="unicode")
     digest.update(text.encode())
-    folder = Path(tempfile.gettempdir()) / CACHE / digest.hexdigest()[:20]
+    folder = cache_dir("usd-robots") / digest.hexdigest()[:20]
     for name, data in meshes.items():
         _write(folder / name, data)
     _write(folder / "robot.urdf", text.encode())
@@ -255,10 +268,7 @@ def _write(path: Path, data: bytes) -> None:
     if path.is_file() and path.read_bytes() == data:
         return
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".part-")
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
+    write_atomic(path, data)
 
 
 def _inertial(el: ET.Element, link: Link, frame: np.ndarray) -> None:

@@ -202,7 +202,7 @@ def test_a_usd_robot_reaches_the_nav_goal_and_an_arm_its_targets(tmp_path):
     assert nav.last("/mybot/joint_states").name == list(WHEELS)
     description = nav.last("/mybot/robot_description").data
     assert "<robot name=\"mybot\">" in description and ".stl\"" in description
-    assert "cosim-usd-robots" not in description  # no machine's path: one digest everywhere
+    assert "usd-robots" not in description  # no machine's path: one digest everywhere
     arm = run(ROOT / "scenarios" / "arm_usd.yaml", in_process=True, out=tmp_path)
     assert arm.metrics["target"] == 2.0  # the third of three reached
     states = arm.last("/myarm/joint_states")
