@@ -48,7 +48,6 @@ BODY_CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])  #
 OPTICAL_CAMERA = np.diag([1.0, -1.0, -1.0])  # z forward, y down (REP-103)
 
 
-
 def load_usd(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrdf:
     """Read, convert and describe the USD robot ``path``; DescriptionError on anything
     wrong (naming the prim)."""
