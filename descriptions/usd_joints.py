@@ -13,6 +13,7 @@ from descriptions.description_error import DescriptionError
 from descriptions.usd_prims import get, limit, prims, quat, quat_matrix, snapped
 
 WORLD = "world"  # the parent of a joint that holds the robot to the world
+ONE_SIDED = 1e6  # m: where a prismatic joint limited on one side only is limited on the other
 
 JOINT_TYPES = {"PhysicsRevoluteJoint": "revolute", "PhysicsPrismaticJoint": "prismatic",
                "PhysicsFixedJoint": "fixed"}
@@ -133,11 +134,19 @@ def read_joint(prim, kind: str, parent: str, child: str, units: tuple[float, flo
     speed_scale = math.pi / 180.0 if degrees else meters
     lower = limit(get(prim, "physics:lowerLimit"))
     upper = limit(get(prim, "physics:upperLimit"))
-    if degrees:
-        lower = None if lower is None else math.radians(lower)
-        upper = None if upper is None else math.radians(upper)
-    elif lower is not None:
-        lower, upper = lower * meters, None if upper is None else upper * meters
+    unit = math.radians(1.0) if degrees else meters
+    lower = None if lower is None else lower * unit
+    upper = None if upper is None else upper * unit
+    if (lower is None) != (upper is None):  # URDF has no one-sided limit
+        side = "lower" if lower is not None else "upper"
+        if degrees:
+            notes.append(f"joint {name!r}: only a {side} limit: read as continuous")
+            lower = upper = None
+        else:
+            notes.append(f"joint {name!r}: only a {side} limit: the other side at "
+                         f"{ONE_SIDED:g} m")
+            lower = -ONE_SIDED if lower is None else lower
+            upper = ONE_SIDED if upper is None else upper
     joint.lower, joint.upper = lower, upper
     joint.drive = _drive(prim, "angular" if degrees else "linear", gain_scale, force_scale,
                          name, notes)
@@ -165,10 +174,11 @@ def read_joint(prim, kind: str, parent: str, child: str, units: tuple[float, flo
     return joint
 
 
-def mjc_actuators(top, joints: dict[str, Joint], notes: list[str]) -> None:
+def mjc_actuators(description: str, top, joints: dict[str, Joint], notes: list[str]) -> None:
     """mujoco-usd-converter's ``MjcActuator`` prims as drives of the joints they target: a
     position servo (gain kp, bias [0, -kp, -kv]), a velocity servo (gain kv, bias [0, 0,
-    -kv]) or a motor; ``mjc:forceRange`` the force limit."""
+    -kv]) or a motor; ``mjc:forceRange`` the force limit. DescriptionError for a gear other
+    than 1 (its gains and limits would be the actuator's, not the joint's)."""
 
     by_prim = {j.prim: j for j in joints.values()}
     for prim in prims(top):
@@ -181,6 +191,14 @@ def mjc_actuators(top, joints: dict[str, Joint], notes: list[str]) -> None:
             notes.append(f"actuator {prim.GetName()!r}: its mjc:target is no moving joint, "
                          "ignored")
             continue
+        gear = float((list(get(prim, "mjc:gear") or [1.0]) + [1.0])[0])
+        if gear != 1.0:
+            raise DescriptionError(
+                description, f"actuator {prim.GetName()!r} has mjc:gear {gear:g}: cosim "
+                "reads a drive's gains and force limit as the joint's",
+                prim=str(prim.GetPath()),
+                fix="a gear of 1 (scale mjc:gainPrm, mjc:biasPrm and mjc:forceRange by the "
+                    "gear instead)")
         gain = list(get(prim, "mjc:gainPrm") or [1.0])
         bias = list(get(prim, "mjc:biasPrm") or [0.0, 0.0, 0.0]) + [0.0, 0.0, 0.0]
         affine = str(get(prim, "mjc:biasType", "none")) == "affine"

@@ -204,7 +204,7 @@ def read_stage_robot(stage, description: str) -> StageRobot:
                             prim.GetName()))
     joints = named_joints(description, found, notes)
 
-    mjc_actuators(top, joints, notes)
+    mjc_actuators(description, top, joints, notes)
     _frames(top, links, joints, by_path, add_link, cache)
     for link in links.values():
         link.geoms = link_geometry(stage.GetPrimAtPath(link.prim), link.name, by_path, cache,

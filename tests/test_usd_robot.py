@@ -305,9 +305,10 @@ def test_the_load_says_what_the_usd_robot_lost_and_settings_go_with_their_format
         load_scenario(path)
 
 
-def test_a_centimetre_y_up_robot_with_a_prismatic_drive_reads_in_si_units(tmp_path):
-    """A stage in centimetres with +Y up: lengths, inertias and the drive's force limit in
-    SI, a linear drive's gains as they are (force per length), the slide along its axis."""
+def slider_stage(tmp_path, lower=-50.0, upper=50.0):
+    """A stage in centimetres with +Y up: a base fixed to the world and a carriage on a
+    prismatic rail (limits ``lower``, ``upper`` in cm; None: not given) with a linear drive;
+    its stage (saved as slider.usda)."""
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "slider.usda"))
@@ -337,13 +338,22 @@ def test_a_centimetre_y_up_robot_with_a_prismatic_drive_reads_in_si_units(tmp_pa
     rail.CreateBody0Rel().SetTargets([Sdf.Path("/slider/base")])
     rail.CreateBody1Rel().SetTargets([Sdf.Path("/slider/carriage")])
     rail.CreateLocalPos0Attr(Gf.Vec3f(0, 30, 0))
-    rail.CreateLowerLimitAttr(-50.0)
-    rail.CreateUpperLimitAttr(50.0)
+    if lower is not None:
+        rail.CreateLowerLimitAttr(lower)
+    if upper is not None:
+        rail.CreateUpperLimitAttr(upper)
     drive = UsdPhysics.DriveAPI.Apply(rail.GetPrim(), "linear")
     drive.CreateStiffnessAttr(400.0)
     drive.CreateDampingAttr(40.0)
     drive.CreateMaxForceAttr(1000.0)  # kg cm / s^2: 10 N
     stage.GetRootLayer().Save()
+    return stage
+
+
+def test_a_centimetre_y_up_robot_with_a_prismatic_drive_reads_in_si_units(tmp_path):
+    """A stage in centimetres with +Y up: lengths, inertias and the drive's force limit in
+    SI, a linear drive's gains as they are (force per length), the slide along its axis."""
+    slider_stage(tmp_path)
 
     loaded = load_usd(tmp_path / "slider.usda")
     model = loaded.spec.compile()
@@ -399,3 +409,23 @@ def test_a_stage_referencing_a_usd_robot_runs_one_copy_per_prim(tmp_path):
     with pytest.raises(ScenarioError, match="prim /World/Robots/robot_0: the prim references "
                                             "a robot described in USD"):
         load_scenario(path)
+
+
+def test_a_one_sided_limit_and_a_geared_actuator_are_said_or_refused(tmp_path):
+    """URDF has no one-sided limit: a rail limited above only is limited far below, and the
+    load says so; a mujoco-usd-converter actuator with a gear other than 1 is exit 2 naming
+    its prim (its gains would be the actuator's, not the joint's)."""
+    from pxr import Sdf
+
+    from descriptions.description_error import DescriptionError
+
+    stage = slider_stage(tmp_path, lower=None, upper=20.0)
+    model = load_usd(tmp_path / "slider.usda").spec.compile()
+    rail = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "rail")
+    assert model.jnt_range[rail].tolist() == pytest.approx([-1e6, 0.2])
+    actuator = stage.DefinePrim("/slider/rail_motor", "MjcActuator")
+    actuator.CreateRelationship("mjc:target").SetTargets(["/slider/rail"])
+    actuator.CreateAttribute("mjc:gear", Sdf.ValueTypeNames.DoubleArray).Set([2.0])
+    stage.GetRootLayer().Save()
+    with pytest.raises(DescriptionError, match=r"prim /slider/rail_motor: .*mjc:gear 2"):
+        load_usd(tmp_path / "slider.usda")
