@@ -31,10 +31,11 @@ SCENARIOS = ROOT / "scenarios"
 USD = SCENARIOS / "robots" / "usd"
 WHEELS = ("wheel_left_joint", "wheel_right_joint")
 TOLERANCE = 1e-6  # rad and m over 2 s; see the module's docstring
-COMPARED = ("body_pos", "body_quat", "body_mass", "body_inertia", "body_ipos", "jnt_axis",
+COMPARED = ("body_pos", "body_mass", "body_inertia", "body_ipos", "jnt_axis",
             "jnt_range", "dof_damping", "actuator_gainprm", "actuator_biasprm",
             "actuator_forcerange", "actuator_ctrlrange", "geom_size", "geom_friction",
-            "geom_priority", "geom_contype")
+            "geom_priority", "geom_contype", "geom_type", "geom_pos", "geom_rgba", "jnt_pos")
+SIGNLESS = ("body_quat", "body_iquat")  # q and -q are one rotation
 
 
 def _loaded(scenario: str):
@@ -65,6 +66,38 @@ def test_an_exported_robot_reads_back_as_the_same_robot(tmp_path, scenario, whee
     for field in COMPARED:
         np.testing.assert_allclose(getattr(m2, field), getattr(m1, field), rtol=2e-7,
                                    atol=1e-9, err_msg=field)
+    for field in SIGNLESS:
+        q1, q2 = getattr(m1, field), getattr(m2, field)
+        signs = np.where((q1 * q2).sum(axis=1, keepdims=True) < 0, -1.0, 1.0)
+        np.testing.assert_allclose(q2 * signs, q1, rtol=2e-7, atol=1e-7, err_msg=field)
+    np.testing.assert_allclose(_geom_axes(m2), _geom_axes(m1), atol=1e-7, err_msg="geom axes")
+
+
+def _geom_axes(model) -> np.ndarray:
+    """Each geom's orientation as far as its shape tells it: a sphere's none; a cylinder's
+    or capsule's own axis; a box's or mesh's (a mesh in its principal frame) three axes, or
+    the one whose size differs where the other two are equal (a turn about it is the same
+    shape), each axis up to its sign."""
+    out = []
+    for g in range(model.ngeom):
+        r = np.zeros(9)
+        mujoco.mju_quat2Mat(r, model.geom_quat[g])
+        r = r.reshape(3, 3)
+        size, kind = model.geom_size[g], model.geom_type[g]
+        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+            keep = []
+        elif kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+            keep = [2]
+        else:
+            same = [(i, j) for i in range(3) for j in range(i + 1, 3)
+                    if abs(size[i] - size[j]) <= 1e-9 * max(size)]
+            keep = [] if len(same) == 3 else [3 - sum(same[0])] if same else [0, 1, 2]
+        axes = np.zeros((3, 3))
+        for i in keep:
+            axis = r[:, i]
+            axes[:, i] = axis if axis[np.argmax(np.abs(axis))] > 0 else -axis
+        out.append(axes)
+    return np.array(out)
 
 
 def test_a_world_rooted_arm_keeps_its_world_joint_and_converted_meshes_their_colours(tmp_path):
