@@ -107,11 +107,11 @@ def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path
             f"{ddc} diff_drive_controller/DiffDriveController  active\n"
             "\tclaimed interfaces:\n\t\twheel_left_joint/velocity\n"
             "\t\twheel_right_joint/velocity\n")
-        hardware = control("list_hardware_interfaces")
-        assert hardware.startswith(
+        assert control("list_hardware_interfaces") == (
             "command interfaces\n\twheel_left_joint/velocity [available] [claimed]\n"
-            "\twheel_right_joint/velocity [available] [claimed]\nstate interfaces\n")
-        assert "\twheel_left_joint/effort\n" in hardware
+            "\twheel_right_joint/velocity [available] [claimed]\nstate interfaces\n"
+            + "".join(f"\twheel_{side}_joint/{i}\n" for side in ("left", "right")
+                      for i in ("effort", "position", "velocity")))
         assert control("switch_controllers", "--deactivate", ddc, "--strict").startswith(
             "Successfully switched controllers!")
         assert states() == {ddc: "active"}  # it enters at the next tick

@@ -5,13 +5,15 @@ controllers.
 
 cosim simulates whatever hardware plugin the robot names with one MuJoCo system: one
 component, active from the start, read and written at the manager's update rate; every
-joint of the robot has position, velocity and effort state interfaces (what its
-``HardwareState`` carries), every command interface is one a MuJoCo actuator realises.
+joint of the robot (its hinges and slides) has position, velocity and effort state
+interfaces (what its ``HardwareState`` carries), every command interface is one a MuJoCo
+actuator realises.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 
 from controller_manager_msgs.msg import HardwareComponentState, HardwareInterface
 from lifecycle_msgs.msg import State
@@ -23,34 +25,50 @@ PLUGIN = "cosim/MujocoSystem"
 """The plugin list_hardware_components names: cosim's MuJoCo system stands for the robot's."""
 
 
-def manager_hardware(scenario, name: str) -> HardwareInfo:
+@dataclass(frozen=True)
+class ManagerHardware:
+    """A manager's hardware and the joints with state interfaces (hinges and slides: a
+    floating base's free joint is no joint of a ``<ros2_control>`` block)."""
+
+    info: HardwareInfo
+    state_joints: tuple[str, ...]
+
+
+def manager_hardware(scenario, name: str) -> ManagerHardware:
     """The hardware controller manager node ``name`` of ``scenario`` drives (its robot's in a
     swarm), as the node finds it at setup."""
+    import mujoco
+
     from nodes.physics.world import load_model
     from runtime.build import node_config
 
     config = node_config(scenario, name)
     robot = config.robots[0] if config.robots else None
     model = load_model(config.world, config.layout)
-    return hardware_info(model, robot, config.params.command_joints)
+    info = hardware_info(model, robot, config.params.command_joints)
+    prefix = robot.prefix if robot is not None else ""
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    moving = {model.joint(j).name[len(prefix):] for j in range(model.njnt)
+              if int(model.jnt_type[j]) in kinds and model.joint(j).name.startswith(prefix)}
+    return ManagerHardware(info, tuple(j for j in info.joints if j in moving))
 
 
-def interfaces(info: HardwareInfo, claimed: Iterable[str]
+def interfaces(hardware: ManagerHardware, claimed: Iterable[str]
                ) -> tuple[list[HardwareInterface], list[HardwareInterface]]:
     """(command interfaces, state interfaces), sorted by name as the manager lists them."""
     taken = set(claimed)
     command = [HardwareInterface(name=n, data_type="double", is_available=True,
                                  is_claimed=n in taken)
-               for n in sorted(info.command_interfaces())]
+               for n in sorted(hardware.info.command_interfaces())]
     state = [HardwareInterface(name=f"{j}/{i}", data_type="double", is_available=True)
-             for j in sorted(info.joints) for i in INTERFACES]
+             for j in sorted(hardware.state_joints) for i in INTERFACES]
     return command, state
 
 
-def component(info: HardwareInfo, name: str, claimed: Iterable[str], rate: int
+def component(hardware: ManagerHardware, name: str, claimed: Iterable[str], rate: int
               ) -> HardwareComponentState:
     """The one hardware component: cosim's MuJoCo system, active."""
-    command, state = interfaces(info, claimed)
+    command, state = interfaces(hardware, claimed)
     return HardwareComponentState(
         name=name, type="system", is_async=False, rw_rate=rate, plugin_name=PLUGIN,
         state=State(id=State.PRIMARY_STATE_ACTIVE, label="active"),

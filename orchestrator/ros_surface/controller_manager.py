@@ -37,12 +37,8 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
 from nodes.registry import KINDS
-from nodes.ros2_control.controllers.joint_trajectory_controller import (
-    ACTIVE,
-    CANCEL_ID,
-    GOAL,
-    GOAL_ID,
-)
+from nodes.ros2_control.controllers.joint_trajectory_controller import GOAL
+from nodes.ros2_control.goals import ACTIVE, CANCEL_ID, DEACTIVATED, GOAL_ID
 from nodes.ros2_control.manager import STATE_CODES, lifecycle_problem, load, resolve
 from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
 from nodes.ros2_control.registry import BASE_CLASS, served_types
@@ -88,10 +84,11 @@ class ControllerManagerServer:
         self._cond = threading.Condition()
         self._reports: deque[tuple[int, dict[str, float]]] = deque(maxlen=4096)
         self._seq = 0
-        self._goals_put: dict[str, int] = {}
         self._latest: dict[str, object] = {}
         self._sent = 0  # goals and cancels put, which name them
-        self._seq_of: dict[int, int] = {}  # id of a goal request -> its number
+        # id of a goal request -> its number (cosim-goal-<n>, the controller's goal_seq) and
+        # the newest report when it was put
+        self._seq_of: dict[int, tuple[int, int]] = {}
         self._never_entered: dict[int, str] = {}  # id of a goal request -> why
         node.create_service(ListControllers, prefix + "list_controllers", self._list,
                             callback_group=group)
@@ -289,12 +286,10 @@ class ControllerManagerServer:
                 if replaced is not None and previous and face.is_goal(replaced):
                     self._never_entered[id(previous)] = "replaced by a newer goal before it " \
                         "entered the run (both arrived within one tick)"
-                else:  # a goal that enters: the controller counts it
-                    self._goals_put[name] = self._goals_put.get(name, 0) + 1
-                self._seq_of[id(request)] = self._goals_put[name]
+                self._seq_of[id(request)] = (self._sent, self._seq)
                 self._latest[name] = request
-            log.info("%s: goal %d for %s from %s", label, self._goals_put[name], name,
-                     self.control.at())
+                number = self._sent
+            log.info("%s: goal %d for %s from %s", label, number, name, self.control.at())
             return GoalResponse.ACCEPT
         return on_goal
 
@@ -310,7 +305,6 @@ class ControllerManagerServer:
                     if replaced is not None and face.is_goal(replaced):
                         self._never_entered[id(handle.request)] = "cancelled before it " \
                             "entered the run"
-                        self._goals_put[name] -= 1
             return CancelResponse.ACCEPT
         return on_cancel
 
@@ -338,7 +332,7 @@ class ControllerManagerServer:
         def execute(handle):
             self._active_handles[name] = handle
             with self._cond:
-                mine = self._seq_of.pop(id(handle.request))
+                mine, put_at = self._seq_of.pop(id(handle.request))
             seen = 0
             while True:
                 ended = self.control.ended
@@ -353,11 +347,15 @@ class ControllerManagerServer:
                 with self._cond:
                     fresh = [(s, m) for s, m in self._reports if s > seen]
                     seen = fresh[-1][0] if fresh else seen
-                for _, m in fresh:
+                for s, m in fresh:
                     if m.get(f"goal_seq:{name}", 0.0) != float(mine):
                         if m.get(f"goal_seq:{name}", 0.0) > mine:
                             return finish(handle, face.failed("abort",
                                                               "replaced by a newer goal"))
+                        if s > put_at and m.get(f"active:{name}") == 0.0:
+                            # deactivated before it entered: an inactive controller takes
+                            # no message, so it never will
+                            return finish(handle, face.failed("abort", DEACTIVATED))
                         continue
                     state = m.get(f"goal_state:{name}")
                     if state == ACTIVE:
