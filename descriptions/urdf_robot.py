@@ -34,13 +34,15 @@ def load_robot(path: Path | str, options: UrdfOptions) -> LoadedUrdf:
     return _cached(str(Path(path).resolve()), key, options)
 
 
-_CACHE: dict[tuple[str, str], LoadedUrdf] = {}
+_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
 
 
 def _cached(path: str, key: str, options: UrdfOptions) -> LoadedUrdf:
-    if (path, key) not in _CACHE:
-        _CACHE[(path, key)] = load_urdf(path, options)
-    return _CACHE[(path, key)]
+    stat = Path(path).stat()  # an edited file is read again (a notebook, the run API)
+    full = (path, key, stat.st_mtime_ns, stat.st_size)
+    if full not in _CACHE:
+        _CACHE[full] = load_urdf(path, options)
+    return _CACHE[full]
 
 
 def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:

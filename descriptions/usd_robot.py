@@ -331,7 +331,7 @@ def usd_options(settings: Mapping) -> UrdfOptions:
                        interfaces=dict(settings.get("interfaces") or {}), gains=gains)
 
 
-_CACHE: dict[tuple[str, str], LoadedUrdf] = {}
+_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
 
 
 def layout_settings(spec, scenario_dir: Path) -> str:
@@ -347,7 +347,9 @@ def layout_usd_robot(description: Path | str, settings: str) -> LoadedUrdf:
     ``robots.usd`` JSON), loaded once per process."""
     import json
 
-    key = (str(Path(description).resolve()), settings)
+    path = Path(description).resolve()
+    stat = path.stat()  # an edited file is read again (a notebook, the run API)
+    key = (str(path), settings, stat.st_mtime_ns, stat.st_size)
     if key not in _CACHE:
         _CACHE[key] = load_usd(description, usd_options(json.loads(settings or "{}")))
     return _CACHE[key]
