@@ -1,7 +1,8 @@
 """Your own robot: nav_urdf.yaml (mybot, a xacro URDF with package:// meshes, expanded and
 converted at load) against the same scenario with cosim's MJCF robot (worlds/robot.xml) in
-its place, side by side in one invocation: start-up (command to first tick) and the tick
-loop's wall, multi-process, the same simulated time (no stop at the goal).
+its place, and with mybot described in USD as Isaac Sim's importer writes it
+(robots/usd/mybot_isaac.usda), side by side in one invocation: start-up (command to first
+tick) and the tick loop's wall, multi-process, the same simulated time (no stop at the goal).
 
     python -m bench.urdf [--repeats 3] [--seconds 10]
 """
@@ -40,7 +41,16 @@ def scenarios(seconds: int, directory: Path) -> dict[str, Path]:
         if node["kind"] == "sensors":
             node["params"]["lidar"] = LIDAR  # what mybot's Gazebo tag gives its lidar
         mjcf["nodes"].append(node)
-    return {"urdf": write_scenario(urdf, directory), "mjcf": write_scenario(mjcf, directory)}
+    usd_settings = yaml.safe_load(
+        (ROOT / "scenarios" / "nav_usd_robot.yaml").read_text())["robots"]["usd"]
+    usd = dict(doc, name="bench_usd", robots={k: v for k, v in robots.items() if k != "urdf"})
+    usd["robots"]["description"] = str(
+        (ROOT / "scenarios" / "robots" / "usd" / "mybot_isaac.usda").resolve())
+    usd["robots"]["usd"] = usd_settings
+    usd["nodes"] = [dict(n, params=dict(n.get("params") or {}, lidar=LIDAR))
+                    if n["kind"] == "sensors" else n for n in doc["nodes"]]
+    return {"urdf": write_scenario(urdf, directory), "mjcf": write_scenario(mjcf, directory),
+            "usd": write_scenario(usd, directory)}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -61,11 +71,15 @@ def main(argv: list[str] | None = None) -> None:
                 start[name].append(manifest["startup"]["command_to_first_tick_s"])
                 loop[name].append(manifest["loop_s"])
                 digests[name].add(manifest["digest"])
-    s_u, s_m = statistics.median(start["urdf"]), statistics.median(start["mjcf"])
-    l_u, l_m = statistics.median(loop["urdf"]), statistics.median(loop["mjcf"])
-    print(f"start-up (command to first tick): URDF {s_u:.2f} s, MJCF {s_m:.2f} s, "
-          f"+{s_u - s_m:.2f} s; tick loop: URDF {l_u:.2f} s, MJCF {l_m:.2f} s = "
-          f"{l_u / l_m:.2f}x (median of {args.repeats}, {args.seconds} s simulated); "
+    s_m, l_m = statistics.median(start["mjcf"]), statistics.median(loop["mjcf"])
+    for name in ("urdf", "usd"):
+        s, lp = statistics.median(start[name]), statistics.median(loop[name])
+        print(f"start-up (command to first tick): {name.upper()} {s:.2f} s, MJCF {s_m:.2f} s, "
+              f"{s - s_m:+.2f} s; tick loop: {name.upper()} {lp:.2f} s, MJCF {l_m:.2f} s = "
+              f"{lp / l_m:.2f}x (median of {args.repeats}, {args.seconds} s simulated)")
+    s_u, s_d = statistics.median(start["urdf"]), statistics.median(start["usd"])
+    print(f"USD against URDF: start-up {s_d - s_u:+.2f} s, tick loop "
+          f"{statistics.median(loop['usd']) / statistics.median(loop['urdf']):.2f}x; "
           f"one digest each: {all(len(d) == 1 for d in digests.values())}")
 
 
