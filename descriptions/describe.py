@@ -23,8 +23,14 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: render o
 
 from descriptions.description_error import DescriptionError  # noqa: E402
 from descriptions.packages import PackageResolver  # noqa: E402
-from descriptions.readers import USD, is_usd_file, reader_for  # noqa: E402
-from descriptions.urdf import LoadedUrdf, UrdfOptions, guess_wheels, load_urdf  # noqa: E402
+from descriptions.readers import (  # noqa: E402
+    URDF,
+    describing_reader,
+    is_usd_file,
+    load_with_options,
+    section_options,
+)
+from descriptions.urdf import LoadedUrdf, UrdfOptions, guess_wheels  # noqa: E402
 from descriptions.urdf_parse import parse_urdf  # noqa: E402
 from descriptions.xacro_expand import expand  # noqa: E402
 
@@ -66,9 +72,6 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
     USD robot the world's prims reference), read as the run reads them."""
     import yaml
 
-    from descriptions.urdf_robot import urdf_options
-    from plan.description_spec import UrdfSpec
-
     scenario = ns.description.resolve()
     doc = yaml.safe_load(scenario.read_text()) or {}
     robots = doc.get("robots") or {}
@@ -78,14 +81,8 @@ def from_scenario(ns: argparse.Namespace) -> tuple[Path, UrdfOptions]:
         description = _stage_robot(scenario.parent / str(doc.get("world", "")))
         if description is None:
             raise SystemExit(f"cosim-describe: {scenario}: no robots.description to describe")
-    if reader_for(description) is USD:
-        from descriptions.usd_robot import usd_options
-        from plan.description_spec import UsdSpec
-
-        return description, usd_options(
-            UsdSpec.model_validate(robots.get("usd") or {}).model_dump())
-    spec = UrdfSpec.model_validate(robots.get("urdf") or {})
-    return description, urdf_options(spec, scenario.parent)
+    key = describing_reader(description).settings_key
+    return description, section_options(description, robots.get(key), scenario.parent)
 
 
 def _stage_robot(world: Path) -> Path | None:
@@ -106,14 +103,12 @@ def options_of(ns: argparse.Namespace) -> UrdfOptions:
     wheels = None
     if ns.wheels:
         wheels = tuple(w.strip() for w in ns.wheels.split(","))
-    elif not ns.no_drive and reader_for(ns.description) is USD:
-        from descriptions.usd_robot import load_usd
-
-        wheels = guess_wheels(load_usd(ns.description, options).urdf)
-    elif not ns.no_drive:
+    elif not ns.no_drive and describing_reader(ns.description) is URDF:
         resolver = PackageResolver(dict(options.packages))
         text = expand(ns.description, options.args, resolver).urdf
         wheels = guess_wheels(parse_urdf(text, str(ns.description)))
+    elif not ns.no_drive:  # another format: read once without a drive to see its joints
+        wheels = guess_wheels(load_with_options(ns.description, options).urdf)
     return UrdfOptions(**{**options.__dict__, "wheels": wheels})
 
 
@@ -225,12 +220,7 @@ def main(argv: list[str] | None = None) -> int:
             ns.description, options = from_scenario(ns)
         else:
             options = options_of(ns)
-        if reader_for(ns.description) is USD:
-            from descriptions.usd_robot import load_usd
-
-            loaded = load_usd(ns.description, options)
-        else:
-            loaded = load_urdf(ns.description, options)
+        loaded = load_with_options(ns.description, options)
     except DescriptionError as exc:
         print(f"cosim-describe: {exc}", file=sys.stderr)
         return 2

@@ -43,7 +43,9 @@ class Reader:
     and its files in messages,
     and its functions as ``module:function``: ``load`` (description, settings JSON) ->
     LoadedUrdf, cached per process; ``settings`` (its pydantic section or None, the
-    scenario's folder) -> settings JSON. ``says_notes``: its losses are said once when the
+    scenario's folder) -> settings JSON; for ``cosim-describe``, ``load_with`` (description,
+    UrdfOptions) -> LoadedUrdf and ``options`` (its section as a dict or None, the
+    scenario's folder) -> UrdfOptions. ``says_notes``: its losses are said once when the
     scenario loads (descriptions.robot_layout)."""
 
     name: str
@@ -53,6 +55,8 @@ class Reader:
     files: str
     load: str | None = None
     settings: str | None = None
+    load_with: str | None = None
+    options: str | None = None
     says_notes: bool = False
 
     @property
@@ -68,10 +72,14 @@ class Reader:
 
 URDF = Reader("urdf", (".urdf", ".xacro"), "urdf", "a URDF or xacro",
               ".urdf, .xacro or .urdf.xacro", load="descriptions.urdf_robot:layout_urdf_robot",
-              settings="descriptions.urdf_robot:layout_settings")
+              settings="descriptions.urdf_robot:layout_settings",
+              load_with="descriptions.urdf:load_urdf",
+              options="descriptions.urdf_robot:section_options")
 USD = Reader("usd", (".usd", ".usda", ".usdc"), "usd", "a USD", ".usd, .usda or .usdc",
              load="descriptions.usd_robot:layout_usd_robot",
-             settings="descriptions.usd_robot:layout_settings", says_notes=True)
+             settings="descriptions.usd_robot:layout_settings",
+             load_with="descriptions.usd_robot:load_usd",
+             options="descriptions.usd_robot:section_options", says_notes=True)
 MJCF = Reader("mjcf", (), None, "an MJCF", ".xml")
 READERS: tuple[Reader, ...] = (URDF, USD, MJCF)  # the first that recognises a file; MJCF else
 
@@ -116,6 +124,25 @@ def layout_settings(description: Path | str, section: Any, scenario_dir: Path) -
     if reader.settings is None:
         return ""
     return _function(reader.settings)(section, scenario_dir)
+
+
+def describing_reader(description: Path | str) -> Reader:
+    """The reader ``cosim-describe`` reads ``description`` with: its own, or URDF's for a
+    file no described format recognises (whose error says what it takes)."""
+    reader = reader_for(description)
+    return reader if reader.load_with is not None else URDF
+
+
+def load_with_options(description: Path | str, options):
+    """``description`` read with ``UrdfOptions`` (cosim-describe's command line) by its
+    reader, uncached; a DescriptionError on anything wrong."""
+    return _function(describing_reader(description).load_with)(description, options)
+
+
+def section_options(description: Path | str, section: dict | None, scenario_dir: Path):
+    """The UrdfOptions a scenario's ``robots.<settings_key>`` section (a dict, None: not
+    given) means for ``description``'s reader."""
+    return _function(describing_reader(description).options)(section, scenario_dir)
 
 
 def robot_spec(description: Path | str, settings: str) -> mujoco.MjSpec:

@@ -27,6 +27,11 @@ def urdf_options(spec: UrdfSpec | None, scenario_dir: Path) -> UrdfOptions:
                for k, s in spec.gains.items()})
 
 
+def section_options(section: dict | None, scenario_dir: Path) -> UrdfOptions:
+    """UrdfOptions from a scenario's ``robots.urdf`` section as read from its YAML."""
+    return urdf_options(UrdfSpec.model_validate(section or {}), scenario_dir)
+
+
 def load_robot(path: Path | str, options: UrdfOptions) -> LoadedUrdf:
     """``load_urdf`` cached per process by the file and the options."""
     key = json.dumps({k: v for k, v in options.__dict__.items() if k != "env"},

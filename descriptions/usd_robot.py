@@ -334,6 +334,13 @@ def usd_options(settings: Mapping) -> UrdfOptions:
 _CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
 
 
+def section_options(section: dict | None, scenario_dir: Path) -> UrdfOptions:
+    """UrdfOptions from a scenario's ``robots.usd`` section as read from its YAML."""
+    from plan.description_spec import UsdSpec
+
+    return usd_options(UsdSpec.model_validate(section or {}).model_dump())
+
+
 def layout_settings(spec, scenario_dir: Path) -> str:
     """A scenario's ``robots.usd`` settings (plan.description_spec.UsdSpec; None: the
     defaults) as the swarm layout carries them: JSON (nothing in them is a path)."""
