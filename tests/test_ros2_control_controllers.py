@@ -220,8 +220,9 @@ def test_a_parallel_gripper_reaches_stalls_and_holds_on_cancel():
     ctrl.update(100_000_000, 10_000_000)
     assert ctrl.metrics()["goal_state"] == 1.0  # not yet stall_timeout without motion
     ctrl.update(160_000_000, 10_000_000)
-    assert ctrl.metrics() == {"goal_seq": 2.0, "goal_state": 3.0, "stalled": 1.0,
-                              "reached_goal": 0.0, "position": 0.028}
+    assert ctrl.metrics() == {"goal_seq": 2.0, "goal_state": 3.0, "error_code": 0.0,
+                              "deactivated": 0.0, "stalled": 1.0, "reached_goal": 0.0,
+                              "position": 0.028}
     ctrl.on_message("~/cosim/goal", gripper_goal("cosim-goal-3", 0.0281), 200_000_000)
     ctrl.update(210_000_000, 10_000_000)  # within goal_tolerance (0.01)
     assert ctrl.metrics()["goal_state"] == 2.0 and ctrl.metrics()["reached_goal"] == 1.0

@@ -11,12 +11,7 @@ from typing import Any
 from control_msgs.action import FollowJointTrajectory, ParallelGripperCommand
 from sensor_msgs.msg import JointState
 
-from nodes.ros2_control.controllers.joint_trajectory_controller import (
-    ABORTED,
-    CANCELED,
-    GOAL_ID,
-    SUCCEEDED,
-)
+from nodes.ros2_control.goals import ABORTED, CANCELED, DEACTIVATED, GOAL_ID, SUCCEEDED
 
 RESULT_TEXT = {0: "", -1: "invalid goal", -2: "invalid joints", -3: "old header timestamp",
                -4: "path tolerance violated", -5: "goal tolerance violated"}
@@ -85,7 +80,7 @@ class FollowJointTrajectoryFace:
         if state == ABORTED:
             code = int(metrics.get("error_code", 0.0))
             joint = int(metrics.get("error_joint", -1.0))
-            text = RESULT_TEXT.get(code, "")
+            text = DEACTIVATED if metrics.get("deactivated") else RESULT_TEXT.get(code, "")
             if joint >= 0:
                 text += f" (joint {ctrl.joints[joint]})"
             return Ending("abort", FollowJointTrajectory.Result(error_code=code,
@@ -154,6 +149,8 @@ class ParallelGripperFace:
                 stalled=bool(metrics.get("stalled")),
                 reached_goal=bool(metrics.get("reached_goal")))
             text = "stalled" if result.stalled else ""
+            if metrics.get("deactivated"):
+                text = DEACTIVATED
             return Ending("succeed" if state == SUCCEEDED else "abort", result, text)
         if state == CANCELED:
             how = "canceled" if cancel_requested else "abort"

@@ -7,8 +7,8 @@ goal is cancelled or aborted. Publishes ``~/controller_state``.
 The ``~/follow_joint_trajectory`` action is served by the orchestrator (the manager's face),
 whose goals and cancels enter here at a tick boundary on ``~/cosim/goal``
 (control_msgs/action/FollowJointTrajectory_Goal, named in the trajectory's frame_id:
-``cosim-goal-<n>`` a goal, ``cosim-cancel-<n>`` a cancel); the goal's state reaches the face
-as this controller's metrics.
+``nodes.ros2_control.goals``, the protocol the gripper shares); the goal's state reaches the
+face as this controller's metrics.
 """
 
 from __future__ import annotations
@@ -22,6 +22,18 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from trajectory_msgs.msg import JointTrajectory
 
 from nodes.ros2_control import fast_messages as fast
+from nodes.ros2_control.goals import (  # noqa: F401  (re-exported: the face's names)
+    ABORTED,
+    ACTIVE,
+    CANCEL_ID,
+    CANCELED,
+    GOAL_ID,
+    IDLE,
+    INVALID_GOAL,
+    SUCCEEDED,
+    SUCCESSFUL,
+    GoalProtocol,
+)
 from nodes.ros2_control.interface import (
     Claim,
     ControllerInterface,
@@ -33,14 +45,11 @@ from nodes.ros2_control.interface import (
 from nodes.ros2_control.param_types import JointNames
 from nodes.ros2_control.trajectory import NS_PER_S, Point, Sample, Trajectory
 
-# control_msgs/action/FollowJointTrajectory result codes
-SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS = 0, -1, -2
+# control_msgs/action/FollowJointTrajectory result codes (SUCCESSFUL, INVALID_GOAL: goals)
+INVALID_JOINTS = -2
 OLD_HEADER_TIMESTAMP, PATH_TOLERANCE_VIOLATED, GOAL_TOLERANCE_VIOLATED = -3, -4, -5
-# the state of the newest action goal (the metric ``goal_state``)
-IDLE, ACTIVE, SUCCEEDED, ABORTED, CANCELED = 0, 1, 2, 3, 4
 TRAJECTORY, GOAL, STATE = "~/joint_trajectory", "~/cosim/goal", "~/controller_state"
 FOLLOW = "~/follow_joint_trajectory"
-GOAL_ID, CANCEL_ID = "cosim-goal-", "cosim-cancel-"  # + a number: the trajectory's frame_id
 
 
 class JointTolerance(BaseModel):
@@ -118,9 +127,7 @@ class JointTrajectoryController(ControllerInterface):
         self.trajectory: Trajectory | None = None
         self.hold: list[float] | None = None
         self.desired: Sample | None = None
-        self.goal_seq = 0
-        self.goal_state = IDLE
-        self.error_code = SUCCESSFUL
+        self.goal = GoalProtocol()
         self.error_joint = -1
         self.tolerances: GoalTolerances | None = None
         self.from_action = False
@@ -154,10 +161,9 @@ class JointTrajectoryController(ControllerInterface):
         return []
 
     def metrics(self) -> dict[str, float]:
-        """The newest action goal: its number, state, result code, the joint that broke a
-        tolerance."""
-        return {"goal_seq": float(self.goal_seq), "goal_state": float(self.goal_state),
-                "error_code": float(self.error_code), "error_joint": float(self.error_joint)}
+        """The newest action goal: its number, state, result code, whether a deactivation
+        ended it, the joint that broke a tolerance."""
+        return {**self.goal.metrics(), "error_joint": float(self.error_joint)}
 
     # -- the lifecycle ---------------------------------------------------------------------
 
@@ -168,8 +174,11 @@ class JointTrajectoryController(ControllerInterface):
         return Update()
 
     def on_deactivate(self) -> Update:
-        """Hold where the joints are (the hardware keeps that command)."""
+        """Hold where the joints are (the hardware keeps that command); an executing goal is
+        aborted, as upstream's."""
         self.stop(self.state)
+        if self.goal.deactivate():
+            self.from_action = False
         return Update()
 
     def defaults(self) -> GoalTolerances:
@@ -193,8 +202,7 @@ class JointTrajectoryController(ControllerInterface):
     def _topic_trajectory(self, msg: JointTrajectory, now: int) -> list[str]:
         if not self.fresh(TRAJECTORY, (list(msg.joint_names), list(msg.points))) or _blank(msg):
             return []
-        if self.goal_state == ACTIVE:  # a topic message preempts an action goal
-            self.goal_state, self.error_code = CANCELED, SUCCESSFUL
+        if self.goal.end(CANCELED):  # a topic message preempts an action goal
             self.from_action = False
         if why := self.take(msg, now, self.state):
             return [f"{self.name}/joint_trajectory refused: {why[1]}"]
@@ -203,25 +211,24 @@ class JointTrajectoryController(ControllerInterface):
     def _goal(self, goal, now: int) -> list[str]:
         name = goal.trajectory.header.frame_id
         # the orchestrator names each goal and cancel in the trajectory's frame_id
-        if not name.startswith("cosim-") or not self.fresh(GOAL, name):
+        kind = GoalProtocol.kind(name)
+        if kind is None or not self.fresh(GOAL, name):
             return []
-        if name.startswith(CANCEL_ID):
-            if self.goal_state == ACTIVE:
+        if kind == "cancel":
+            if self.goal.end(CANCELED):
                 self.stop(self.state)
-                self.goal_state, self.from_action = CANCELED, False
+                self.from_action = False
             return []
-        if self.goal_state == ACTIVE:
-            self.goal_state = CANCELED  # preempted by the newer goal
-        self.goal_seq += 1
+        self.goal.begin(name)
         self.error_joint = -1
         why = self.take(goal.trajectory, now, self.state, goal_tolerances(self, goal))
         if why:
-            self.goal_state, self.error_code = ABORTED, why[0]
-            return [f"{self.name}/follow_joint_trajectory goal {self.goal_seq} refused: "
+            self.goal.end(ABORTED, why[0])
+            return [f"{self.name}/follow_joint_trajectory goal {self.goal.goal_id} refused: "
                     f"{why[1]}"]
-        self.goal_state, self.error_code, self.from_action = ACTIVE, SUCCESSFUL, True
+        self.from_action = True
         if not goal.trajectory.points:
-            self.goal_state = SUCCEEDED
+            self.goal.end(SUCCEEDED)
         return []
 
     def _check(self, msg) -> tuple[int, str] | None:
@@ -340,8 +347,8 @@ class JointTrajectoryController(ControllerInterface):
 
     def _end(self, outcome: int, code: int, joint: int, state: HardwareState,
              keep: bool = False) -> None:
-        if self.from_action and self.goal_state == ACTIVE:
-            self.goal_state, self.error_code, self.error_joint = outcome, code, joint
+        if self.from_action and self.goal.end(outcome, code):
+            self.error_joint = joint
         if keep:  # the trajectory ends where its last point is: hold that
             self.hold = list(self.trajectory.points[-1].positions)
             self.trajectory = None

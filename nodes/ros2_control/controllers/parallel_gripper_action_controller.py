@@ -3,12 +3,14 @@ driven by ``~/gripper_cmd`` (control_msgs/action/ParallelGripperCommand), as Mov
 grasping drives it: a goal's one position becomes the joint's position command; the goal
 succeeds when the joint is within ``goal_tolerance`` of it, and when it has not moved for
 ``stall_timeout`` (slower than ``stall_velocity_threshold``) it is stalled: succeeded with
-``allow_stalling``, else aborted. A cancel holds the joint where it is.
+``allow_stalling``, else aborted. A cancel holds the joint where it is; a deactivation holds
+it and aborts the goal.
 
 As the trajectory controller's, the action is served by the orchestrator (the manager's
 face), whose goals and cancels enter here at a tick boundary on ``~/cosim/goal``
-(ParallelGripperCommand_Goal, named in ``command.header.frame_id``: ``cosim-goal-<n>``,
-``cosim-cancel-<n>``); the goal's state reaches the face as this controller's metrics.
+(ParallelGripperCommand_Goal, named in ``command.header.frame_id``: the protocol of
+``nodes.ros2_control.goals``); the goal's state reaches the face as this controller's
+metrics.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from typing import Any
 from control_msgs.action import ParallelGripperCommand
 from pydantic import Field
 
+from nodes.ros2_control.goals import ABORTED, CANCELED, SUCCEEDED, GoalProtocol
 from nodes.ros2_control.interface import (
     NS_PER_S,
     Claim,
@@ -29,8 +32,6 @@ from nodes.ros2_control.interface import (
 )
 
 GOAL, ACTION = "~/cosim/goal", "~/gripper_cmd"
-CANCEL_ID = "cosim-cancel-"
-IDLE, ACTIVE, SUCCEEDED, ABORTED, CANCELED = 0, 1, 2, 3, 4  # as the trajectory controller's
 
 
 class ParallelGripperParams(ControllerParams):
@@ -62,8 +63,7 @@ class ParallelGripperActionController(ControllerInterface):
         self.position_cmd = 0.0
         self.velocity_cmd = params.max_velocity
         self.effort_cmd = params.max_effort
-        self.goal_seq = 0
-        self.goal_state = IDLE
+        self.goal = GoalProtocol()
         self.stalled = False
         self.reached_goal = False
         self.result_position = 0.0
@@ -86,16 +86,22 @@ class ParallelGripperActionController(ControllerInterface):
         return {ACTION: ParallelGripperCommand}
 
     def metrics(self) -> dict[str, float]:
-        """The newest goal: number, state, whether it stalled or reached its goal, and the
-        joint's position when it ended."""
-        return {"goal_seq": float(self.goal_seq), "goal_state": float(self.goal_state),
-                "stalled": float(self.stalled), "reached_goal": float(self.reached_goal),
-                "position": self.result_position}
+        """The newest goal: number, state, result code, whether a deactivation ended it,
+        whether it stalled or reached its goal, and the joint's position when it ended."""
+        return {**self.goal.metrics(), "stalled": float(self.stalled),
+                "reached_goal": float(self.reached_goal), "position": self.result_position}
 
     def on_activate(self) -> Update:
         """Hold the joint where it is."""
         self._hold()
         self.result_position = self.position_cmd
+        return Update()
+
+    def on_deactivate(self) -> Update:
+        """Hold the joint where it is; an executing goal is aborted, as upstream's."""
+        self._hold()
+        if self.goal.deactivate():
+            self.result_position = self.position_cmd
         return Update()
 
     def _hold(self) -> None:
@@ -106,20 +112,18 @@ class ParallelGripperActionController(ControllerInterface):
         """A goal (its one position, velocity and effort limits) or a cancel."""
         command = msg.command
         name = command.header.frame_id
-        if not name.startswith("cosim-") or not self.fresh(GOAL, name):
+        kind = GoalProtocol.kind(name)
+        if kind is None or not self.fresh(GOAL, name):
             return []
-        if name.startswith(CANCEL_ID):
-            if self.goal_state == ACTIVE:
+        if kind == "cancel":
+            if self.goal.end(CANCELED):
                 self._hold()
-                self.goal_state = CANCELED
             return []
-        if self.goal_state == ACTIVE:
-            self.goal_state = CANCELED  # preempted by the newer goal
-        self.goal_seq += 1
+        self.goal.begin(name)  # preempts the one executing
         self.stalled = self.reached_goal = False
         if len(command.position) != 1:
-            self.goal_state = ABORTED
-            return [f"{self.name}/gripper_cmd goal {self.goal_seq} refused: "
+            self.goal.end(ABORTED)
+            return [f"{self.name}/gripper_cmd goal {self.goal.goal_id} refused: "
                     f"{len(command.position)} positions, expects 1"]
         p = self.params
         self.position_cmd = float(command.position[0])
@@ -127,7 +131,6 @@ class ParallelGripperActionController(ControllerInterface):
                              and len(command.velocity) else p.max_velocity)
         self.effort_cmd = (float(command.effort[0]) if p.max_effort_interface
                            and len(command.effort) else p.max_effort)
-        self.goal_state = ACTIVE
         self.last_movement_ns = time_ns
         return []
 
@@ -135,7 +138,7 @@ class ParallelGripperActionController(ControllerInterface):
         """Check the goal, then command the position (and the limits claimed)."""
         p = self.params
         reading = self.state[p.joint]
-        if self.goal_state == ACTIVE:
+        if self.goal.executing:
             if math.fabs(self.position_cmd - reading.position) < p.goal_tolerance:
                 self._end(SUCCEEDED, reached=True, position=reading.position)
             elif math.fabs(reading.velocity) > p.stall_velocity_threshold:
@@ -152,4 +155,5 @@ class ParallelGripperActionController(ControllerInterface):
         return Update(commands)
 
     def _end(self, outcome: int, reached: bool, position: float) -> None:
-        self.goal_state, self.reached_goal, self.result_position = outcome, reached, position
+        self.goal.end(outcome)
+        self.reached_goal, self.result_position = reached, position
