@@ -92,6 +92,10 @@ class StepNode:
     """The world node: one instance steps every robot of a swarm. It declares its topics for
     one robot; the plan publishes and feeds each robot's under the robot's namespace
     (``plan.robots.per_robot``), the shared ones (``/tf``, ``/cosim/...``) once."""
+    hardware_role: ClassVar[bool] = False
+    """The robot's controller manager: it reads and writes the robot's hardware on
+    ``/cosim/hardware_states``, ``/cosim/hardware_commands`` and ``/cosim/base_command``,
+    and the plan connects those to the physics node (``plan.hardware_wiring``)."""
 
     @classmethod
     def description_names(cls, params: BaseModel) -> dict[str, Any]:

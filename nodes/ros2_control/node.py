@@ -103,6 +103,7 @@ class ControllerManagerNode(StepNode):
 
     Params = ControllerManagerParams
     needs_world = True
+    hardware_role = True  # physics is wired to it by the plan (plan/hardware_wiring.py)
 
     @classmethod
     def outputs(cls, params: ControllerManagerParams) -> dict[str, type]:

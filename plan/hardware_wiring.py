@@ -1,0 +1,115 @@
+"""Physics wired to a robot's controller manager by the plan, not by the scenario's remaps.
+
+A node class with ``hardware_role`` (the controller manager) stands between the physics
+node and the robot's hardware: it reads the joints on ``/cosim/hardware_states`` and writes
+the joint commands on ``/cosim/hardware_commands`` and the base's twist on
+``/cosim/base_command``, which are physics' ``/joint_states``, ``/joint_commands`` and
+``/cmd_vel`` of that robot. The scenario names none of them; the plan connects the two ends
+one of two ways, chosen by the manager's own topics:
+
+- **The controllers are the robot's face.** When the manager publishes or takes one of the
+  robot's topics itself (``/joint_states`` from a joint state broadcaster, ``/joint_commands``
+  where a forward controller's commands are remapped), physics' robot topics move to the
+  hardware names, as ros2_control's hardware has no topics of its own. This needs physics
+  remappable, so a scenario without a ``robots:`` section.
+- **Physics is the robot's face.** Otherwise physics keeps its topics (``/joint_states``
+  reaches ROS users from physics) and the manager reads and writes them: its hardware
+  topics are remapped to the robot's (``/mybot/joint_states``, ``/mybot/cmd_vel`` for a
+  ``for_each: robot`` manager).
+
+A scenario that already wires a hardware topic by hand (a remap naming one) is left as it
+is, so files written before this still run. ``robots.controllers`` adds the manager itself
+(:func:`with_robot_managers`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from plan.errors import ScenarioError
+from plan.kinds import catalogue
+from plan.model import InputSpec, NodeSpec, ScenarioModel
+from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES
+
+HARDWARE_STATES = "/cosim/hardware_states"
+HARDWARE_COMMANDS = "/cosim/hardware_commands"
+BASE_COMMAND = "/cosim/base_command"
+HARDWARE_OF = {JOINT_STATES: HARDWARE_STATES, JOINT_COMMANDS: HARDWARE_COMMANDS,
+               CMD_VEL: BASE_COMMAND}
+"""Physics' robot topic -> the hardware topic the controller manager knows it as."""
+HARDWARE_TOPICS = frozenset(HARDWARE_OF.values())
+
+
+def class_of(spec: NodeSpec) -> type | None:
+    """The node class of ``spec`` (None where it does not load: the checks report that)."""
+    kinds = catalogue()
+    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
+    try:
+        return kinds.load(ref) if ref else None
+    except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
+        return None
+
+
+def _topics(spec: NodeSpec, cls: type, scenario_dir: Path) -> tuple[set[str], set[str]] | None:
+    """(every topic the node knows, its outputs and client-fed inputs) by its own names;
+    None where its parameters are wrong (the checks report that)."""
+    try:
+        params = cls.Params.model_validate(spec.params, context={"scenario_dir": scenario_dir})
+        outputs = set(cls.outputs(params)) | set(cls.latched_outputs(params))
+        face = outputs | set(cls.client_inputs(params))
+        known = face | set(cls.accepted_inputs(params) or ()) | {i.topic for i in spec.inputs}
+    except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
+        return None
+    return known, face
+
+
+def hand_wired(model: ScenarioModel) -> bool:
+    """Whether a remap of the scenario already names a hardware topic (either side)."""
+    return any(topic in HARDWARE_TOPICS for spec in model.nodes
+               for pair in spec.remap.items() for topic in pair)
+
+
+def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> ScenarioModel:
+    """The model with physics and every controller manager connected (module docstring):
+    the remaps added to the physics node or to the managers, and each manager's hardware
+    state input listed (same tick) where the scenario does not list it. ``has_robots``: the
+    scenario has a ``robots:`` section (physics' topics are then not remappable)."""
+    nodes = list(model.nodes)
+    by_hand = hand_wired(model)
+    classes = {i: class_of(spec) for i, spec in enumerate(nodes)}
+    managers = [i for i, cls in classes.items() if getattr(cls, "hardware_role", False)]
+    worlds = [i for i, cls in classes.items() if getattr(cls, "every_robot", False)]
+    if not managers or len(worlds) != 1:
+        return model
+    physics = worlds[0]
+    physics_topics = _topics(nodes[physics], classes[physics], path.parent)
+    for i in managers:
+        spec, topics = nodes[i], _topics(nodes[i], classes[i], path.parent)
+        if topics is None or physics_topics is None:
+            continue
+        known, face = topics
+        used = {robot: hw for robot, hw in HARDWARE_OF.items() if hw in known}
+        taken = sorted({spec.remap.get(t, t) for t in face} & set(HARDWARE_OF))
+        if by_hand:
+            pass  # wired as before: only the state input is listed for it
+        elif taken and (has_robots or spec.for_each is not None):
+            raise ScenarioError(path, f"nodes[{i}] ({spec.name})", f"its controllers "
+                                f"publish or take {taken[0]}, which physics serves for each "
+                                "robot of the robots: section.", f"controllers that leave "
+                                f"{taken[0]} to physics (it publishes /ROBOT/joint_states), "
+                                "or a scenario without a robots: section.")
+        elif taken:
+            remap = {robot: hw for robot, hw in used.items() if robot in physics_topics[0]}
+            nodes[physics] = _remapped(nodes[physics], remap)
+        else:
+            nodes[i] = _remapped(spec, {hw: robot for robot, hw in used.items()})
+        if HARDWARE_STATES in known and all(inp.topic != HARDWARE_STATES
+                                            for inp in nodes[i].inputs):
+            inputs = [InputSpec(topic=HARDWARE_STATES, mode="same_tick"), *nodes[i].inputs]
+            nodes[i] = nodes[i].model_copy(update={"inputs": inputs})
+    return model.model_copy(update={"nodes": nodes})
+
+
+def _remapped(spec: NodeSpec, remap: dict[str, str]) -> NodeSpec:
+    """``spec`` with ``remap`` added under its own remaps (a remap it has wins)."""
+    return spec.model_copy(update={"remap": {**remap, **spec.remap}})

@@ -1,0 +1,85 @@
+"""Physics wired to a robot's controller manager by the plan (plan/hardware_wiring.py): no
+scenario remaps cosim's hardware topics, a file that still does resolves the same, and what
+cannot be wired is refused naming the node."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from descriptions.load import load_scenario
+from plan.errors import ScenarioError
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+def _wiring(scenario) -> dict[str, list[tuple[str, str, str]]]:
+    """node -> its inputs as (own topic, graph topic, producer)."""
+    return {name: sorted((i.topic, i.graph_topic, i.producer) for i in plan.inputs)
+            for name, plan in scenario.nodes.items()}
+
+
+def _copy(tmp_path: Path, name: str, text: str) -> Path:
+    """``text`` as scenario ``name`` beside links to the scenarios' folders."""
+    for folder in ("controllers", "worlds", "robots"):
+        (tmp_path / folder).symlink_to(SCENARIOS / folder)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_no_scenario_remaps_a_cosim_topic():
+    found = []
+    for path in sorted(SCENARIOS.glob("*.yaml")):
+        for node in yaml.safe_load(path.read_text()).get("nodes", []):
+            for own, graph in (node.get("remap") or {}).items():
+                if own.startswith("/cosim/") or graph.startswith("/cosim/"):
+                    found.append(f"{path.name}: {node['name']}: {own} -> {graph}")
+    assert not found, "cosim wires its own topics (plan/hardware_wiring.py):\n" + "\n".join(found)
+
+
+def test_a_manager_with_a_broadcaster_takes_physics_joint_topics():
+    scenario = load_scenario(SCENARIOS / "arm_control.yaml")
+    physics = scenario.nodes["physics"].output_names
+    assert physics["/joint_states"] == "/cosim/hardware_states"
+    assert scenario.nodes["controller_manager"].output_names["/joint_states"] == "/joint_states"
+    assert ("/cosim/hardware_states", "/cosim/hardware_states", "physics") in _wiring(
+        scenario)["controller_manager"]
+    assert ("/joint_commands", "/cosim/hardware_commands", "controller_manager") in _wiring(
+        scenario)["physics"]
+
+
+def test_a_robots_manager_reads_and_writes_physics_own_topics():
+    scenario = load_scenario(SCENARIOS / "nav_urdf_control.yaml")
+    manager = scenario.nodes["controller_manager@mybot"]
+    assert manager.output_names["/cosim/base_command"] == "/mybot/cmd_vel"
+    assert ("/cosim/hardware_states", "/mybot/joint_states", "physics") in _wiring(
+        scenario)["controller_manager@mybot"]
+    assert scenario.nodes["physics"].output_names["/mybot/joint_states"] == "/mybot/joint_states"
+
+
+def test_a_scenario_wired_by_hand_resolves_as_before(tmp_path):
+    text = (SCENARIOS / "arm_control.yaml").read_text()
+    by_hand = text.replace(
+        "      imu: null\n", "      imu: null\n    remap: {/joint_states: /cosim/hardware_states,"
+        " /joint_commands: /cosim/hardware_commands}\n", 1)
+    assert by_hand != text
+    path = _copy(tmp_path, "arm_control.yaml", by_hand)
+    assert _wiring(load_scenario(path)) == _wiring(load_scenario(SCENARIOS / "arm_control.yaml"))
+
+
+def test_a_broadcaster_per_robot_is_refused_naming_the_node(tmp_path):
+    controllers = tmp_path / "with_broadcaster.yaml"
+    own = (SCENARIOS / "robots/mybot_description/config/mybot_controllers.yaml").read_text()
+    controllers.write_text(own.replace(
+        "    diff_drive_controller:\n      type:", "    joint_state_broadcaster:\n      type: "
+        "joint_state_broadcaster/JointStateBroadcaster\n\n    diff_drive_controller:\n"
+        "      type:", 1))
+    text = (SCENARIOS / "nav_urdf_control.yaml").read_text().replace(
+        "robots/mybot_description/config/mybot_controllers.yaml", "with_broadcaster.yaml")
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(_copy(tmp_path, "nav_urdf_control.yaml", text))
+    assert "(controller_manager)" in err.value.key
+    assert "/joint_states" in err.value.problem and "robots: section" in err.value.problem
