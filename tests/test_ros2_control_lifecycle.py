@@ -66,3 +66,35 @@ def test_a_deactivation_aborts_the_executing_goal_of_either_action_controller():
     assert (m["goal_seq"], m["goal_state"], m["deactivated"]) == (12.0, ABORTED, 1.0)
     ending = ParallelGripperFace.ended(m["goal_state"], m, gripper, False)
     assert ending.how == "abort" and ending.text == DEACTIVATED
+
+
+def test_a_message_held_from_before_an_activation_is_not_taken_again(tmp_path):
+    """The external node republishes the latest message every tick: a group command and a
+    trajectory goal held across deactivation, or unload/load/configure, are not acted on."""
+    from std_msgs.msg import Float64MultiArray
+
+    from nodes.ros2_control.config import read_controllers_file
+    from nodes.ros2_control.manager import ControllerManager
+    from tests.test_ros2_control_controllers import controllers_file
+
+    file = read_controllers_file(controllers_file(
+        tmp_path, {"arm": "position_controllers/JointGroupPositionController", "jtc": JTC},
+        {"arm": {"joints": ["a"]}, "jtc": {"joints": ["b"], "command_interfaces": ["position"]}}))
+    manager = ControllerManager(file)
+    state = {"a": JointReading(0.3), "b": JointReading(-0.2)}
+    manager.activate(["arm", "jtc"], state)
+    held = {"/arm/commands": Float64MultiArray(data=[1.0]),
+            "/jtc/cosim/goal": trajectory_goal("cosim-goal-1", ["b"], 0.5)}
+    assert manager.update(0, 20_000_000, held).commands["a/position"] == 1.0
+    assert manager.metrics()["goal_state:jtc"] == 1.0
+    manager.switch([], ["arm", "jtc"], state)
+    assert manager.metrics()["goal_state:jtc"] == ABORTED
+    manager.update(20_000_000, 20_000_000, held)
+    for verb in ("unload", "load", "configure"):
+        assert manager.lifecycle(verb, "jtc") is None
+        manager.update(40_000_000, 20_000_000, held)
+    manager.switch(["arm", "jtc"], [], state)
+    done = manager.update(60_000_000, 20_000_000, held)
+    assert "a/position" not in done.commands  # nothing new sent: nothing commanded
+    assert done.commands["b/position"] == -0.2  # holds; the held goal is not executed again
+    assert manager.metrics()["goal_state:jtc"] == 0.0  # a fresh controller: no goal

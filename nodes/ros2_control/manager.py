@@ -2,7 +2,14 @@
 (a type cosim does not serve loads as a name and a type, and cannot be activated),
 configures them, switches them (deactivations first, then activations, as one request) and
 updates the active ones in file order, routing their subscriptions' messages to them and
-their topics (``~/x`` under the controller's name) out of them."""
+their topics (``~/x`` under the controller's name) out of them.
+
+The external node publishes the latest message of every topic at every tick: the manager
+keeps what each subscribed topic held at the last tick, whatever the state of its
+controller, and gives a controller only a message that differs from it (an arrival). So a
+message sent before or while a controller is inactive is dropped, as upstream's inactive
+controller drops its subscriptions' messages, and is not taken again at its activation. The
+header's stamp is left out of the comparison: every publication gets its tick's stamp."""
 
 from __future__ import annotations
 
@@ -114,6 +121,7 @@ class ControllerManager:
         self.file = file
         self.controllers = load(file)
         self.unloaded: set[str] = set()
+        self.held: dict[str, Any] = {}  # topic -> its message at the last tick
 
     def states(self) -> dict[str, str]:
         """Every loaded controller's state, in file order."""
@@ -186,17 +194,29 @@ class ControllerManager:
         controller's over an earlier one's) and what they publish, under the graph's names."""
         out = Update()
         for name, ctrl in self.controllers.items():
-            if ctrl is None or not ctrl.active:
+            if ctrl is None:
                 continue
-            for topic in ctrl.subscriptions():
-                msg = inputs.get(resolve(name, topic))
-                if msg is not None:
-                    out.notes += ctrl.on_message(topic, msg, time_ns)
+            arrived = [(topic, msg) for topic in ctrl.subscriptions()
+                       if (msg := self._arrival(resolve(name, topic), inputs)) is not None]
+            if not ctrl.active:
+                continue
+            for topic, msg in arrived:
+                out.notes += ctrl.on_message(topic, msg, time_ns)
             done = ctrl.update(time_ns, period_ns)
             out.commands.update(done.commands)
             out.published.update({resolve(name, t): m for t, m in done.published.items()})
             out.notes += done.notes
         return out
+
+    def _arrival(self, topic: str, inputs: Mapping[str, Any]) -> Any:
+        """The message on ``topic`` if it differs from the one held at the last tick."""
+        msg = inputs.get(topic)
+        if msg is None:
+            return None
+        held = self.held.get(topic)
+        self.held[topic] = msg
+        return None if held is not None and same_message(held, msg) else msg
+
 
     def metrics(self) -> dict[str, float]:
         """``active:<name>`` (1 or 0) of every controller, then each one's own
@@ -210,3 +230,23 @@ class ControllerManager:
             if ctrl is not None:
                 out.update({f"{k}:{name}": v for k, v in ctrl.metrics().items()})
         return out
+
+
+def same_message(a: Any, b: Any) -> bool:
+    """Whether two messages are equal but for their header's stamp (the tick's, given to
+    every publication)."""
+    if type(a) is not type(b):
+        return False
+    if not hasattr(a, "get_fields_and_field_types"):
+        return a == b
+    for field in a.get_fields_and_field_types():
+        x, y = getattr(a, field), getattr(b, field)
+        if field == "header" and hasattr(x, "stamp"):
+            equal = x.frame_id == y.frame_id
+        else:
+            equal = x == y
+            if not isinstance(equal, bool):  # a fixed-size array: numpy, elementwise
+                equal = bool(equal.all())
+        if not equal:
+            return False
+    return True

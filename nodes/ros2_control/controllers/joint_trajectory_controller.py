@@ -38,7 +38,6 @@ from nodes.ros2_control.interface import (
     Claim,
     ControllerInterface,
     ControllerParams,
-    Fresh,
     HardwareState,
     Update,
 )
@@ -131,7 +130,6 @@ class JointTrajectoryController(ControllerInterface):
         self.error_joint = -1
         self.tolerances: GoalTolerances | None = None
         self.from_action = False
-        self.fresh = Fresh()
 
     # -- what it declares ------------------------------------------------------------------
 
@@ -200,7 +198,7 @@ class JointTrajectoryController(ControllerInterface):
         return self._goal(msg, time_ns)
 
     def _topic_trajectory(self, msg: JointTrajectory, now: int) -> list[str]:
-        if not self.fresh(TRAJECTORY, (list(msg.joint_names), list(msg.points))) or _blank(msg):
+        if _blank(msg):
             return []
         if self.goal.end(CANCELED):  # a topic message preempts an action goal
             self.from_action = False
@@ -212,7 +210,7 @@ class JointTrajectoryController(ControllerInterface):
         name = goal.trajectory.header.frame_id
         # the orchestrator names each goal and cancel in the trajectory's frame_id
         kind = GoalProtocol.kind(name)
-        if kind is None or not self.fresh(GOAL, name):
+        if kind is None:
             return []
         if kind == "cancel":
             if self.goal.end(CANCELED):

@@ -27,7 +27,6 @@ from nodes.ros2_control.interface import (
     Claim,
     ControllerInterface,
     ControllerParams,
-    Fresh,
     Update,
 )
 
@@ -68,7 +67,6 @@ class ParallelGripperActionController(ControllerInterface):
         self.reached_goal = False
         self.result_position = 0.0
         self.last_movement_ns = 0
-        self.fresh = Fresh()
 
     def claim(self) -> Claim:
         """The joint's position command (and the limit interfaces named), its states."""
@@ -113,7 +111,7 @@ class ParallelGripperActionController(ControllerInterface):
         command = msg.command
         name = command.header.frame_id
         kind = GoalProtocol.kind(name)
-        if kind is None or not self.fresh(GOAL, name):
+        if kind is None:
             return []
         if kind == "cancel":
             if self.goal.end(CANCELED):
