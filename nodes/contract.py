@@ -163,6 +163,12 @@ class StepNode:
         return []
 
     @classmethod
+    def natural_rate(cls, params: BaseModel) -> int | None:
+        """The rate in Hz this node's parameters decide (a controller manager's
+        ``update_rate``), which a node the plan adds itself runs at; None by default."""
+        return None
+
+    @classmethod
     def period_problems(cls, params: BaseModel, model: Any, period_ns: int
                         ) -> list[tuple[str, str, str]]:
         """What makes this node's period ``period_ns`` unusable in the world ``model`` (a

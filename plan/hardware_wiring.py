@@ -113,3 +113,73 @@ def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> Scenari
 def _remapped(spec: NodeSpec, remap: dict[str, str]) -> NodeSpec:
     """``spec`` with ``remap`` added under its own remaps (a remap it has wins)."""
     return spec.model_copy(update={"remap": {**remap, **spec.remap}})
+
+
+MANAGER_NAME = "controller_manager"
+
+
+def hardware_kind() -> str | None:
+    """The node kind that takes the hardware role (the controller manager), if any."""
+    kinds = catalogue()
+    for kind in kinds.listed:
+        try:
+            if getattr(kinds.load(kinds.kinds[kind]), "hardware_role", False):
+                return kind
+        except Exception:  # noqa: BLE001 - a kind that does not load is not this one
+            continue
+    return None
+
+
+def with_robot_managers(path: Path, model: ScenarioModel) -> ScenarioModel:
+    """The model with ``robots.controllers`` made a node: ``controller_manager``,
+    ``for_each: robot``, at the file's update_rate, taking same tick each of its
+    controllers' topics that a robot's node or physics publishes (by the node's own names,
+    as templates' topics are the robot's). Exit 2 naming ``robots.controllers`` where the
+    file is wrong or a node of the scenario already has the name."""
+    robots = model.robots
+    if robots is None or robots.controllers is None:
+        return model
+    key = "robots.controllers"
+    if any(spec.name == MANAGER_NAME for spec in model.nodes):
+        raise ScenarioError(path, key, f"the scenario also has a node named {MANAGER_NAME}.",
+                            "robots.controllers, or that node (not both).")
+    kind = hardware_kind()
+    cls = class_of(NodeSpec(name=MANAGER_NAME, kind=kind, rate=1)) if kind else None
+    if cls is None:
+        raise ScenarioError(path, key, "no node kind runs a controller manager here.",
+                            "leave robots.controllers out.")
+    try:
+        params = cls.Params.model_validate({"controllers": robots.controllers},
+                                           context={"scenario_dir": path.parent})
+        rate, fed = cls.natural_rate(params), set(cls.client_inputs(params))
+    except Exception as exc:  # noqa: BLE001 - the controllers file's problem, said as it is
+        text = _said(exc)
+        raise ScenarioError(path, key, text, "" if "Accepted:" in text else "a ros2_control "
+                            "controllers file, relative to this file.") from None
+    published = set()
+    for spec in model.nodes:
+        other = class_of(spec)
+        if other is None or not (spec.for_each or getattr(other, "every_robot", False)):
+            continue
+        try:
+            own = other.Params.model_validate(spec.params,
+                                              context={"scenario_dir": path.parent})
+            published |= {spec.remap.get(t, t) for t in other.outputs(own)}
+        except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
+            continue
+    inputs = [InputSpec(topic=t, mode="same_tick") for t in sorted(fed & published)]
+    manager = NodeSpec(name=MANAGER_NAME, kind=kind, rate=rate, for_each="robot",
+                       params={"controllers": robots.controllers}, inputs=inputs)
+    return model.model_copy(update={"nodes": [*model.nodes, manager]})
+
+
+def _said(exc: Exception) -> str:
+    """What a failed check of the controllers file says (a pydantic error's first message
+    without pydantic's framing)."""
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        try:
+            return str(errors()[0]["msg"]).removeprefix("Value error, ")
+        except Exception:  # noqa: BLE001 - not pydantic's: its text as it is
+            pass
+    return str(exc).strip()

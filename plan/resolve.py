@@ -10,7 +10,7 @@ from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
 from plan.events import object_problems, physics_period, timing_problems
 from plan.external_node import complete_model
-from plan.hardware_wiring import wire_hardware
+from plan.hardware_wiring import wire_hardware, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
 from plan.robots import namespaced, robot_of
@@ -41,6 +41,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
                                                                   exclude={"nodes"}))
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
+    model = with_robot_managers(path, model)  # robots.controllers
     model = wire_hardware(path, model, layout is not None)  # physics to its controller manager
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)

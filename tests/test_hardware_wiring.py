@@ -83,3 +83,40 @@ def test_a_broadcaster_per_robot_is_refused_naming_the_node(tmp_path):
         load_scenario(_copy(tmp_path, "nav_urdf_control.yaml", text))
     assert "(controller_manager)" in err.value.key
     assert "/joint_states" in err.value.problem and "robots: section" in err.value.problem
+
+
+def _one_line(text: str) -> str:
+    """nav_urdf_control's text with its controller manager node given as robots.controllers."""
+    manager = text.index("  - name: controller_manager")
+    return text[:manager].replace("  position_tolerance:", "  controllers: robots/mybot_"
+                                  "description/config/mybot_controllers.yaml\n"
+                                  "  position_tolerance:", 1)
+
+
+def test_robots_controllers_is_the_per_robot_manager_node(tmp_path):
+    text = (SCENARIOS / "nav_urdf_control.yaml").read_text()
+    one_line = load_scenario(_copy(tmp_path, "one_line.yaml", _one_line(text)))
+    written = load_scenario(SCENARIOS / "nav_urdf_control.yaml")
+    assert "controller_manager" not in _one_line(text).split("nodes:")[1]
+    for scenario in (one_line, written):
+        manager = scenario.nodes["controller_manager@mybot"]
+        assert manager.period_ticks * scenario.tick_ns == 20_000_000  # update_rate: 50
+    assert _wiring(one_line) == _wiring(written)
+    assert {n: p.output_names for n, p in one_line.nodes.items()} == {
+        n: p.output_names for n, p in written.nodes.items()}
+    assert one_line.nodes["controller_manager@mybot"].params == \
+        written.nodes["controller_manager@mybot"].params
+
+
+@pytest.mark.parametrize("change, problem", [
+    (lambda t: _one_line(t).replace("mybot_controllers.yaml", "missing.yaml"), "missing.yaml"),
+    (lambda t: t.replace("  position_tolerance:", "  controllers: robots/mybot_description/"
+                         "config/mybot_controllers.yaml\n  position_tolerance:", 1),
+     "also has a node named controller_manager"),
+])
+def test_robots_controllers_refused_naming_the_key(tmp_path, change, problem):
+    text = change((SCENARIOS / "nav_urdf_control.yaml").read_text())
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(_copy(tmp_path, "bad.yaml", text))
+    assert err.value.key == "robots.controllers"
+    assert problem in err.value.problem

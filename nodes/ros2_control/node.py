@@ -199,6 +199,11 @@ class ControllerManagerNode(StepNode):
         return []
 
     @classmethod
+    def natural_rate(cls, params: ControllerManagerParams) -> int:
+        """The controllers file's update_rate."""
+        return read(params).update_rate
+
+    @classmethod
     def period_problems(cls, params: ControllerManagerParams, model, period_ns: int
                         ) -> list[tuple[str, str, str]]:
         """The node's rate is the file's update_rate."""
