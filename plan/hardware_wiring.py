@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from plan.errors import ScenarioError
+from plan.errors import ScenarioError, ScenarioNotice
 from plan.kinds import catalogue
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES
@@ -67,6 +67,21 @@ def hand_wired(model: ScenarioModel) -> bool:
     """Whether a remap of the scenario already names a hardware topic (either side)."""
     return any(topic in HARDWARE_TOPICS for spec in model.nodes
                for pair in spec.remap.items() for topic in pair)
+
+
+def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice]:
+    """A notice for each remap that names a hardware topic in a scenario with a controller
+    manager: cosim wires them itself, so the remap (and the manager's listed
+    ``/cosim/hardware_states`` input) may be deleted; ``--strict`` refuses them."""
+    if not any(getattr(class_of(spec), "hardware_role", False) for spec in model.nodes):
+        return []
+    return [ScenarioNotice(path, f"nodes[{i}] ({spec.name}).remap.{own}", f"{own} -> {graph} "
+                           "wires physics to the controller manager by hand; cosim wires "
+                           "them itself (docs/concepts/topics.md, ros2_control).",
+                           "delete the remaps naming /cosim/ topics, and the controller "
+                           "manager's /cosim/hardware_states input.")
+            for i, spec in enumerate(model.nodes) for own, graph in spec.remap.items()
+            if own in HARDWARE_TOPICS or graph in HARDWARE_TOPICS]
 
 
 def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> ScenarioModel:

@@ -10,7 +10,7 @@ from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
 from plan.events import object_problems, physics_period, timing_problems
 from plan.external_node import complete_model
-from plan.hardware_wiring import wire_hardware, with_robot_managers
+from plan.hardware_wiring import hand_wiring_notices, wire_hardware, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
 from plan.robots import namespaced, robot_of
@@ -41,6 +41,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
                                                                   exclude={"nodes"}))
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
+    hand_wired = hand_wiring_notices(path, model)
     model = with_robot_managers(path, model)  # robots.controllers
     model = wire_hardware(path, model, layout is not None)  # physics to its controller manager
     model, origins = expand_nodes(path, model, layout)
@@ -102,7 +103,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         where.check_twin(nodes)
     found.raise_any()  # a schedule has no cycle
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
-    warnings = world_warnings + unconsumed_remaps(path, nodes, edges)
+    warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
 

@@ -67,7 +67,14 @@ def test_a_scenario_wired_by_hand_resolves_as_before(tmp_path):
         " /joint_commands: /cosim/hardware_commands}\n", 1)
     assert by_hand != text
     path = _copy(tmp_path, "arm_control.yaml", by_hand)
-    assert _wiring(load_scenario(path)) == _wiring(load_scenario(SCENARIOS / "arm_control.yaml"))
+    scenario = load_scenario(path)
+    assert _wiring(scenario) == _wiring(load_scenario(SCENARIOS / "arm_control.yaml"))
+    said = [w for w in scenario.warnings if "by hand" in w]
+    assert [w.key for w in said] == ["nodes[0] (physics).remap./joint_states",
+                                     "nodes[0] (physics).remap./joint_commands"]
+    assert "delete the remaps naming /cosim/ topics" in said[0].accepted
+    assert not [w for w in load_scenario(SCENARIOS / "arm_control.yaml").warnings
+                if "by hand" in w]
 
 
 def test_a_broadcaster_per_robot_is_refused_naming_the_node(tmp_path):
