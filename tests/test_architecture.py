@@ -477,3 +477,17 @@ def test_the_suffix_check_sees_a_suffix_test(tmp_path):
                      'def g(p):\n    return p.with_suffix(".usda"), f"{p}.usdc", "a .urdf"\n')
     assert suffix_checks({"probe": probe}, tmp_path) == [
         "probe.py:1 '.usd'", "probe.py:3 '.urdf'", "probe.py:3 '.xacro'"]
+
+
+def test_no_scenario_remaps_a_cosim_topic():
+    """cosim wires physics to a controller manager itself (issue 48): no scenario names
+    one of cosim's own topics in a remap."""
+    import yaml
+
+    found = []
+    for path in sorted((ROOT / "scenarios").glob("*.yaml")):
+        for node in yaml.safe_load(path.read_text()).get("nodes", []):
+            for own, graph in (node.get("remap") or {}).items():
+                if own.startswith("/cosim/") or graph.startswith("/cosim/"):
+                    found.append(f"{path.name}: {node['name']}: {own} -> {graph}")
+    assert not found, "cosim wires its own topics (plan/hardware_wiring.py):\n" + "\n".join(found)

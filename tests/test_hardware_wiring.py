@@ -7,7 +7,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
 
 from descriptions.load import load_scenario
 from plan.errors import ScenarioError
@@ -28,16 +27,6 @@ def _copy(tmp_path: Path, name: str, text: str) -> Path:
     path = tmp_path / name
     path.write_text(text)
     return path
-
-
-def test_no_scenario_remaps_a_cosim_topic():
-    found = []
-    for path in sorted(SCENARIOS.glob("*.yaml")):
-        for node in yaml.safe_load(path.read_text()).get("nodes", []):
-            for own, graph in (node.get("remap") or {}).items():
-                if own.startswith("/cosim/") or graph.startswith("/cosim/"):
-                    found.append(f"{path.name}: {node['name']}: {own} -> {graph}")
-    assert not found, "cosim wires its own topics (plan/hardware_wiring.py):\n" + "\n".join(found)
 
 
 def test_a_manager_with_a_broadcaster_takes_physics_joint_topics():
