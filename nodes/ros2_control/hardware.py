@@ -1,11 +1,12 @@
 """cosim's hardware for the controller manager: which joints and interfaces the robot
 exports (``HardwareInfo``, from the robot model and its MuJoCo actuators) and, until the
 hardware lives in the physics step, how the manager reads and writes it over topics
-(``TopicHardware``): the physics node's /joint_states (remapped to /cosim/hardware_states)
-read into the controllers' ``HardwareState``; the commands written as physics'
-/joint_commands (remapped to /cosim/hardware_commands: one value per commanded joint, in
-its order, each what its actuator takes) and, for a mobile base's wheels, as the base twist
-that physics' drive realises (physics' /cmd_vel remapped to /cosim/base_command).
+(``TopicHardware``): the physics node's /joint_states (/cosim/hardware_states to the
+manager) read into the controllers' ``HardwareState``; the commands written as physics'
+/joint_commands (/cosim/hardware_commands: one value per commanded joint, in its order,
+each what its actuator takes) and, for a mobile base's wheels, as the base twist that
+physics' drive realises (physics' /cmd_vel, /cosim/base_command). The plan connects these
+names to physics' topics (``plan.hardware_wiring``); no scenario remaps them.
 
 A command interface a controller claims and MuJoCo cannot realise (a velocity command for
 a joint whose actuator is a position servo, a joint no actuator drives) is a problem naming
@@ -21,10 +22,11 @@ from geometry_msgs.msg import Twist
 
 from nodes.ros2_control import fast_messages as fast
 from nodes.ros2_control.interface import Claim, JointReading
-
-HARDWARE_STATES = "/cosim/hardware_states"
-HARDWARE_COMMANDS = "/cosim/hardware_commands"  # physics' /joint_commands, remapped
-BASE_COMMAND = "/cosim/base_command"  # physics' /cmd_vel, remapped
+from plan.hardware_wiring import (  # noqa: F401 - the names the plan wires to physics
+    BASE_COMMAND,
+    HARDWARE_COMMANDS,
+    HARDWARE_STATES,
+)
 
 
 @dataclass(frozen=True)

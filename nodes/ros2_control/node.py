@@ -3,10 +3,10 @@ own controllers file, stepped in lockstep between the physics node and the ROS 2
 
 It runs at the file's ``update_rate`` (the node's ``rate`` must be that rate). At every
 activation it reads the hardware's joint state (``nodes.ros2_control.hardware``: physics'
-/joint_states, remapped to ``/cosim/hardware_states`` in the scenario: the joint state
-broadcaster publishes ``/joint_states``), applies controller switches, gives each active
-controller the messages of its topics and updates it (``nodes.ros2_control.manager``), and
-writes the commands to the hardware (physics' /joint_commands and /cmd_vel, remapped).
+/joint_states, which the plan wires to ``/cosim/hardware_states``, ``hardware_role``),
+applies controller switches, gives each active controller the messages of its topics and
+updates it (``nodes.ros2_control.manager``), and writes the commands to the hardware
+(physics' /joint_commands and /cmd_vel, wired likewise).
 
 Each controller's topics are its type's (``nodes/ros2_control/controllers/``), ``~/x`` under
 its name, as ros2_controllers' Jazzy documentation gives them. An inactive controller
@@ -235,7 +235,7 @@ class ControllerManagerNode(StepNode):
         hw = inputs.get(HARDWARE_STATES)
         if hw is None:
             raise RuntimeError(f"the controller manager needs {HARDWARE_STATES} (physics' "
-                               "/joint_states, remapped) at every update")
+                               "/joint_states, wired by the plan) at every update")
         self.hardware.read(hw)
         state = self.hardware.state
         commands: dict[str, float] = {}
@@ -245,7 +245,8 @@ class ControllerManagerNode(StepNode):
                                                   state).commands)
             self.first = False
         commands.update(self._switch(inputs.get(SWITCH_TOPIC)))
-        done = self.manager.update(tick.time_ns, self.config.period_ns, inputs)
+        done = self.manager.update(tick.time_ns, self.config.period_ns, inputs,
+                                   self.config.held_inputs)
         for note in done.notes:
             self.note(note)
         commands.update(done.commands)
