@@ -86,8 +86,9 @@ def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice
 
 def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> ScenarioModel:
     """The model with physics and every controller manager connected (module docstring):
-    the remaps added to the physics node or to the managers, and each manager's hardware
-    state input listed (same tick) where the scenario does not list it. ``has_robots``: the
+    the remaps added to the physics node or to the managers, each manager's hardware state
+    input (same tick) and physics' command inputs (delayed) listed where the scenario does
+    not list them. ``has_robots``: the
     scenario has a ``robots:`` section (physics' topics are then not remappable)."""
     nodes = list(model.nodes)
     by_hand = hand_wired(model)
@@ -118,11 +119,23 @@ def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> Scenari
             nodes[physics] = _remapped(nodes[physics], remap)
         else:
             nodes[i] = _remapped(spec, {hw: robot for robot, hw in used.items()})
-        if HARDWARE_STATES in known and all(inp.topic != HARDWARE_STATES
-                                            for inp in nodes[i].inputs):
-            inputs = [InputSpec(topic=HARDWARE_STATES, mode="same_tick"), *nodes[i].inputs]
-            nodes[i] = nodes[i].model_copy(update={"inputs": inputs})
+        if HARDWARE_STATES in known:
+            nodes[i] = _with_input(nodes[i], HARDWARE_STATES, "same_tick", first=True)
+        if not by_hand:  # physics takes the commands the manager writes, a tick later
+            for robot, hw in used.items():
+                if hw != HARDWARE_STATES and robot in physics_topics[0]:
+                    nodes[physics] = _with_input(nodes[physics], robot, "delayed")
     return model.model_copy(update={"nodes": nodes})
+
+
+def _with_input(spec: NodeSpec, topic: str, mode: str, first: bool = False) -> NodeSpec:
+    """``spec`` taking ``topic`` (its own name) in ``mode``, first or last among its inputs,
+    unless it lists that topic already."""
+    if any(inp.topic == topic for inp in spec.inputs):
+        return spec
+    added = InputSpec(topic=topic, mode=mode)
+    inputs = [added, *spec.inputs] if first else [*spec.inputs, added]
+    return spec.model_copy(update={"inputs": inputs})
 
 
 def _remapped(spec: NodeSpec, remap: dict[str, str]) -> NodeSpec:

@@ -82,9 +82,12 @@ def test_a_broadcaster_per_robot_is_refused_naming_the_node(tmp_path):
 
 
 def _one_line(text: str) -> str:
-    """nav_urdf_control's text with its controller manager node given as robots.controllers."""
+    """nav_urdf_control's text with its controller manager node given as robots.controllers
+    and physics listing no input (its /cmd_vel is the manager's)."""
     manager = text.index("  - name: controller_manager")
-    return text[:manager].replace("  position_tolerance:", "  controllers: robots/mybot_"
+    physics_input = "    inputs:\n      - {topic: /cmd_vel, mode: delayed}\n"
+    assert text.count(physics_input) == 1
+    return text[:manager].replace(physics_input, "").replace("  position_tolerance:", "  controllers: robots/mybot_"
                                   "description/config/mybot_controllers.yaml\n"
                                   "  position_tolerance:", 1)
 
