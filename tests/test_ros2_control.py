@@ -88,7 +88,7 @@ def write(tmp_path, doc: dict, scenario_update: dict | None = None):
     cm["params"]["controllers"] = "controllers.yaml"
     cm["params"]["inactive"] = []
     scenario["nodes"] = [n for n in scenario["nodes"] if n["name"] != "arm"]
-    cm["inputs"] = cm["inputs"][:1]
+    cm["inputs"] = []  # its hardware state input: cosim lists it (plan/hardware_wiring.py)
     cm.pop("remap")
     scenario.update(scenario_update or {})
     path = tmp_path / "arm_control.yaml"
@@ -168,7 +168,7 @@ def trajectory_scenario(tmp_path_factory):
     cm = next(n for n in doc["nodes"] if n["name"] == "controller_manager")
     cm["params"]["controllers"] = str((ARM.parent / cm["params"]["controllers"]).resolve())
     cm["params"]["inactive"] = ["forward_position_controller"]
-    cm["inputs"] = cm["inputs"][:1]
+    cm["inputs"] = []  # its hardware state input: cosim lists it (plan/hardware_wiring.py)
     cm.pop("remap")
     path = tmp_path_factory.mktemp("arm") / "arm_trajectory.yaml"
     path.write_text(yaml.safe_dump(doc))
