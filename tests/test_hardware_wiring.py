@@ -87,9 +87,9 @@ def _one_line(text: str) -> str:
     manager = text.index("  - name: controller_manager")
     physics_input = "    inputs:\n      - {topic: /cmd_vel, mode: delayed}\n"
     assert text.count(physics_input) == 1
-    return text[:manager].replace(physics_input, "").replace("  position_tolerance:", "  controllers: robots/mybot_"
-                                  "description/config/mybot_controllers.yaml\n"
-                                  "  position_tolerance:", 1)
+    text = text[:manager].replace(physics_input, "")
+    return text.replace("  position_tolerance:", "  controllers: robots/mybot_description/"
+                        "config/mybot_controllers.yaml\n  position_tolerance:", 1)
 
 
 def test_robots_controllers_is_the_per_robot_manager_node(tmp_path):
