@@ -50,6 +50,9 @@ class NodeConfig:
     # arena) and where each robot goes; None: ``world`` is the whole world
     events: tuple[EventSpec, ...] = ()  # the scenario's events (plan.events): objects
     # that enter and leave the world at given times, applied by every node with a world
+    held_inputs: frozenset[str] = frozenset()  # its inputs (own names) fed by the external
+    # node, which republishes the latest message from outside at every tick: one equal to
+    # the last (but for its header's stamp) is held, not new
 
     @property
     def robot(self) -> RobotModel:

@@ -9,7 +9,7 @@ from nodes.contract import NodeConfig, StepNode
 from nodes.registry import load_class
 from plan.options import RunOptions
 from plan.robots import merged_names, robot_of
-from plan.scenario import Scenario
+from plan.scenario import EXTERNAL_NAME, Scenario
 
 
 def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
@@ -29,7 +29,9 @@ def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
                       period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
                       joint_goal=joint_goal, scenario_dir=scenario.file.parent.resolve(),
                       render_warm_up=warm_up, robots=robots, layout=scenario.robots,
-                      events=tuple(scenario.model.events))
+                      events=tuple(scenario.model.events),
+                      held_inputs=frozenset(inp.topic for inp in plan.inputs
+                                            if inp.producer == EXTERNAL_NAME))
 
 
 def scenario_robots(scenario: Scenario) -> tuple[RobotModel, ...]:

@@ -4,16 +4,17 @@ configures them, switches them (deactivations first, then activations, as one re
 updates the active ones in file order, routing their subscriptions' messages to them and
 their topics (``~/x`` under the controller's name) out of them.
 
-The external node publishes the latest message of every topic at every tick: the manager
-keeps what each subscribed topic held at the last tick, whatever the state of its
-controller, and gives a controller only a message that differs from it (an arrival). So a
-message sent before or while a controller is inactive is dropped, as upstream's inactive
-controller drops its subscriptions' messages, and is not taken again at its activation. The
-header's stamp is left out of the comparison: every publication gets its tick's stamp."""
+The manager keeps what each subscribed topic held at the last tick, whatever the state of
+its controller, and gives a controller only a message that differs from it (an arrival):
+a node's new publication carries its tick's stamp; the external node republishes the latest
+message from outside at every tick (each with that tick's stamp), so on its topics
+(``held``) the stamp is left out of the comparison. So a message sent before or while a
+controller is inactive is dropped, as upstream's inactive controller drops its
+subscriptions' messages, and is not taken again at its activation."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from typing import Any
 
 from nodes.ros2_control.config import ControllersFile
@@ -189,15 +190,18 @@ class ControllerManager:
         out.commands.update(self.activate(activate, state).commands)
         return out, None
 
-    def update(self, time_ns: int, period_ns: int, inputs: Mapping[str, Any]) -> Update:
-        """Give each active controller its messages, then update it; their commands (a later
-        controller's over an earlier one's) and what they publish, under the graph's names."""
+    def update(self, time_ns: int, period_ns: int, inputs: Mapping[str, Any],
+               held: Collection[str] = ()) -> Update:
+        """Give each active controller its arrivals, then update it; their commands (a later
+        controller's over an earlier one's) and what they publish, under the graph's names.
+        ``held``: the topics the external node feeds (see the module)."""
         out = Update()
         for name, ctrl in self.controllers.items():
             if ctrl is None:
                 continue
             arrived = [(topic, msg) for topic in ctrl.subscriptions()
-                       if (msg := self._arrival(resolve(name, topic), inputs)) is not None]
+                       if (msg := self._arrival(resolve(name, topic), inputs, held))
+                       is not None]
             if not ctrl.active:
                 continue
             for topic, msg in arrived:
@@ -208,14 +212,17 @@ class ControllerManager:
             out.notes += done.notes
         return out
 
-    def _arrival(self, topic: str, inputs: Mapping[str, Any]) -> Any:
-        """The message on ``topic`` if it differs from the one held at the last tick."""
+    def _arrival(self, topic: str, inputs: Mapping[str, Any], held: Collection[str]) -> Any:
+        """The message on ``topic`` if it differs from the one of the last tick."""
         msg = inputs.get(topic)
         if msg is None:
             return None
-        held = self.held.get(topic)
+        last = self.held.get(topic)
         self.held[topic] = msg
-        return None if held is not None and same_message(held, msg) else msg
+        if last is None:
+            return msg
+        same = same_message(last, msg) if topic in held else last == msg
+        return None if same else msg
 
 
     def metrics(self) -> dict[str, float]:
