@@ -98,3 +98,53 @@ def test_a_message_held_from_before_an_activation_is_not_taken_again(tmp_path):
     assert "a/position" not in done.commands  # nothing new sent: nothing commanded
     assert done.commands["b/position"] == -0.2  # holds; the held goal is not executed again
     assert manager.metrics()["goal_state:jtc"] == 0.0  # a fresh controller: no goal
+
+
+DIFF = "diff_drive_controller/DiffDriveController"
+MS = 1_000_000
+
+
+def test_diff_drive_times_out_from_the_stamp_and_integrates_the_elapsed_time():
+    from geometry_msgs.msg import TwistStamped
+
+    from nodes.ros2_control.controllers.diff_drive_controller import Limits, limit
+
+    state = {"l": JointReading(0.0), "r": JointReading(0.0)}
+    dd = active(DIFF, state, left_wheel_names=["l"], right_wheel_names=["r"],
+                wheel_separation=0.5, wheel_radius=0.1, cmd_vel_timeout=0.5)
+    cmd = TwistStamped()
+    cmd.twist.linear.x = 1.0
+    cmd.header.stamp.sec = 1  # sent at 1 s, taken at 1.4 s: stale from 1.5 s
+    dd.on_message("~/cmd_vel", cmd, 1_400 * MS)
+    assert dd.update(1_490 * MS, 20 * MS).commands["l/velocity"] > 0.0
+    assert dd.update(1_510 * MS, 20 * MS).commands == {"l/velocity": 0.0, "r/velocity": 0.0}
+    # odometry over the time since the last update, not the nominal period
+    state["l"], state["r"] = JointReading(1.0), JointReading(1.0)  # 0.1 m in 100 ms
+    dd.update(1_610 * MS, 20 * MS)
+    assert abs(dd.odometry.x - 0.1) < 1e-9 and abs(dd.odometry._window[-1][0] - 1.0) < 1e-9
+    dd.deactivate()
+    state["l"], state["r"] = JointReading(5.0), JointReading(5.0)  # moved while inactive
+    dd.activate(state)
+    dd.update(3_000 * MS, 20 * MS)  # starts from the wheels as they are: no jump, no spike
+    assert abs(dd.odometry.x - 0.1) < 1e-9 and dd.odometry._window[-1][0] == 1.0
+    # min_acceleration bounds the change from below, as upstream's speed limiter
+    assert limit(Limits(min_acceleration=-1.0), 0.0, 1.0, 0.1) == 0.9
+    assert limit(Limits(), 0.0, 1.0, 0.1) == 0.0
+
+
+def test_parameters_read_and_not_applied_are_noted():
+    dd = controller_class(DIFF)("dd", controller_class(DIFF).Params(
+        left_wheel_names=["l"], right_wheel_names=["r"], wheel_separation=0.5,
+        wheel_radius=0.1, open_loop=True, enable_odom_tf=False,
+        linear={"x": {"max_acceleration_reverse": 1.0, "max_deceleration_reverse": 1.0}}))
+    assert dd.notes() == [
+        "dd: linear.x.max_acceleration_reverse is not applied (the forward limits apply both "
+        "ways).",
+        "dd: linear.x.max_deceleration_reverse is not applied (the forward limits apply both "
+        "ways).",
+        "dd: open_loop is not applied: the odometry integrates the wheels' positions."]
+    jsb = "joint_state_broadcaster/JointStateBroadcaster"
+    cls = controller_class(jsb)
+    assert cls("jsb", cls.Params()).notes() == []
+    assert cls("jsb", cls.Params(frame_id="world")).notes() == [
+        "jsb: frame_id is not applied: /joint_states carries no frame."]

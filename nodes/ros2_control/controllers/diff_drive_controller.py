@@ -1,7 +1,9 @@
 """diff_drive_controller/DiffDriveController: ``~/cmd_vel`` (TwistStamped) limited as its
 parameters say, stale after ``cmd_vel_timeout``, turned into the wheels' velocities (wheel
 radius, separation and their multipliers), which it commands on the wheels' velocity
-interfaces; ``~/odom`` from the wheels' positions (its ``odometry.cpp``)."""
+interfaces; ``~/odom`` from the wheels' positions over the time since its last update (its
+``odometry.cpp``). A command's time is its header stamp (the tick it was published at),
+so the same command held by the external node is not new and times out."""
 
 from __future__ import annotations
 
@@ -133,6 +135,7 @@ class DiffDriveController(ControllerInterface):
         self.command: tuple[float, float] = (0.0, 0.0)
         self.command_ns: int | None = None
         self.last: tuple[float, float] = (0.0, 0.0)
+        self.last_ns: int | None = None  # the time of the last update
 
     @property
     def wheels(self) -> list[str]:
@@ -153,12 +156,20 @@ class DiffDriveController(ControllerInterface):
         return {CMD_VEL: TwistStamped}
 
     def notes(self) -> list[str]:
-        """Jerk limits and the odometry's transform are not served."""
+        """Jerk and reverse limits, open_loop and the odometry's transform are not
+        served."""
         out = []
         for axis, limits in (("linear.x", self.params.linear.x),
                              ("angular.z", self.params.angular.z)):
             if not (math.isnan(limits.max_jerk) and math.isnan(limits.min_jerk)):
                 out.append(f"{self.name}: {axis} jerk limits are not applied.")
+            for key in ("max_acceleration_reverse", "max_deceleration_reverse"):
+                if not math.isnan(getattr(limits, key)):
+                    out.append(f"{self.name}: {axis}.{key} is not applied (the forward "
+                               "limits apply both ways).")
+        if self.params.open_loop:
+            out.append(f"{self.name}: open_loop is not applied: the odometry integrates the "
+                       "wheels' positions.")
         if self.params.enable_odom_tf:
             out.append(f"{self.name}: enable_odom_tf: the odom -> base transform on /tf comes "
                        "from the physics node (ground truth), not from this controller's "
@@ -173,14 +184,21 @@ class DiffDriveController(ControllerInterface):
             p.wheel_radius * p.left_wheel_radius_multiplier,
             p.wheel_radius * p.right_wheel_radius_multiplier, p.velocity_rolling_window_size)
 
+    def on_activate(self) -> Update:
+        """Odometry goes on from the wheels' positions now; the limiter starts from rest."""
+        self.odometry._last = None
+        self.last, self.last_ns, self.command_ns = (0.0, 0.0), None, None
+        return Update()
+
     def on_deactivate(self) -> Update:
         """Stop the wheels."""
         self.take(0.0, 0.0, -1)
         return Update({f"{j}/velocity": 0.0 for j in self.wheels})
 
     def on_message(self, topic: str, msg: Any, time_ns: int) -> list[str]:
-        """A new ``~/cmd_vel``."""
-        self.take(msg.twist.linear.x, msg.twist.angular.z, time_ns)
+        """A new ``~/cmd_vel``, of the time its header says (now when it says none)."""
+        stamp = msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec
+        self.take(msg.twist.linear.x, msg.twist.angular.z, stamp or time_ns)
         return []
 
     def take(self, linear: float, angular: float, now_ns: int) -> None:
@@ -188,8 +206,10 @@ class DiffDriveController(ControllerInterface):
         self.command, self.command_ns = (float(linear), float(angular)), now_ns
 
     def update(self, time_ns: int, period_ns: int) -> Update:
-        """Odometry from the wheels, then the limited command as wheel velocities."""
-        dt = seconds(period_ns)
+        """Odometry from the wheels over the time since the last update, then the limited
+        command as wheel velocities."""
+        dt = seconds(period_ns if self.last_ns is None else time_ns - self.last_ns)
+        self.last_ns = time_ns
         p = self.params
         left = sum(self.state[j].position for j in p.left_wheel_names) / len(p.left_wheel_names)
         right = sum(self.state[j].position for j in p.right_wheel_names) / len(
@@ -234,7 +254,8 @@ class DiffDriveController(ControllerInterface):
 
 
 def limit(limits: Limits, value: float, last: float, dt: float) -> float:
-    """ros2_controllers' speed limiter: velocity, then acceleration (NaN: no limit)."""
+    """ros2_controllers' speed limiter: velocity, then acceleration (NaN: no limit;
+    ``min_acceleration``, as upstream's, the lower bound of the change per second)."""
     high, low = limits.max_velocity, limits.min_velocity
     if not math.isnan(high):
         low = -high if math.isnan(low) else low
@@ -246,4 +267,6 @@ def limit(limits: Limits, value: float, last: float, dt: float) -> float:
             step = limits.max_acceleration
         if not math.isnan(step) and step > 0:
             value = min(max(value, last - step * dt), last + step * dt)
+        if not math.isnan(limits.min_acceleration):
+            value = max(value, last + limits.min_acceleration * dt)
     return value

@@ -42,6 +42,12 @@ class JointStateBroadcaster(ControllerInterface):
         """Every state interface of its joints (none named: all, known at activation)."""
         return Claim(state=tuple(f"{j}/{i}" for j in self.params.joints for i in INTERFACES))
 
+    def notes(self) -> list[str]:
+        """frame_id, when given, is not applied."""
+        if "frame_id" in self.params.model_fields_set:
+            return [f"{self.name}: frame_id is not applied: /joint_states carries no frame."]
+        return []
+
     def publications(self) -> dict[str, type]:
         """``/joint_states`` and, unless turned off, ``/dynamic_joint_states``."""
         out: dict[str, type] = {self._topic("joint_states"): JointState}
