@@ -20,10 +20,11 @@ class Arrivals:
         self._waiting: dict[str, Any] = {}
         self.count = 0
 
-    def put(self, topic: str, msg: Any) -> Any:
+    def put(self, topic: str, msg: Any, merge: Callable[[Any, Any], Any] | None = None) -> Any:
         """A message arrived; it enters at the node's next activation (the last per topic).
         Returns the message it replaced, one that arrived since the last activation and now
-        never enters, or None."""
+        never enters, or None. With ``merge``, one waiting is not replaced: ``merge(waiting,
+        msg)`` enters instead (and None is returned)."""
         if topic not in self.topics:
             raise KeyError(f"{topic} is not {self.what} "
                            f"({', '.join(sorted(self.topics))})")
@@ -32,6 +33,8 @@ class Arrivals:
                             f"not {type(msg).__name__}")
         with self._lock:
             replaced = self._waiting.get(topic)
+            if merge is not None and replaced is not None:
+                msg, replaced = merge(replaced, msg), None
             self._waiting[topic] = msg
             self.count += 1
         return replaced

@@ -284,7 +284,7 @@ def test_a_moveit_users_client_drives_the_arm_reproducibly(tmp_path, ros_node,
         cancels = sorted(k for n, k in entered.items() if n.startswith("cosim-cancel-"))
         switches = sorted(s // TICK_NS for s, m in bag.messages(
             "/controller_manager/cosim/switch", message_class("std_msgs/msg/String"))
-            if m.data == "-joint_trajectory_controller")
+            if m.data.endswith(" -joint_trajectory_controller"))  # '#<id> -name'
     # the successful goal: every joint within its goal tolerance (0.05 rad) at the end
     reached_at = goals[1] + 160
     at = dict(zip(states[reached_at].name, states[reached_at].position, strict=True))

@@ -148,3 +148,48 @@ def test_parameters_read_and_not_applied_are_noted():
     assert cls("jsb", cls.Params()).notes() == []
     assert cls("jsb", cls.Params(frame_id="world")).notes() == [
         "jsb: frame_id is not applied: /joint_states carries no frame."]
+
+
+def test_requests_of_one_tick_merge_and_each_is_handled_once_by_its_id(tmp_path):
+    """Two spawners within one tick: both requests enter (merged, one a line); the node
+    handles each id once (the external node holds the message), reports the newest and the
+    refused ones, and a refused switch names the word it cannot read."""
+    from std_msgs.msg import String
+
+    from nodes.ros2_control.config import read_controllers_file
+    from nodes.ros2_control.interface import Fresh
+    from nodes.ros2_control.manager import ControllerManager
+    from nodes.ros2_control.node import ControllerManagerNode
+    from runtime.arrivals import Arrivals
+    from tests.test_ros2_control_controllers import controllers_file
+
+    topic = "/controller_manager/cosim/switch"
+    arrivals = Arrivals({topic: String})
+    merge = lambda waiting, msg: String(data=f"{waiting.data}\n{msg.data}")  # noqa: E731
+    assert arrivals.put(topic, String(data="#1 configure:arm"), merge) is None
+    assert arrivals.put(topic, String(data="#2 configure:arm"), merge) is None
+    assert arrivals.take() == {topic: String(data="#1 configure:arm\n#2 configure:arm")}
+
+    file = read_controllers_file(controllers_file(
+        tmp_path, {"arm": "position_controllers/JointGroupPositionController"},
+        {"arm": {"joints": ["a"]}}))
+    node = ControllerManagerNode.__new__(ControllerManagerNode)  # its switch logic only
+    node.manager, node.fresh, node.request, node.refused = ControllerManager(file), Fresh(), 0, []
+    node.hardware = type("Hardware", (), {"state": {"a": JointReading(0.0)}})()
+    notes: list[str] = []
+    node.note = notes.append
+    held = String(data="#1 configure:arm\n#2 configure:arm\n#3 +arm bogus")
+    node._switch(held)
+    metrics = node.metrics()
+    assert metrics["request"] == 3.0 and "refused:1" not in metrics and "refused:2" not in metrics
+    assert metrics["refused:3"] == 1.0 and notes == [
+        "switch_controller refused: '+arm bogus': 'bogus' is not '+name' (activate) or "
+        "'-name' (deactivate) (request 3)"]
+    node._switch(held)  # held by the external node: nothing is done again
+    assert node.metrics()["request"] == 3.0 and "refused:3" not in node.metrics()
+    node._switch(String(data="#4 +arm"))
+    assert node.manager.active() == ["arm"] and len(notes) == 1
+    node._switch(String(data="#5 configure:arm"))  # the face planned on an older state
+    assert node.metrics()["refused:5"] == 1.0
+    assert notes[-1] == ("configure_controller refused: Controller 'arm' can not be configured "
+                         "from 'active' state. (request 5)")

@@ -144,7 +144,8 @@ def test_a_robots_manager_answers_ros2controlcli_and_upstreams_services(tmp_path
     assert manifest["ticks"] == stopped_at, err
     scenario = load_scenario(SWARM, {"duration": f"{(stopped_at - 1) * TICK_MS}ms"})
     inputs = recorded_inputs(run_dir, scenario)
-    entered = [inputs[k][f"{cm}cosim/switch"].data for k in sorted(inputs)]
+    entered = [inputs[k][f"{cm}cosim/switch"].data.partition(" ")[2]  # '#<id> <request>'
+               for k in sorted(inputs)]
     assert [d for i, d in enumerate(entered) if d and d != entered[i - 1]] == [
         f"-{ddc}", f"unload:{ddc}", f"load:{ddc}", f"configure:{ddc}", f"+{ddc}"]
     assert not any(inputs[k]["/robot_1/controller_manager/cosim/switch"].data for k in inputs)

@@ -17,7 +17,7 @@ declared topic at every activation, its topics carry an empty message of their t
 Switches (controller_manager/switch_controller) enter on ``/controller_manager/cosim/switch``
 (std_msgs/String: ``+name`` activates, ``-name`` deactivates), and so do load_controller,
 unload_controller and configure_controller (``load:name``, ``unload:name``,
-``configure:name``).
+``configure:name``), each a line with its request id (``nodes.ros2_control.requests``).
 The metrics report each controller's state and the trajectory controllers' goals, which the
 orchestrator's controller manager services answer from.
 """
@@ -45,10 +45,10 @@ from nodes.ros2_control.hardware import (
 from nodes.ros2_control.interface import NS_PER_S, Fresh
 from nodes.ros2_control.manager import ControllerManager, claim_conflict, load, resolve
 from nodes.ros2_control.registry import served_types
+from nodes.ros2_control.requests import apply_request, request_lines
 
 SWITCH_TOPIC = "/controller_manager/cosim/switch"
 SWITCH_TYPE = "std_msgs/msg/String"  # '+name' activates, '-name' deactivates, space-separated
-LIFECYCLE_VERBS = ("load", "unload", "configure")  # 'load:name', one a message
 
 
 class ControllerManagerParams(BaseModel):
@@ -226,6 +226,7 @@ class ControllerManagerNode(StepNode):
         self.hardware = TopicHardware(info, HARDWARE_COMMANDS in self.declared,
                                       BASE_COMMAND in self.declared)
         self.fresh = Fresh()
+        self.request, self.refused = 0, []  # the newest request handled; refused this tick
         self.first = True
         for note in self.manager.notes():
             self.note(note)
@@ -259,29 +260,31 @@ class ControllerManagerNode(StepNode):
         return out
 
     def _switch(self, msg) -> dict[str, float]:
-        if msg is None or not self.fresh(SWITCH_TOPIC, msg):
+        """The requests of the switch topic (``nodes.ros2_control.requests``) not handled
+        before: a request with an id once, one without when the message is new."""
+        self.refused = []
+        if msg is None:
             return {}
-        words = msg.data.split()
-        verb, _, name = msg.data.partition(":")
-        if verb in LIFECYCLE_VERBS and len(words) == 1:
-            problem = self.manager.lifecycle(verb, name)
-            if problem:
-                self.note(f"{verb}_controller refused: {problem}")
-            return {}
-        activate = [w[1:] for w in words if w.startswith("+")]
-        deactivate = [w[1:] for w in words if w.startswith("-")]
-        if len(activate) + len(deactivate) != len(words):
-            self.note(f"switch_controller refused: {msg.data!r} names no controller "
-                      f"{words[0]!r}")
-            return {}
-        done, problem = self.manager.switch(activate, deactivate, self.hardware.state)
-        if problem:
-            self.note(f"switch_controller refused: {msg.data!r}: {problem}")
-        return done.commands
+        new = self.fresh(SWITCH_TOPIC, msg)
+        commands: dict[str, float] = {}
+        for rid, body in request_lines(msg.data):
+            if (rid is None and not new) or (rid is not None and rid <= self.request):
+                continue
+            self.request = max(self.request, rid or 0)
+            done, why = apply_request(self.manager, body, self.hardware.state)
+            commands.update(done)
+            if why:
+                self.note(why if rid is None else f"{why} (request {rid})")
+                if rid is not None:
+                    self.refused.append(rid)
+        return commands
 
     def metrics(self) -> dict[str, float]:
         """Each controller's state (active:<name> 1 or 0; state:<name> 0 unloaded,
         1 unconfigured, 2 inactive, 3 active) and each trajectory controller's
         newest action goal: its number, state (0 none, 1 active, 2 succeeded, 3 aborted,
-        4 cancelled or preempted), result code and the joint that broke a tolerance."""
-        return self.manager.metrics()
+        4 cancelled or preempted), result code and the joint that broke a tolerance; the
+        newest request handled (``request``) and those refused at this tick
+        (``refused:<id>`` 1)."""
+        return {**self.manager.metrics(), "request": float(self.request),
+                **{f"refused:{r}": 1.0 for r in self.refused}}

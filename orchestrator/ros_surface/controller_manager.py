@@ -86,6 +86,7 @@ class ControllerManagerServer:
         self._seq = 0
         self._latest: dict[str, object] = {}
         self._sent = 0  # goals and cancels put, which name them
+        self._requests = 0  # switch, load, unload, configure requests put, which name them
         # id of a goal request -> its number (cosim-goal-<n>, the controller's goal_seq) and
         # the newest report when it was put
         self._seq_of: dict[int, tuple[int, int]] = {}
@@ -212,15 +213,12 @@ class ControllerManagerServer:
         response.ok, response.message = done.ok, done.message
         if not done.ok or not (done.activate or done.deactivate):
             return response
-        msg = String(data=" ".join([*(f"-{n}" for n in done.deactivate),
-                                    *(f"+{n}" for n in done.activate)]))
-        wanted = {**{n: "inactive" for n in done.deactivate},
-                  **{n: "active" for n in done.activate}}
-        return self._enter(msg, wanted, response, "switch")
+        body = " ".join([*(f"-{n}" for n in done.deactivate),
+                         *(f"+{n}" for n in done.activate)])
+        return self._enter(body, response, "switch")
 
     def _lifecycle(self, verb: str):
         """load_controller, unload_controller or configure_controller, as upstream's."""
-        after = LIFECYCLE[verb][1]
 
         def handle(request, response):
             with self._cond:
@@ -232,31 +230,38 @@ class ControllerManagerServer:
                             verb, self.control.at(), problem)
                 response.ok = False
                 return response
-            return self._enter(String(data=f"{verb}:{request.name}"), {request.name: after},
-                               response, f"{verb} of {request.name}")
+            return self._enter(f"{verb}:{request.name}", response, f"{verb} of {request.name}")
         return handle
 
-    def _enter(self, msg: String, wanted: dict[str, str], response, what: str):
-        """Put ``msg`` into the run and answer once a tick shows every controller in
-        ``wanted`` in its state (a paused run: at once, saying when it enters)."""
+    def _enter(self, body: str, response, what: str):
+        """Put request ``body`` into the run with its id (requests of one tick enter together,
+        one a line: ``nodes.ros2_control.requests``) and answer as the node reports it: done
+        or refused (a paused run: at once, saying when it enters)."""
         with self._cond:
             seen = self._seq
-            self.arrivals.put(self.topics[SWITCH_TOPIC], msg)
+            self._requests += 1
+            rid = self._requests
+            self.arrivals.put(self.topics[SWITCH_TOPIC], String(data=f"#{rid} {body}"),
+                              merge=lambda waiting, msg: String(data=f"{waiting.data}\n"
+                                                                 f"{msg.data}"))
         if self.control.state == PAUSED:  # it cannot wait for a tick nobody asks for
             response.ok = True
             if hasattr(response, "message"):
                 response.message += f"\n(the {what} enters at {self.control.at()}: the run " \
                     "is paused)"
             return response
-        codes = {n: STATE_CODES[s] for n, s in wanted.items()}
         while True:
             ended = self.control.ended
             with self._cond:
                 if self._seq == seen:
                     self._cond.wait(WAIT_S)
                 fresh = [m for s, m in self._reports if s > seen]
-            if any(all(m.get(f"state:{n}") == c for n, c in codes.items()) for m in fresh):
-                response.ok = True
+            handled = next((m for m in fresh if m.get("request", 0.0) >= rid), None)
+            if handled is not None:
+                response.ok = f"refused:{rid}" not in handled
+                if not response.ok and hasattr(response, "message"):
+                    response.message = (f"the controller manager refused the {what} when it "
+                                        "entered (its reason is in the run's notes)")
                 return response
             if ended is not None:
                 response.ok = False
