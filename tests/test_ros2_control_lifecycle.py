@@ -193,3 +193,34 @@ def test_requests_of_one_tick_merge_and_each_is_handled_once_by_its_id(tmp_path)
     assert node.metrics()["refused:5"] == 1.0
     assert notes[-1] == ("configure_controller refused: Controller 'arm' can not be configured "
                          "from 'active' state. (request 5)")
+
+
+def test_an_inactive_controller_the_hardware_cannot_serve_loads_and_its_activation_is_refused(
+        tmp_path):
+    """As upstream (UR's forward_velocity_controller on position servos): the file loads;
+    only activating it is refused, naming what the hardware lacks."""
+    import yaml
+
+    from descriptions.load import load_scenario
+    from nodes.ros2_control.config import read_controllers_file
+    from nodes.ros2_control.hardware import CommandJoint, HardwareInfo, unservable
+    from nodes.ros2_control.manager import ControllerManager
+    from tests.test_ros2_control_controllers import arm_scenario, controllers_file
+
+    path = arm_scenario(tmp_path, effort_joint="wrist_2")  # 'push': effort on a velocity servo
+    doc = yaml.safe_load(path.read_text())
+    doc["nodes"][1]["params"]["inactive"] = ["push"]
+    path.write_text(yaml.safe_dump(doc))
+    load_scenario(path)  # no ScenarioError: push is not active at the start
+
+    file = read_controllers_file(controllers_file(
+        tmp_path, {"vel": "velocity_controllers/JointGroupVelocityController"},
+        {"vel": {"joints": ["j1"]}}))
+    manager = ControllerManager(file)
+    info = HardwareInfo(("j1",), (CommandJoint("j1", "position", "j1_servo"),))
+    manager.unservable = unservable(manager.controllers, info)
+    _, problem = manager.switch(["vel"], [], {"j1": JointReading(0.0)})
+    assert problem == ("controller 'vel' cannot be activated: joint 'j1' has no velocity "
+                       "command interface in cosim's hardware: its MuJoCo actuator 'j1_servo' "
+                       "takes position commands")
+    assert manager.active() == []

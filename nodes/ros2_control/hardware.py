@@ -204,3 +204,14 @@ class TopicHardware:
 
 def _padded(values, names) -> list[float]:
     return list(values) if len(values) == len(names) else [0.0] * len(names)
+
+
+def unservable(controllers, info: HardwareInfo) -> dict[str, str]:
+    """controller -> the first interface of its claim the hardware lacks, said (only those
+    the hardware cannot serve; ``controllers``: name -> controller or None)."""
+    out = {}
+    for name, ctrl in controllers.items():
+        problems = info.problems(ctrl.claim()) if ctrl is not None else []
+        if problems:
+            out[name] = problems[0][0].rstrip(".")
+    return out

@@ -100,10 +100,11 @@ def claim_conflict(controllers: Mapping[str, ControllerInterface | None],
 
 
 def switch_problem(file: ControllersFile, controllers: Mapping[str, ControllerInterface | None],
-                   active: Iterable[str], activate: list[str], deactivate: list[str]
-                   ) -> str | None:
-    """Why a switch cannot be done (an unknown controller, a type cosim cannot run, two
-    active controllers claiming one command interface), or None."""
+                   active: Iterable[str], activate: list[str], deactivate: list[str],
+                   unservable: Mapping[str, str] | None = None) -> str | None:
+    """Why a switch cannot be done (an unknown controller, a type cosim cannot run, one whose
+    interfaces the hardware lacks (``unservable``: name -> why), two active controllers
+    claiming one command interface), or None."""
     unknown = [n for n in [*activate, *deactivate] if n not in controllers]
     if unknown:
         return f"no controller {unknown[0]!r}; controllers: " + ", ".join(controllers)
@@ -111,6 +112,8 @@ def switch_problem(file: ControllersFile, controllers: Mapping[str, ControllerIn
         if controllers[name] is None:
             return (f"controller {name!r} has type {file.named(name).type!r}, which cosim "
                     "cannot run (it is loaded and stays inactive)")
+        if name in (unservable or {}):
+            return f"controller {name!r} cannot be activated: {unservable[name]}"
     after = [n for n in controllers if (n in active and n not in deactivate) or n in activate]
     return claim_conflict(controllers, after)
 
@@ -123,6 +126,7 @@ class ControllerManager:
         self.controllers = load(file)
         self.unloaded: set[str] = set()
         self.held: dict[str, Any] = {}  # topic -> its message at the last tick
+        self.unservable: dict[str, str] = {}  # controller -> what the hardware lacks for it
 
     def states(self) -> dict[str, str]:
         """Every loaded controller's state, in file order."""
@@ -175,7 +179,7 @@ class ControllerManager:
         """Deactivate, then activate; the commands they leave, and why nothing was switched
         (or None)."""
         problem = switch_problem(self.file, self.controllers, self.active(), activate,
-                                 deactivate)
+                                 deactivate, self.unservable)
         states = self.states()
         if problem is None:
             problem = next((f"controller {n!r} is {states.get(n, 'not loaded')}" for n in

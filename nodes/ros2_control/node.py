@@ -41,6 +41,7 @@ from nodes.ros2_control.hardware import (
     HARDWARE_STATES,
     TopicHardware,
     hardware_info,
+    unservable,
 )
 from nodes.ros2_control.interface import NS_PER_S, Fresh
 from nodes.ros2_control.manager import ControllerManager, claim_conflict, load, resolve
@@ -173,9 +174,10 @@ class ControllerManagerNode(StepNode):
     @classmethod
     def robot_problems(cls, params: ControllerManagerParams, robot, model
                        ) -> list[tuple[str, str, str]]:
-        """Every interface a controller claims is one the robot's hardware has (a command
-        interface one of its MuJoCo actuators realises), and no command interface is claimed
-        by two controllers active from the start."""
+        """Every interface a controller active from the start claims is one the robot's
+        hardware has (a command interface one of its MuJoCo actuators realises; an inactive
+        one loads, and its activation is refused, as upstream's), and no command interface
+        is claimed by two controllers active from the start."""
         file = read(params)
         info = hardware_info(model, robot, params.command_joints)
         if params.command_joints is not None:
@@ -186,13 +188,14 @@ class ControllerManagerNode(StepNode):
                              "world.", "joints with actuators: " + ", ".join(
                                  info.command_interfaces()) + ".")]
         controllers = load(file)
+        starting = at_start(params, file)
         for name, ctrl in controllers.items():
-            if ctrl is None:
+            if ctrl is None or name not in starting:
                 continue
             for problem, accepted in info.problems(ctrl.claim()):
                 return [("params.controllers", f"{file.file.name}: {name}: {problem}",
                          accepted)]
-        conflict = claim_conflict(controllers, at_start(params, file))
+        conflict = claim_conflict(controllers, starting)
         if conflict:
             return [("params.controllers", f"{file.file.name}: {conflict}.", "one active "
                      "controller per command interface (list the others in params.inactive).")]
@@ -222,6 +225,7 @@ class ControllerManagerNode(StepNode):
         robot = self.config.robots[0] if self.config.robots else None
         info = hardware_info(model, robot, self.params.command_joints)
         self.manager = ControllerManager(self.file)
+        self.manager.unservable = unservable(self.manager.controllers, info)
         self.declared = self.outputs(self.params)
         self.hardware = TopicHardware(info, HARDWARE_COMMANDS in self.declared,
                                       BASE_COMMAND in self.declared)
@@ -230,6 +234,8 @@ class ControllerManagerNode(StepNode):
         self.first = True
         for note in self.manager.notes():
             self.note(note)
+        for name, why in self.manager.unservable.items():
+            self.note(f"{name}: {why}: it is loaded, and its activation is refused.")
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """One update of the controller manager."""

@@ -39,6 +39,7 @@ from std_msgs.msg import String
 from nodes.registry import KINDS
 from nodes.ros2_control.controllers.joint_trajectory_controller import GOAL
 from nodes.ros2_control.goals import ACTIVE, CANCEL_ID, DEACTIVATED, GOAL_ID
+from nodes.ros2_control.hardware import unservable
 from nodes.ros2_control.manager import STATE_CODES, lifecycle_problem, load, resolve
 from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
 from nodes.ros2_control.registry import BASE_CLASS, served_types
@@ -205,6 +206,8 @@ class ControllerManagerServer:
         unrunnable = {n: f"its type {self.file.named(n).type!r} is one cosim cannot run (it "
                       "is loaded and stays inactive)" for n, c in self.controllers.items()
                       if c is None}
+        unrunnable.update({n: f"{why} (it is loaded and stays inactive)" for n, why in
+                           unservable(self.controllers, self.hardware().info).items()})
         done = plan_switch(states, claims, list(request.activate_controllers),
                            list(request.deactivate_controllers), request.strictness, unrunnable)
         log.info("%sswitch_controller (%s) at %s: %s", self.ns + "/controller_manager/",
