@@ -345,8 +345,9 @@ type. Everything else asks a controller what it claims, publishes and offers."""
 
 def controller_type_branches(files: list[tuple[str, str]]) -> list[str]:
     """Where code (``(path, source)`` pairs) outside the registry and the controllers' own
-    modules names a controller type (not in a docstring), tests a controller's class, or
-    compares a controller's ``.type`` (in a module that uses nodes.ros2_control)."""
+    modules names a controller type (not in a docstring), tests a controller's class
+    (isinstance, issubclass, ``type(c) is X``, ``__class__.__name__ == "X"``, ``case X()``),
+    or compares a controller's ``.type`` (in a module that uses nodes.ros2_control)."""
     from nodes.ros2_control.registry import CONTROLLER_TYPES
 
     names = set(CONTROLLER_TYPES)
@@ -362,10 +363,20 @@ def controller_type_branches(files: list[tuple[str, str]]) -> list[str]:
             if (isinstance(node, ast.Constant) and node.value in names
                     and id(node) not in docstrings):
                 found.append(f"{where}:{node.lineno}: {node.value!r}")
-            elif (isinstance(node, ast.Call) and getattr(node.func, "id", "") == "isinstance"
+            elif (isinstance(node, ast.Call)
+                  and getattr(node.func, "id", "") in ("isinstance", "issubclass")
+                  and len(node.args) == 2
                   and any(getattr(a, "id", getattr(a, "attr", "")) in classes
                           for a in ast.walk(node.args[1]))):
-                found.append(f"{where}:{node.lineno}: isinstance of a controller class")
+                found.append(f"{where}:{node.lineno}: {node.func.id} of a controller class")
+            elif isinstance(node, ast.MatchClass) and getattr(
+                    node.cls, "id", getattr(node.cls, "attr", "")) in classes:
+                found.append(f"{where}:{node.lineno}: a case of a controller class")
+            elif (isinstance(node, ast.Compare) and any(
+                    getattr(o, "id", getattr(o, "attr", None)) in classes
+                    or (isinstance(o, ast.Constant) and o.value in classes)
+                    for o in [node.left, *node.comparators])):
+                found.append(f"{where}:{node.lineno}: a controller class compared")
             elif (uses_control and isinstance(node, ast.Compare)
                   and any(isinstance(o, ast.Attribute) and o.attr == "type"
                           for o in [node.left, *node.comparators])):
@@ -390,6 +401,18 @@ def test_the_controller_type_check_sees_a_branch():
     assert "'diff_drive_controller/DiffDriveController'" in found
     assert "isinstance of a controller class" in found
     assert "a controller's type compared" in found
+    others = ('def g(ctrl, cls):\n'
+              '    if type(ctrl) is DiffDriveController or issubclass(cls, controllers.'
+              'JointGroupPositionController):\n'
+              '        return ctrl.__class__.__name__ == "JointStateBroadcaster"\n'
+              '    match ctrl:\n'
+              '        case ParallelGripperActionController():\n'
+              '            return 1\n')
+    found = controller_type_branches([("nodes/probe.py", others)])
+    assert found == ["nodes/probe.py:2: a controller class compared",
+                     "nodes/probe.py:2: issubclass of a controller class",
+                     "nodes/probe.py:3: a controller class compared",
+                     "nodes/probe.py:5: a case of a controller class"], found
     assert "JointStateBroadcaster'" not in found  # a docstring names a type; it does not branch
     assert not controller_type_branches([("nodes/ros2_control/registry.py", probe)])
 

@@ -165,9 +165,9 @@ def arm_scenario(tmp_path, effort_joint: str = "wrist_3"):
 def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
     from orchestrator.api import run
 
-    commands = {"/arm/commands": Float64MultiArray(data=[0.3, -0.2, 0.4, 0.1]),
-                "/spin/commands": Float64MultiArray(data=[1.0]),
-                "/push/commands": Float64MultiArray(data=[0.5])}
+    commands = {"/myarm/arm/commands": Float64MultiArray(data=[0.3, -0.2, 0.4, 0.1]),
+                "/myarm/spin/commands": Float64MultiArray(data=[1.0]),
+                "/myarm/push/commands": Float64MultiArray(data=[0.5])}
     done = run(arm_scenario(tmp_path), in_process=True, out=tmp_path / "runs",
                external=lambda k: commands if k >= 1 else {})
     with BagReader(done.run_dir / "bag") as bag:
@@ -177,7 +177,9 @@ def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
                                            message_class("std_msgs/msg/Float64MultiArray"))]
     # physics' /joint_commands: each joint's value as its actuator takes it, in its order
     assert list(sent[-1].data) == [0.3, -0.2, 0.4, 0.1, 1.0, 0.5]
-    assert list(sent[0].data) == [0.0] * 6  # before any command: positions held, no motion
+    # before any command: positions held, no motion (test_the_hardware_holds_... tells held
+    # from zero, which this arm, starting at zero, cannot)
+    assert list(sent[0].data) == [0.0] * 6
     end = dict(zip(states[-1].name, zip(states[-1].position, states[-1].velocity,
                                          strict=True), strict=True))
     for joint, target in zip(ARM_JOINTS, [0.3, -0.2, 0.4, 0.1], strict=True):
@@ -187,6 +189,22 @@ def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
     mid = dict(zip(states[len(states) // 2].name, states[len(states) // 2].position,
                    strict=True))
     assert end["wrist_3"][0] > mid["wrist_3"] > 0.1  # a steady torque keeps it turning
+
+
+def test_the_hardware_holds_positions_where_the_arm_starts_until_a_command():
+    from sensor_msgs.msg import JointState
+
+    from nodes.ros2_control.hardware import TopicHardware
+
+    info = HardwareInfo(("j1", "j2", "j3"), (CommandJoint("j1", "position", "s1"),
+                                             CommandJoint("j2", "velocity", "s2"),
+                                             CommandJoint("j3", "position", "s3")))
+    hardware = TopicHardware(info, write_joints=True, write_base=False)
+    hardware.read(JointState(name=["j1", "j2", "j3"], position=[0.3, -0.2, 0.7]))
+    hardware.start()
+    assert list(hardware.write({})["/cosim/hardware_commands"].data) == [0.3, 0.0, 0.7]
+    assert list(hardware.write({"j3/position": 0.1})["/cosim/hardware_commands"].data) == [
+        0.3, 0.0, 0.1]
 
 
 def test_an_interface_mujoco_cannot_realise_is_refused_naming_the_joint(tmp_path):
@@ -256,9 +274,9 @@ def test_a_moveit_users_gripper_goal_is_answered_by_the_gripper_controller(tmp_p
                       "gripper": {"joint": "wrist_1", "goal_tolerance": 0.02}})
     sim = SimClient(ros_node)
     with orchestrate(path, tmp_path / "out", "--paused", "--duration", "2s") as proc:
-        sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
+        sim.send_goal(ParallelGripperCommand, "/myarm/gripper/gripper_cmd",
                       gripper_goal("", 0.3, 0.3), accepted=False)
-        grasp = sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
+        grasp = sim.send_goal(ParallelGripperCommand, "/myarm/gripper/gripper_cmd",
                               gripper_goal("", 0.3))
         sim.set_state(SimulationState.STATE_PLAYING)
         sim.spin_until(lambda: grasp.result.done(), timeout=120)
