@@ -290,17 +290,21 @@ def widen_discovery(participants: int) -> str | None:
     process loads rclpy (Fast DDS reads its profile once) and when the user chose no profile."""
     if os.environ.get(RANGE_VAR) != "LOCALHOST" or participants <= LOCALHOST_PEERS - 4:
         return None
-    if "rclpy._rclpy_pybind11" in sys.modules or any(
-            os.environ.get(v) for v in ("FASTRTPS_DEFAULT_PROFILES_FILE",
-                                        "FASTDDS_DEFAULT_PROFILES_FILE")):
+    import runtime.transport  # not .ros2: it loads rclpy, after which the profile is read
+
+    folder = Path(runtime.transport.__file__).parent
+    users = [os.environ.get(v) for v in ("FASTRTPS_DEFAULT_PROFILES_FILE",
+                                         "FASTDDS_DEFAULT_PROFILES_FILE")]
+    # cosim's own default profile (which a parent that imported the transport passes on) is
+    # no choice of the user's
+    ours = str(folder / "fastdds_profile.xml")
+    if "rclpy._rclpy_pybind11" in sys.modules or any(u and u != ours for u in users):
         return (f"{participants} DDS participants on one domain with LOCALHOST discovery, "
                 f"which reaches {LOCALHOST_PEERS}: some may never discover each other. Pack "
                 "nodes into fewer processes (--pack kind) or leave the Fast DDS profile to "
                 "cosim.")
-    from runtime.transport.ros2 import PROFILE
-
     peers = min(120, participants + LOCALHOST_PEERS)
-    template = PROFILE.with_name("fastdds_localhost_profile.xml").read_text()
+    template = (folder / "fastdds_localhost_profile.xml").read_text()
     folder = Path(tempfile.gettempdir()) / PROFILES
     folder.mkdir(exist_ok=True)
     path = folder / f"localhost-{peers}.xml"

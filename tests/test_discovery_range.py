@@ -9,6 +9,7 @@ from __future__ import annotations
 import yaml
 
 from orchestrator import run_domain
+from runtime.transport.ros2 import PROFILE
 from tests.helpers import orchestrate
 
 NODES = 33
@@ -29,8 +30,10 @@ def chain(tmp_path):
 
 def test_a_run_of_more_processes_than_localhost_discovery_reaches_starts(tmp_path):
     assert NODES + 2 > run_domain.LOCALHOST_PEERS + 1  # two participants above id 31
-    run = orchestrate(chain(tmp_path), tmp_path / "runs", timeout=180,
-                      env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    # as a test process that has used the ros2 transport passes them on
+    env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+           "FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILE)}
+    run = orchestrate(chain(tmp_path), tmp_path / "runs", timeout=180, env=env)
     assert run.code == 0, run.stderr
     log = (run.run_dir / "logs" / "orchestrator.log").read_text()
     assert f"{NODES + 2} DDS participants: LOCALHOST discovery widened" in log

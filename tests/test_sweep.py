@@ -236,7 +236,7 @@ def test_multi_process_runs_each_lease_a_ros_domain(tmp_path, alone):
 
 def test_ctrl_c_stops_every_run_writes_the_table_and_resume_finishes(tmp_path):
     out = tmp_path / "sweep"
-    args = [str(SCENARIO), "--out", str(out), "--seeds", "1-8", "--set", "duration=1s"]
+    args = [str(SCENARIO), "--out", str(out), "--seeds", "1-8", "--set", "duration=3s"]
     proc = subprocess.Popen([*SWEEP, *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
