@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
 
 from plan.options import PACKINGS, PROFILE_MODES, SPAWN_MODES, TRANSPORTS
-from runtime.entry import guarded
+from runtime.entry import guarded, interruptible
 
 EXIT_SUCCESS, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_NODE_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
@@ -227,9 +226,6 @@ def _choose_domain(args: argparse.Namespace, scenario, options):
     return choose(pinned, f"cosim-orchestrate {label}")
 
 
-def _interrupt(signum, _frame):
-    raise KeyboardInterrupt
-
 
 @guarded("cosim-orchestrate")
 def main(argv: list[str] | None = None) -> int:
@@ -292,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
     if recorded is not None:
         print(f"cosim-orchestrate: replaying {args.replay}: {recorded.count} message(s) from "
               f"outside at their ticks; recorded digest {recorded.digest}", file=sys.stderr)
-    signal.signal(signal.SIGTERM, _interrupt)
+    interruptible()  # SIGINT and SIGTERM: exit 130, even if started with them ignored
     from orchestrator.execute import execute
     from orchestrator.outputs.report import print_outcome
     from orchestrator.progress import Progress

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import os
+import signal
 import sys
 import tempfile
 import traceback
@@ -21,6 +22,20 @@ EXIT_INTERNAL_ERROR = 70
 EXIT_INTERRUPTED = 130
 
 Main = Callable[[list[str] | None], int]
+
+
+def interruptible() -> None:
+    """Make SIGINT and SIGTERM end this command as Ctrl-C does (KeyboardInterrupt: exit 130,
+    outputs kept), even where it was started with them ignored or blocked (a script's
+    background job, a test runner's worker): the exit code is part of the command's contract.
+    Main thread only."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+
+
+def _raise_interrupt(signum, _frame):
+    raise KeyboardInterrupt
 
 
 def guarded(prog: str) -> Callable[[Main], Main]:

@@ -123,6 +123,29 @@ def test_stopped_node_misses_its_deadline_and_is_still_cleaned_up(tmp_path):
     assert_nothing_left(pids)
 
 
+def test_a_run_started_with_ctrl_c_ignored_or_blocked_is_still_interrupted(tmp_path):
+    """A script's background job starts with SIGINT ignored, a test worker may pass a mask on:
+    exit 130 on SIGINT is the command's contract all the same."""
+    def deaf_to_ctrl_c():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+
+    proc = subprocess.Popen([*ORCHESTRATE, str(LONG), "--out", str(tmp_path)], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=deaf_to_ctrl_c)
+    try:
+        end = time.monotonic() + 60
+        while not (parts := list(tmp_path.glob("*/parts/tail.rec"))) or \
+                parts[0].stat().st_size < 2000:
+            assert proc.poll() is None and time.monotonic() < end, proc.communicate()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=HANG_S)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_interrupting_the_orchestrator_exits_130_cleanly(tmp_path, sig):
     run = LiveRun(LONG, tmp_path)

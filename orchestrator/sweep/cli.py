@@ -6,13 +6,12 @@ import argparse
 import importlib.util
 import json
 import os
-import signal
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from runtime.entry import guarded
+from runtime.entry import guarded, interruptible
 
 EXIT_ALL_SUCCEEDED, EXIT_GOAL_NOT_MET, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED = 130
@@ -168,7 +167,7 @@ def _sweep(args: argparse.Namespace, checked, backend) -> int:
         ran.append(record["run_id"])
         progress.update(record)
 
-    signal.signal(signal.SIGTERM, _interrupt)
+    interruptible()  # SIGINT and SIGTERM: exit 130, even if started with them ignored
     started = time.monotonic()
     interrupted = False
     try:
@@ -217,9 +216,6 @@ def _report(args: argparse.Namespace, checked, done: dict[str, dict[str, Any]], 
         return EXIT_RUN_FAILED
     return EXIT_GOAL_NOT_MET if "goal_not_met" in statuses else EXIT_ALL_SUCCEEDED
 
-
-def _interrupt(signum, _frame):
-    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":
