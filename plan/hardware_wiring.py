@@ -27,7 +27,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from plan.errors import ScenarioError, ScenarioNotice
-from plan.kinds import catalogue
+from plan.kinds import catalogue, class_of
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES
 
@@ -38,16 +38,6 @@ HARDWARE_OF = {JOINT_STATES: HARDWARE_STATES, JOINT_COMMANDS: HARDWARE_COMMANDS,
                CMD_VEL: BASE_COMMAND}
 """Physics' robot topic -> the hardware topic the controller manager knows it as."""
 HARDWARE_TOPICS = frozenset(HARDWARE_OF.values())
-
-
-def class_of(spec: NodeSpec) -> type | None:
-    """The node class of ``spec`` (None where it does not load: the checks report that)."""
-    kinds = catalogue()
-    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
-    try:
-        return kinds.load(ref) if ref else None
-    except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
-        return None
 
 
 def _topics(spec: NodeSpec, cls: type, scenario_dir: Path) -> tuple[set[str], set[str]] | None:

@@ -38,3 +38,14 @@ def catalogue() -> Catalogue:
         raise LookupError("no node kinds are known to the plan: import the package of node "
                           "kinds (import nodes) before loading a scenario")
     return _provided[0]
+
+
+def class_of(spec) -> type | None:
+    """The node class of a node spec (its ``kind``, else its ``module``); None where it does
+    not load (the scenario's checks report that, naming the key)."""
+    kinds = catalogue()
+    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
+    try:
+        return kinds.load(ref) if ref else None
+    except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
+        return None

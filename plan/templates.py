@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from plan.errors import ScenarioError
+from plan.kinds import class_of
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout, namespaced
 
@@ -31,7 +32,7 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
         if layout is None:
             raise ScenarioError(path, f"{key}.for_each", "the scenario has no robots: section.",
                                 "a robots: section, or leave for_each out.")
-        cls = _class_of(spec)
+        cls = class_of(spec)
         if cls is not None and getattr(cls, "every_robot", False):
             what = f"kind {spec.kind}" if spec.kind else spec.module
             raise ScenarioError(path, f"{key}.for_each", f"{spec.name} ({what}) steps one world "
@@ -49,19 +50,8 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
     return model.model_copy(update={"nodes": nodes}), origins
 
 
-def _class_of(spec: NodeSpec) -> type | None:
-    from plan.kinds import catalogue
-
-    kinds = catalogue()
-    ref = kinds.kinds.get(spec.kind) if spec.kind else spec.module
-    try:
-        return kinds.load(ref) if ref else None
-    except Exception:  # noqa: BLE001 - the scenario's own checks report it, naming the key
-        return None
-
-
 def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
-    cls = _class_of(spec)
+    cls = class_of(spec)
     params = dict(spec.params)
     own = {inp.topic for inp in spec.inputs}
     if cls is not None:
@@ -86,7 +76,7 @@ def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
 
 
 def _world_node(spec: NodeSpec, layout: RobotsLayout) -> NodeSpec:
-    cls = _class_of(spec)
+    cls = class_of(spec)
     if cls is None or not getattr(cls, "every_robot", False):
         return spec
     inputs: list[InputSpec] = []
