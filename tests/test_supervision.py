@@ -23,11 +23,13 @@ HANG_S = 60  # generous: only a hang runs into it, however loaded the machine
 class LiveRun:
     """cosim-orchestrate started in the background, with handles on its node processes."""
 
-    def __init__(self, scenario, out, *args: str, env: dict[str, str] | None = None):
+    def __init__(self, scenario, out, *args: str, env: dict[str, str] | None = None,
+                 preexec_fn=None):
         self.out = out
         self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
                                      cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env={**os.environ, **(env or {})})
+                                     text=True, env={**os.environ, **(env or {})},
+                                     preexec_fn=preexec_fn)
         self.ps = psutil.Process(self.proc.pid)
 
     def node(self, name: str) -> psutil.Process:
@@ -130,20 +132,14 @@ def test_a_run_started_with_ctrl_c_ignored_or_blocked_is_still_interrupted(tmp_p
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
 
-    proc = subprocess.Popen([*ORCHESTRATE, str(LONG), "--out", str(tmp_path)], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=deaf_to_ctrl_c)
+    run = LiveRun(LONG, tmp_path, preexec_fn=deaf_to_ctrl_c)
     try:
-        end = time.monotonic() + 60
-        while not (parts := list(tmp_path.glob("*/parts/tail.rec"))) or \
-                parts[0].stat().st_size < 2000:
-            assert proc.poll() is None and time.monotonic() < end, proc.communicate()
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=HANG_S)
+        run.wait_running()
+        run.proc.send_signal(signal.SIGINT)
+        code, _, err = run.finish()
     finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+        run.proc.kill()
+    assert code == 130, err
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
