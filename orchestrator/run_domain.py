@@ -270,7 +270,7 @@ def release(domain: int) -> None:
 LOCALHOST_PEERS = 32
 """Participants that ROS 2's LOCALHOST discovery reaches on one domain (rmw_fastrtps probes
 the ports of participant ids 0..31 on 127.0.0.1; two participants both above that never meet)."""
-PROFILES = "cosim-dds-profiles"  # the folder of widen_discovery's profiles, under $TMPDIR
+PROFILES = f"cosim-dds-profiles-{os.getuid()}"  # widen_discovery's, this user's, in $TMPDIR
 
 
 def widened() -> bool:
@@ -305,11 +305,11 @@ def widen_discovery(participants: int) -> str | None:
                 "cosim.")
     peers = min(120, participants + LOCALHOST_PEERS)
     template = (folder / "fastdds_localhost_profile.xml").read_text()
-    folder = Path(tempfile.gettempdir()) / PROFILES
-    folder.mkdir(exist_ok=True)
-    path = folder / f"localhost-{peers}.xml"
+    profiles = Path(tempfile.gettempdir()) / PROFILES
+    profiles.mkdir(exist_ok=True)
+    path = profiles / f"localhost-{peers}.xml"
     if not path.exists():
-        staged = folder / f".{path.name}.{os.getpid()}"
+        staged = profiles / f".{path.name}.{os.getpid()}"
         staged.write_text(template.replace("{peers}", str(peers)))
         staged.replace(path)
     os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(path)
