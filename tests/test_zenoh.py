@@ -32,6 +32,8 @@ COVERED = {"swarm_small.yaml": "swarm's nodes and topics with four robots, compa
            "zenoh across two hosts and network namespaces below (8 s)",
            "swarm_urdf_control.yaml": "swarm_urdf's robots and nodes with nav_urdf_control's "
            "controller manager per robot; namespacing is the plan's, not the transport's (14 s)",
+           "ur5e_control.yaml": "arm_urdf's nodes and topics with arm_control's trajectory "
+           "controller, in a manager per robot as swarm_urdf_control's (6 s)",
            # a robot's description format changes the physics, not what crosses the transport
            "swarm_usd.yaml": "swarm's nodes and topics, its robots from a USD stage (14 s)",
            "swarm_usd_robots.yaml": "swarm_urdf's nodes and topics, robots described in USD "
