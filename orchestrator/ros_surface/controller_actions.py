@@ -26,10 +26,42 @@ class Ending:
     text: str = ""
 
 
-class FollowJointTrajectoryFace:
+class _NamedGoalFace:
+    """What every action face shares: a goal enters the run named in the frame_id of the
+    header of its ``field`` (the controller tells a new goal from the one the external node
+    holds by it), a cancel is an empty goal with that name, and a goal is told from a cancel
+    by the name's prefix."""
+
+    action: Any
+    field: str
+
+    @classmethod
+    def entering(cls, request, name: str):
+        """The goal as it enters the run, named in its ``field``'s header."""
+        goal = cls.action.Goal()
+        for slot in goal.get_fields_and_field_types():
+            setattr(goal, slot, getattr(request, slot))
+        getattr(goal, cls.field).header.frame_id = name
+        return goal
+
+    @classmethod
+    def cancel(cls, name: str):
+        """A cancel as it enters the run."""
+        cancel = cls.action.Goal()
+        getattr(cancel, cls.field).header.frame_id = name
+        return cancel
+
+    @classmethod
+    def is_goal(cls, msg) -> bool:
+        """Whether ``msg`` (what an arrival replaced) was a goal."""
+        return getattr(msg, cls.field).header.frame_id.startswith(GOAL_ID)
+
+
+class FollowJointTrajectoryFace(_NamedGoalFace):
     """control_msgs/action/FollowJointTrajectory of a joint trajectory controller."""
 
     action = FollowJointTrajectory
+    field = "trajectory"
     feedback_topic = "~/controller_state"  # what the executing goal's feedback is made of
 
     @staticmethod
@@ -37,29 +69,8 @@ class FollowJointTrajectoryFace:
         """Nothing is refused before the controller sees the goal."""
         return None
 
-    @staticmethod
-    def entering(request, name: str) -> FollowJointTrajectory.Goal:
-        """The goal as it enters the run, named in its trajectory's frame_id (the controller
-        tells a new goal from the one the external node holds by it)."""
-        goal = FollowJointTrajectory.Goal()
-        goal.trajectory = request.trajectory
-        goal.trajectory.header.frame_id = name
-        goal.path_tolerance = list(request.path_tolerance)
-        goal.goal_tolerance = list(request.goal_tolerance)
-        goal.goal_time_tolerance = request.goal_time_tolerance
-        return goal
 
-    @staticmethod
-    def cancel(name: str) -> FollowJointTrajectory.Goal:
-        """A cancel as it enters the run."""
-        cancel = FollowJointTrajectory.Goal()
-        cancel.trajectory.header.frame_id = name
-        return cancel
 
-    @staticmethod
-    def is_goal(msg) -> bool:
-        """Whether ``msg`` (what an arrival replaced) was a goal."""
-        return msg.trajectory.header.frame_id.startswith(GOAL_ID)
 
     @staticmethod
     def failed(how: str, text: str, code: int | None = None) -> Ending:
@@ -101,10 +112,11 @@ class FollowJointTrajectoryFace:
                                               error=state.error)
 
 
-class ParallelGripperFace:
+class ParallelGripperFace(_NamedGoalFace):
     """control_msgs/action/ParallelGripperCommand of a parallel gripper action controller."""
 
     action = ParallelGripperCommand
+    field = "command"
     feedback_topic = None
 
     @staticmethod
@@ -113,25 +125,8 @@ class ParallelGripperFace:
         n = len(request.command.position)
         return None if n == 1 else f"{n} positions, expects 1"
 
-    @staticmethod
-    def entering(request, name: str) -> ParallelGripperCommand.Goal:
-        """The goal as it enters the run, named in its command's frame_id."""
-        goal = ParallelGripperCommand.Goal()
-        goal.command = request.command
-        goal.command.header.frame_id = name
-        return goal
 
-    @staticmethod
-    def cancel(name: str) -> ParallelGripperCommand.Goal:
-        """A cancel as it enters the run."""
-        cancel = ParallelGripperCommand.Goal()
-        cancel.command.header.frame_id = name
-        return cancel
 
-    @staticmethod
-    def is_goal(msg) -> bool:
-        """Whether ``msg`` (what an arrival replaced) was a goal."""
-        return msg.command.header.frame_id.startswith(GOAL_ID)
 
     @staticmethod
     def failed(how: str, text: str, code: int | None = None) -> Ending:
