@@ -38,6 +38,10 @@ COVERED = {"swarm_small.yaml": "swarm's nodes and topics with four robots, compa
            "swarm_usd.yaml": "swarm's nodes and topics, its robots from a USD stage (14 s)",
            "swarm_usd_robots.yaml": "swarm_urdf's nodes and topics, robots described in USD "
            "(14 s)",
+           # crowds: swarm's kinds and topics, the controllers also reading the world state
+           "crowd_door.yaml": "swarm's nodes and topics; /cosim/world_state to controllers as "
+           "to lidars (compared packed in tests/test_crowd.py)",
+           "crowd_plaza.yaml": "crowd_door's nodes and topics in another world",
            "nav_usd_robot.yaml": "nav_urdf's nodes and topics, the robot in USD (4 s)",
            "arm_usd.yaml": "arm_urdf's nodes and topics, the arm in USD (3 s)"}
 

@@ -50,6 +50,7 @@ from descriptions.robot_needs import missing_sensor
 from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
 from nodes.control import follow as f
+from nodes.control.crowd import Crowd
 from nodes.control.diagnose import connected, explain_no_path
 from nodes.control.global_planner import Planner, path_message
 from nodes.physics.world import body_id, load_model, named_id, robots_of
@@ -101,6 +102,15 @@ class ControlParams(BaseModel):
     progress_distance: float = Field(0.2, gt=0, description="m")
     backup_distance: float = Field(0.3, ge=0, description="m")
     backup_speed: float = Field(0.15, gt=0, description="m/s")
+    crowd_range: float = Field(4.0, gt=0, description="m: with /cosim/world_state, the other "
+                               "robots within this range count (nodes.control.crowd)")
+    crowd_horizon: float = Field(2.0, gt=0, description="s: ORCA's time horizon among robots")
+    crowd_static_horizon: float = Field(0.8, gt=0, description="s: ORCA's time horizon for "
+                                        "static scan points")
+    crowd_margin: float = Field(0.08, ge=0, description="m added to each robot's radius "
+                                "among robots (what a differential drive cannot follow)")
+    crowd_report_s: float = Field(20.0, gt=0, description="s held by the same robot before "
+                                  "a note says by whom and where")
 
 
 class ControlNode(StepNode):
@@ -157,8 +167,9 @@ class ControlNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: ControlParams) -> set[str]:
-        """Odometry, the scan and an optional goal."""
-        return {"/odom", "/scan", "/goal_pose"}
+        """Odometry, the scan, an optional goal and the optional world state (the other
+        robots of a swarm: ``nodes.control.crowd``)."""
+        return {"/odom", "/scan", "/goal_pose", "/cosim/world_state"}
 
     @classmethod
     def description_names(cls, params: ControlParams) -> dict[str, Any]:
@@ -207,6 +218,7 @@ class ControlNode(StepNode):
         self.outside = False  # the goal came from /goal_pose
         self.pose: tuple[float, float, float] | None = None
         self.tail = np.zeros(0)  # path length from each plan point to its end
+        self.crowd: Crowd | None = None  # made at the first /cosim/world_state
 
     def _with_robot(self, params: ControlParams) -> ControlParams:
         """The parameters with the robot's names as its model gives them: its base body,
@@ -241,6 +253,11 @@ class ControlNode(StepNode):
         if odom is None:
             raise ValueError("the control node needs /odom at every activation (same_tick)")
         pose = self.pose = _pose(odom)
+        world = inputs.get("/cosim/world_state")
+        if world is not None and self.config.layout is not None:
+            if self.crowd is None:
+                self.crowd = Crowd.of(self.config, self.params, self.planner)
+            self.crowd.update(world, tick.time_ns)
         self._account(pose, inputs.get("/scan"))
         self._maybe_new_goal(inputs.get("/goal_pose"), pose)
         v, w = self._decide(tick, pose)
@@ -336,6 +353,14 @@ class ControlNode(StepNode):
     def _pursue(self, pose: tuple[float, float, float], dist: float) -> tuple[float, float]:
         p = self.params
         self.index, target = f.lookahead_point(self.path, self.index, pose, p.lookahead)
+        if self.crowd is not None and self.crowd.others.known:
+            steered = self.crowd.steer(pose, target, dist, self.path, self.index, self.points,
+                                       self.config.period_ns / NS_PER_S)
+            if steered is not None:
+                self.checkpoint = None  # robots hold it up: no recovery from them
+                for text in self.crowd.notes():
+                    self.note(text)
+                return steered
         dx, dy = target[0] - pose[0], target[1] - pose[1]
         c, s = math.cos(pose[2]), math.sin(pose[2])
         lx, ly = c * dx + s * dy, -s * dx + c * dy
@@ -434,7 +459,10 @@ class ControlNode(StepNode):
         if moved < p.backup_distance and elapsed < 3 * NS_PER_S and free >= 0.1:
             return -p.backup_speed, 0.0
         self.recovery = None
-        self.planner.mark(self.points)
+        points = self.points
+        if self.crowd is not None and self.crowd.others.known:  # robots move: not the map's
+            points = points[~self.crowd.robot_points(points, self.crowd.around(pose))]
+        self.planner.mark(points)
         self._replan(pose, tick.time_ns)
         return 0.0, 0.0
 
@@ -450,6 +478,8 @@ class ControlNode(StepNode):
                "path_length": self.path_length,
                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance) else -1.0,
                "recoveries": float(self.recoveries)}
+        if self.crowd is not None:
+            out.update(self.crowd.metrics())
         if self.pose is None:
             return out
         state = (IDLE if not self.active else REACHED if done else FAILED if self.failed

@@ -1,0 +1,90 @@
+"""Crowds that get through (nodes/control/crowd.py): two groups swapping rooms through one
+door and a plaza crossed from every direction reach every goal with no collision, robots
+keep apart, a held robot says by whom, and the run is one digest in-process and packed."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from nodes.control.crowd import Line, orca_line, orca_velocity
+from orchestrator.api import run
+from orchestrator.outputs.bag import BagReader
+from plan.poses import pose_of
+from tests.helpers import ROOT, orchestrate
+
+DOOR = ROOT / "scenarios" / "crowd_door.yaml"
+PLAZA = ROOT / "scenarios" / "crowd_plaza.yaml"
+FOOTPRINT = 2 * 0.23  # two robot radii (robot.xml): nearer than this is a touch
+
+
+def closest_approach(run_dir) -> float:
+    """The least distance between two robots' bases over the run, from the bag's odometry."""
+    tracks: dict[int, dict[str, tuple[float, float]]] = {}
+    with BagReader(run_dir / "bag") as bag:
+        topics = [t for t in bag.counts if t.endswith("/odom")]
+        for topic, _, raw in bag.raw(topics):
+            msg = bag.deserialize(raw, topic)
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            tracks.setdefault(stamp, {})[topic] = pose_of(msg.pose.pose)[:2]
+    least = math.inf
+    for poses in tracks.values():
+        xy = np.array(list(poses.values()))
+        d = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+        d[np.diag_indices(len(xy))] = math.inf
+        least = min(least, float(d.min()))
+    return least
+
+
+def crowd_run(scenario, tmp_path, **overrides):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return run(scenario, in_process=True, out=tmp_path, check=True, **overrides)
+
+
+@pytest.mark.parametrize("scenario", [DOOR, PLAZA], ids=["door_swap", "plaza"])
+def test_a_crowd_reaches_every_goal_without_touching(tmp_path, scenario):
+    done = crowd_run(scenario, tmp_path)
+    swarm = done.manifest["swarm"]
+    assert swarm["totals"]["arrived"] == swarm["totals"]["robots"] == 8, swarm["robots"]
+    assert swarm["totals"]["collisions_robots"] == swarm["totals"]["collisions_obstacles"] == 0
+    assert done.success
+    assert closest_approach(done.run_dir) > FOOTPRINT + 0.05
+    if scenario == DOOR:  # one group waited for the other at the door
+        waits = [m.get("door_waits", 0) for name, m in done.metrics_by_node.items()
+                 if name.startswith("control@")]
+        assert sum(w > 0 for w in waits) >= 4
+
+
+def test_a_held_robot_says_which_robot_holds_it_and_where(tmp_path):
+    # robot_4..7 wait for robot_0..3 to come through the door; told to report after 5 s
+    done = crowd_run(DOOR, tmp_path, duration="20s", params={"control": {"crowd_report_s": 5}},
+                     overrides={"success.reach_goal": False})
+    texts = [n["text"] for n in done.manifest["notes"] if n["node"] == "control@robot_5"]
+    assert any(t.startswith("blocked by robot_") and "at the door (0.0, " in t
+               and t.endswith("for 5 s") for t in texts), texts
+
+
+def test_one_digest_in_process_and_packed(tmp_path):
+    reference = orchestrate(DOOR, tmp_path / "in", "--in-process", "--quiet", "--duration",
+                            "9s", "--set", "success.reach_goal=false")
+    assert reference.code == 0, reference.stderr
+    packed = orchestrate(DOOR, tmp_path / "mp", "--pack", "kind", "--quiet", "--duration",
+                         "9s", "--set", "success.reach_goal=false")
+    assert packed.code == 0, packed.stderr
+    assert packed.manifest["digest"] == reference.manifest["digest"]
+
+
+def test_orca_lets_two_robots_head_on_pass_each_on_its_right():
+    # robot at the origin going +x at 0.5 m/s, another 2 m ahead coming at it
+    line = orca_line(np.array([2.0, 0.0]), np.array([1.0, 0.0]), np.array([0.5, 0.0]),
+                     0.62, 2.0, 0.1, 0.5)
+    assert isinstance(line, Line)
+    u = orca_velocity([line], 0, np.array([0.5, 0.0]), 0.5)
+    assert u[1] < -0.05  # to the right (negative y when heading +x)
+    assert math.hypot(*u) <= 0.5 + 1e-9
+    alone = orca_velocity([], 0, np.array([0.3, 0.1]), 0.5)
+    assert alone == pytest.approx([0.3, 0.1])
