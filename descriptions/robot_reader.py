@@ -178,7 +178,7 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
     if reader_for(layout.description).described:  # its own model: links, sensors, drive
         robot = load_robot(layout.description, layout.settings).model
         return tuple(robot.scoped(r) for r in layout.names)
-    model = swarm_model(Path(world), layout)
+    model = swarm_model(Path(world), layout.everyone)  # robots that enter later too
     return tuple(read_robot(model, names.scoped(r), r, str(layout.description))
                  for r in layout.names)
 

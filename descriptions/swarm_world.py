@@ -21,13 +21,22 @@ def swarm_model(world: Path, layout: RobotsLayout) -> mujoco.MjModel:
 
 
 def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
-    """The arena with one prefixed copy of the description per robot, at its start."""
+    """The arena with one prefixed copy of the description per robot in it at time 0, at
+    its start (a robot that enters later is attached then: ``attach_robot``)."""
     spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
     robot = robot_spec(layout.description, layout.settings)  # a described one: once per process
     spec.copy_during_attach = True
-    for r in layout.robots:
-        x, y, yaw = r.start
-        frame = spec.worldbody.add_frame(pos=[x, y, 0.0],
-                                         quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
-        spec.attach(robot, frame=frame, prefix=f"{r.name}/")
+    for r in layout.at_start.robots:
+        attach_robot(spec, robot, r.name, r.start)
     return spec
+
+
+def attach_robot(spec: mujoco.MjSpec, robot: mujoco.MjSpec, name: str,
+                 start: tuple[float, float, float]) -> None:
+    """Attach a copy of ``robot`` to the world body of ``spec`` at ``start`` (x, y, yaw),
+    every name prefixed ``NAME/``."""
+    x, y, yaw = start
+    spec.copy_during_attach = True
+    frame = spec.worldbody.add_frame(pos=[x, y, 0.0],
+                                     quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+    spec.attach(robot, frame=frame, prefix=f"{name}/")

@@ -17,7 +17,8 @@ import mujoco
 import numpy as np
 
 from descriptions.mesh_convert import mujoco_meshes
-from descriptions.swarm_world import swarm_spec
+from descriptions.readers import robot_spec
+from descriptions.swarm_world import attach_robot, swarm_spec
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from descriptions.worldfile import load_world_spec
 from plan.events import EventSpec, ObjectSpec, WorldObjects
@@ -37,12 +38,29 @@ def world_spec(world: Path | str, layout: RobotsLayout | None = None) -> mujoco.
     return load_world_spec(world)
 
 
-def apply_event(spec: mujoco.MjSpec, event: EventSpec) -> None:
-    """Spawn or delete ``event``'s object in ``spec`` (not compiled)."""
+def apply_event(spec: mujoco.MjSpec, event: EventSpec, layout: RobotsLayout | None = None
+                ) -> None:
+    """Spawn or delete ``event``'s object, or bring its robot in or take it out (a copy of
+    ``layout``'s description, ``descriptions.swarm_world.attach_robot``), in ``spec`` (not
+    compiled)."""
     if event.spawn is not None:
         add_object(spec, event.spawn)
-    else:
+    elif event.robot is not None:
+        if layout is not None and layout.robots:  # an arena without robots takes none
+            r = event.robot
+            attach_robot(spec, robot_spec(layout.description, layout.settings), r.name,
+                         (r.start.x, r.start.y, r.start.yaw))
+    elif (root := robot_root(spec, event.delete, layout)) is not None:
+        spec.delete(root)  # its joints, actuators and sensors go with it (MuJoCo >= 3.3)
+    elif layout is None or layout.robots or spec.body(event.delete) is not None:
         remove_object(spec, event.delete)
+
+
+def robot_root(spec: mujoco.MjSpec, name: str, layout: RobotsLayout | None):
+    """The root body of robot ``name``'s copy in ``spec``, or None: no such robot."""
+    if layout is None:
+        return None
+    return spec.body(f"{name}/{layout.base_body}")
 
 
 def add_object(spec: mujoco.MjSpec, obj: ObjectSpec) -> None:

@@ -210,9 +210,16 @@ def complete_ticks(scenario: Scenario, paths: RunPaths, stop: int | None) -> int
         last = -1
         for tick, _, _ in read_part(path):
             last = max(last, tick)
+        window = scenario.schedule.windows.get(name)  # a robot's node: its robot's ticks
         if last < 0:
-            return 0
-        complete = min(complete, last + scenario.schedule.periods[name])
+            if window is None:
+                return 0
+            complete = min(complete, window[0])
+            continue
+        reach = last + scenario.schedule.periods[name]
+        if window is not None and window[1] is not None and reach >= window[1]:
+            continue  # it served its whole window
+        complete = min(complete, reach)
     return max(complete, 0)
 
 

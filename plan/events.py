@@ -121,25 +121,50 @@ class ObjectSpec(_Strict):
         return None
 
 
+class RobotPose(_Strict):
+    """A robot's planar pose: position in metres, heading in radians."""
+
+    x: float = Field(description="a number, in metres")
+    y: float = Field(description="a number, in metres")
+    yaw: float = Field(0.0, description="a number, in radians")
+
+
+class RobotEntry(_Strict):
+    """A robot that enters the running world: a copy of the ``robots:`` section's
+    description under its own name (its namespace), with every ``for_each: robot`` node of
+    the scenario (planned at launch, dormant until it enters; plan/robots.py)."""
+
+    name: EventName = Field(description="letters, digits and _; its namespace, unique among "
+                            "the robots and objects")
+    start: RobotPose = Field(description="where it enters")
+    goal: RobotPose = Field(description="where it must get to")
+
+
 class EventSpec(_Strict):
-    """One thing that happens to the world at a time: an object spawned or deleted."""
+    """One thing that happens to the world at a time: an object spawned, a robot entering,
+    or either taken out again."""
 
     at: TimeNs = Field(description="when, on a tick of the physics node: 0 or a duration "
                        "from the start such as '5s'")
     spawn: ObjectSpec | None = Field(None, description="an object to put into the world")
-    delete: EventName | None = Field(None, description="the name of an object an earlier "
-                                     "event spawned, to take out of the world")
+    robot: RobotEntry | None = Field(None, description="a robot to bring into the world "
+                                     "(the robots: section's description), e.g. {name: late, "
+                                     "start: {x: 1, y: 0}, goal: {x: -2, y: 0}}")
+    delete: EventName | None = Field(None, description="the name of an object or robot an "
+                                     "earlier event spawned, to take out of the world")
 
     @model_validator(mode="after")
     def _one_thing(self) -> EventSpec:
-        if (self.spawn is None) == (self.delete is None):
-            raise ValueError("give exactly one of spawn and delete")
+        if sum(x is not None for x in (self.spawn, self.robot, self.delete)) != 1:
+            raise ValueError("give exactly one of spawn, robot and delete")
         return self
 
     @property
     def name(self) -> str:
-        """The object the event is about."""
-        return self.spawn.name if self.spawn is not None else self.delete
+        """The object or robot the event is about."""
+        if self.spawn is not None:
+            return self.spawn.name
+        return self.robot.name if self.robot is not None else self.delete
 
 
 @dataclass(frozen=True)
@@ -151,6 +176,7 @@ class WorldObjects:
     names: frozenset[str]
     obstacles: tuple[Obstacle, ...]
     movers: tuple[Obstacle, ...]
+    robots: frozenset[str] = frozenset()  # the robots: section's names (namespaces)
 
 
 Problem = tuple[str, str, str]  # (key, problem, accepted)
@@ -189,9 +215,20 @@ def object_problems(events: list[EventSpec], world: WorldObjects) -> list[Proble
     not stand inside an obstacle or a static object already there, nor, at time 0, inside
     a robot or loose object at its start."""
     out: list[Problem] = []
-    live: dict[str, tuple[int, ObjectSpec]] = {}
+    live: dict[str, tuple[int, ObjectSpec | None]] = {}  # None: a robot
     for i, event in enumerate(events):
         key = f"events[{i}] ({event.name})"
+        if event.robot is not None:
+            name = event.robot.name
+            if name == "world" or name in world.names or name in world.robots:
+                out.append((f"{key}.robot.name", f"{name!r} is already a robot, body or "
+                            "geom of the world.", "a name the world does not use."))
+            elif name in live:
+                out.append((f"{key}.robot.name", f"{name!r} is still in the world "
+                            f"(events[{live[name][0]}] spawned it).",
+                            "another name, or delete the first one before."))
+            live.setdefault(name, (i, None))
+            continue
         if event.delete is not None:
             if event.delete in live:
                 del live[event.delete]
@@ -236,7 +273,7 @@ def _place_problem(obj: ObjectSpec, at_ns: int, world: WorldObjects,
     if inside:
         return f"({x:g}, {y:g}) is inside obstacle {inside[0].name!r} ({inside[0].kind})."
     for other in live:
-        if other.static and other.footprint_radius is not None:
+        if other is not None and other.static and other.footprint_radius is not None:
             gap = math.hypot(x - other.pose.x, y - other.pose.y)
             if gap < other.footprint_radius:
                 return f"({x:g}, {y:g}) is inside object {other.name!r}."
@@ -261,6 +298,18 @@ def physics_period(topics_by_node: dict[str, dict[str, type]], periods: dict[str
         if "/cosim/world_state" in topics:
             return periods[name]
     return None
+
+
+def robot_windows(events: list[EventSpec]) -> dict[str, tuple[int, int | None]]:
+    """Each robot an event brings in: [the time it enters, the time a later event deletes
+    it (None: it stays to the end)) in ns."""
+    out: dict[str, tuple[int, int | None]] = {}
+    for event in events:
+        if event.robot is not None:
+            out.setdefault(event.robot.name, (event.at, None))
+        elif event.delete in out and out[event.delete][1] is None:
+            out[event.delete] = (out[event.delete][0], event.at)
+    return out
 
 
 def edit_event(item: dict) -> EventSpec:

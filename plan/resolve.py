@@ -4,20 +4,22 @@ reported; every independent problem in one error."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
-from plan.events import object_problems, physics_period, timing_problems
+from plan.events import object_problems, physics_period, robot_windows, timing_problems
 from plan.external_node import complete_model
 from plan.hardware_wiring import hand_wiring_notices, wire_hardware, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
-from plan.robots import namespaced, robot_of
+from plan.robots import RobotPlacement, RobotsLayout, namespaced, robot_of
 from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
-from plan.schedule import Edge, Schedule
+from plan.schedule import Edge, Schedule, Window
 from plan.templates import expand_nodes
+from plan.timeutil import tick_at_ns
 from plan.topics import node_inputs, node_outputs, producers
 from plan.world_reader import WorldReader
 
@@ -41,6 +43,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     ScenarioChecks(path, model).check_finite("", model.model_dump(by_alias=True,
                                                                   exclude={"nodes"}))
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
+    section_robots = frozenset(layout.names) if layout is not None else frozenset()
+    layout = entering_robots(path, model, layout)  # events' robots: planned from the start
     hand_wired = hand_wiring_notices(path, model)
     model = with_robot_managers(path, model)  # robots.controllers
     model = wire_hardware(path, model, layout is not None)  # physics to its controller manager
@@ -81,7 +85,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     if len(outputs) < len(model.nodes):
         found.raise_any()  # an input's publisher may be the node whose outputs are wrong
     publishers = producers(where, outputs, {i: cls for i, (_, cls) in classes.items()})
-    check_events(where, model, outputs, world_model, params)
+    check_events(where, model, outputs, world_model, params, section_robots)
     inputs = {i: node_inputs(where, i, spec, classes[i][1], params[i], publishers)
               for i, spec in enumerate(model.nodes)}
     found.raise_any()  # what follows reads every node's inputs, the tick and the world
@@ -102,10 +106,72 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     with found.collecting():
         where.check_twin(nodes)
     found.raise_any()  # a schedule has no cycle
-    schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()}, edges)
+    windows, topic_windows = robot_windows_of(layout, nodes, tick_ns)
+    if topic_windows:
+        nodes = {name: _with_windows(plan, topic_windows, windows) for name, plan in
+                 nodes.items()}
+    schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()},
+                        edges, windows, topic_windows)
     warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
+
+
+def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None
+                    ) -> RobotsLayout | None:
+    """The layout with each robot an event brings in (``events: - robot:``), entering and
+    leaving at its events' times: its ``for_each: robot`` nodes are planned like the
+    others' (plan/robots.py). A robot event needs a robots: section (its description)."""
+    entering = robot_windows(list(model.events))
+    if not entering:
+        return layout
+    if layout is None:
+        i = next(i for i, e in enumerate(model.events) if e.robot is not None)
+        raise ScenarioChecks(path, model).fail(
+            f"events[{i}] ({model.events[i].name}).robot", "a robot that enters needs the "
+            "robots: section's description, and the scenario has no robots: section.",
+            "a robots: section (description and the robots there from the start).")
+    added = []
+    for event in model.events:
+        if event.robot is None or event.robot.name in layout.names + [a.name for a in added]:
+            continue  # a name taken: said by the event checks
+        r = event.robot
+        enter, leave = entering[r.name]
+        added.append(RobotPlacement(r.name, (r.start.x, r.start.y, r.start.yaw),
+                                    (r.goal.x, r.goal.y, r.goal.yaw), enter, leave))
+    return dataclasses.replace(layout, robots=layout.robots + tuple(added))
+
+
+def robot_windows_of(layout: RobotsLayout | None, nodes: dict[str, NodePlan], tick_ns
+                     ) -> tuple[dict[str, Window], dict[str, Window]]:
+    """The ticks each robot that enters or leaves is in the world: its nodes' windows
+    (NAME@ROBOT) and its topics' (every output under /ROBOT/), ``plan.schedule``."""
+    if layout is None:
+        return {}, {}
+    robots = {r.name: (tick_at_ns(r.enter_ns, tick_ns),
+                       None if r.leave_ns is None else tick_at_ns(r.leave_ns, tick_ns))
+              for r in layout.robots if r.enter_ns or r.leave_ns is not None}
+    if not robots:
+        return {}, {}
+    windows = {name: robots[robot_of(name)] for name in nodes if robot_of(name) in robots}
+    topic_windows = {}
+    for plan in nodes.values():
+        for graph in plan.outputs:
+            robot = graph.split("/")[1] if graph.count("/") >= 2 else None
+            if robot in robots:
+                topic_windows[graph] = robots[robot]
+    return windows, topic_windows
+
+
+def _with_windows(plan: NodePlan, topic_windows: dict[str, Window],
+                  windows: dict[str, Window]) -> NodePlan:
+    """A node that publishes a robot's topics, not being the robot's own (the world node):
+    each such output's window, so that it publishes them only while the robot is there."""
+    if plan.name in windows:
+        return plan
+    own = {own: topic_windows[graph] for own, graph in plan.output_names.items()
+           if graph in topic_windows}
+    return dataclasses.replace(plan, windows=own) if own else plan
 
 
 def with_event_files(path: Path, model: ScenarioModel, found: Problems, worlds: WorldReader
@@ -136,7 +202,7 @@ def with_event_files(path: Path, model: ScenarioModel, found: Problems, worlds: 
 
 
 def check_events(where: ScenarioChecks, model: ScenarioModel, outputs: dict, world_model,
-                 params: dict) -> None:
+                 params: dict, robots: frozenset[str] = frozenset()) -> None:
     """The events' times against the physics node's ticks and the duration, and their names
     and places against the world (``plan.events``); problems kept in ``where.found``."""
     if not model.events:
@@ -149,6 +215,7 @@ def check_events(where: ScenarioChecks, model: ScenarioModel, outputs: dict, wor
                       if getattr(p, "start", None) is not None
                       and isinstance(getattr(p, "base_body", None), str)), None)
         objects = where.worlds.world_objects(world_model, start)
+        objects = dataclasses.replace(objects, robots=robots)  # the robots: section's
         problems += object_problems(model.events, objects)
     for key, problem, accepted in problems:
         where.found.add(where.fail(key, problem, accepted))

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 SHARED_TOPICS = ("/tf", "/tf_static", "/clock")
@@ -40,6 +40,8 @@ class RobotPlacement:
     name: str
     start: tuple[float, float, float]
     goal: tuple[float, float, float]
+    enter_ns: int = 0  # when it enters the world (a scenario event's robot: later)
+    leave_ns: int | None = None  # when an event deletes it; None: it stays to the end
 
 
 @dataclass(frozen=True)
@@ -57,13 +59,31 @@ class RobotsLayout:
 
     @property
     def names(self) -> list[str]:
-        """The robots' names in order."""
+        """The robots' names in order (those that enter during the run too)."""
         return [r.name for r in self.robots]
+
+    @property
+    def at_start(self) -> RobotsLayout:
+        """The layout of the robots in the world at time 0 (the world the run starts with)."""
+        if all(r.enter_ns == 0 for r in self.robots):
+            return self
+        return replace(self, robots=tuple(r for r in self.robots if r.enter_ns == 0))
+
+    @property
+    def everyone(self) -> RobotsLayout:
+        """The layout with every robot at time 0 (to read each robot's names from)."""
+        if all(r.enter_ns == 0 and r.leave_ns is None for r in self.robots):
+            return self
+        return replace(self, robots=tuple(replace(r, enter_ns=0, leave_ns=None)
+                                          for r in self.robots))
+
+    def placement(self, name: str) -> RobotPlacement:
+        """The robot named ``name``."""
+        return next(r for r in self.robots if r.name == name)
 
     def goal_of(self, name: str) -> dict[str, float]:
         """The goal of robot ``name`` as the scenario's ``goal:`` would give it."""
-        robot = next(r for r in self.robots if r.name == name)
-        x, y, yaw = robot.goal
+        x, y, yaw = self.placement(name).goal
         return {"x": x, "y": y, "yaw": yaw, "position_tolerance": self.position_tolerance,
                 "yaw_tolerance": self.yaw_tolerance}
 

@@ -51,7 +51,32 @@ class NodePlan:
     inputs: list[InputPlan]
     role: NodeRole  # what part it plays in a run (plan.roles), decided once at load
     latched: frozenset[str] = frozenset()  # own names of the outputs published once, latched
+    windows: dict[str, tuple[int, int | None]] = field(default_factory=dict)  # own output
+    # name -> [start, end) ticks it is published in (a robot that enters or leaves the run)
 
+    def windowed(self, tick: int, first: bool) -> tuple[dict[str, str], frozenset[str], bool]:
+        """(own -> graph names, latched own names, first) of the outputs due at ``tick``:
+        a windowed output only inside its window, a windowed latched one at the node's
+        first activation inside it (``runtime.activation``)."""
+        p = self.period_ticks
+        names, latched = {}, set(self.latched)
+        for own, graph in self.output_names.items():
+            window = self.windows.get(own)
+            if window is None:
+                names[own] = graph
+                continue
+            start, end = window
+            if tick < start or (end is not None and tick >= end):
+                latched.discard(own)
+                continue
+            names[own] = graph
+            if own in latched and tick == -(-start // p) * p and start > 0:
+                latched.discard(own)  # due now: its first activation in the window
+        if not first:
+            names = {own: g for own, g in names.items()
+                     if own not in self.latched or own not in latched}
+            return names, frozenset(), False
+        return names, frozenset(latched), True
     @property
     def latched_topics(self) -> frozenset[str]:
         """Graph names of the outputs published once, at the first activation, latched."""

@@ -86,10 +86,15 @@ def _is_int(value: object) -> bool:
 PIPELINE_WINDOW = 16
 
 
+Window = tuple[int, int | None]  # [start, end) in ticks; end None: to the run's end
+
+
 class Schedule:
     """Who acts at each tick, in which order, and which producer tick each input consumes."""
 
-    def __init__(self, tick_ns: Ns, last_tick: int, periods: dict[str, int], edges: list[Edge]):
+    def __init__(self, tick_ns: Ns, last_tick: int, periods: dict[str, int], edges: list[Edge],
+                 windows: dict[str, Window] | None = None,
+                 topic_windows: dict[str, Window] | None = None):
         if (not (_is_int(tick_ns) or isinstance(tick_ns, Fraction)) or not _is_int(last_tick)
                 or tick_ns <= 0 or last_tick < 0):
             raise ValueError("tick_ns must be a positive int or Fraction and last_tick a "
@@ -113,6 +118,34 @@ class Schedule:
         self.inputs_of: dict[str, list[Edge]] = {n: [] for n in periods}
         for e in self.edges:
             self.inputs_of[e.consumer].append(e)
+        self.windows = dict(windows or {})  # node -> the ticks it may act in
+        self.topic_windows = dict(topic_windows or {})  # graph topic -> the ticks it carries
+
+    def active(self, node: str, tick: int) -> bool:
+        """Whether ``tick`` is inside the node's window (always, for a node without one)."""
+        window = self.windows.get(node)
+        return window is None or (window[0] <= tick and (window[1] is None or tick < window[1]))
+
+    def topic_window(self, producer: str, topic: str) -> Window | None:
+        """The window of ``topic`` as ``producer`` publishes it: the topic's own, else the
+        producer's, else None (every activation)."""
+        return self.topic_windows.get(topic, self.windows.get(producer))
+
+    def sample_ticks(self, producer: str, topic: str) -> tuple[int, int | None]:
+        """The producer ticks of the first and last sample on ``topic`` (last None: to the
+        run's end): its activations inside the topic's window. First > last: none at all."""
+        p = self.periods[producer]
+        window = self.topic_window(producer, topic)
+        if window is None:
+            return 0, None
+        start, end = window
+        first = -(-start // p) * p
+        return first, None if end is None else (end - 1) // p * p
+
+    def carries(self, producer: str, topic: str, tick: int) -> bool:
+        """Whether the producer's activation at ``tick`` publishes ``topic``."""
+        window = self.topic_window(producer, topic)
+        return window is None or (window[0] <= tick and (window[1] is None or tick < window[1]))
 
     def _topological_order(self) -> list[str]:
         """Nodes ordered so every same_tick producer precedes its consumers; ties by name."""
@@ -154,7 +187,7 @@ class Schedule:
 
     def is_due(self, node: str, tick: int) -> bool:
         """Whether the node acts at this tick."""
-        return tick % self.periods[node] == 0
+        return tick % self.periods[node] == 0 and (not self.windows or self.active(node, tick))
 
     @cached_property
     def _due_table(self) -> list[tuple[str, ...]]:
@@ -166,17 +199,27 @@ class Schedule:
     def due(self, tick: int) -> tuple[str, ...]:
         """The nodes acting at this tick, producers before same_tick consumers."""
         if self.hyperperiod <= 100_000:
-            return self._due_table[tick % self.hyperperiod]
-        return tuple(n for n in self.order if tick % self.periods[n] == 0)
+            due = self._due_table[tick % self.hyperperiod]
+        else:
+            due = tuple(n for n in self.order if tick % self.periods[n] == 0)
+        if self.windows:
+            due = tuple(n for n in due if self.active(n, tick))
+        return due
 
     def input_tick(self, edge: Edge, tick: int) -> int | None:
         """The producer tick whose sample the consumer uses at ``tick`` (None: no sample yet)."""
         p = self.periods[edge.producer]
         if edge.mode == SAME_TICK:
-            return (tick // p) * p
-        if tick == 0:
+            wanted = (tick // p) * p
+        elif tick == 0:
             return None
-        return ((tick - 1) // p) * p
+        else:
+            wanted = ((tick - 1) // p) * p
+        if self.windows or self.topic_windows:
+            first, last = self.sample_ticks(edge.producer, edge.topic)
+            if wanted < first or (last is not None and wanted > last):
+                return None  # the topic carries nothing yet, or nothing any more
+        return wanted
 
     def inputs_at(self, node: str, tick: int) -> list[tuple[int, int]]:
         """Which input samples ``node`` consumes at ``tick``: (index of the input in the
@@ -192,7 +235,13 @@ class Schedule:
 
     def activations(self, node: str) -> int:
         """How many times the node acts in the whole run."""
-        return self.last_tick // self.periods[node] + 1
+        p = self.periods[node]
+        window = self.windows.get(node)
+        if window is None:
+            return self.last_tick // p + 1
+        first = -(-window[0] // p) * p
+        last = self.last_tick if window[1] is None else min(self.last_tick, window[1] - 1)
+        return max(0, last // p * p - first) // p + 1 if last >= first else 0
 
     def history_depth(self, edge: Edge) -> int:
         """History to keep on both sides of an edge: the samples a consumer may hold between

@@ -42,9 +42,11 @@ class Activation:
             for text in self.node.take_notes():
                 if self.on_note is not None:
                     self.on_note(Note(self.plan.name, tick.index, tick.time_ns, text))
-        items = prepare_outputs(self.plan.name, self.plan.declared_outputs,
-                                self.plan.output_names, tick, outputs, self.plan.latched,
-                                self.first)
+        names, latched, first = self.plan.output_names, self.plan.latched, self.first
+        if self.plan.windows:  # a robot's topics only while it is in the run
+            names, latched, first = self.plan.windowed(tick.index, first)
+        items = prepare_outputs(self.plan.name, self.plan.declared_outputs, names, tick,
+                                outputs, latched, first)
         self.first = False
         return items
 

@@ -68,8 +68,9 @@ class InputChannel:
     """One subscribed input: tick bookkeeping by sequence number, and its sample history."""
 
     def __init__(self, topic: str, graph_topic: str, msg_type: type, producer_period: int,
-                 drives: int | None = None):
+                 drives: int | None = None, first: int = 0):
         self.topic = topic
+        self.first = first  # the producer tick of its first sample (a robot's topic: at entry)
         self.drives = drives  # consumer period, when this input announces the consumer's ticks
         self.graph_topic = graph_topic
         self.history = InputHistory(graph_topic, msg_type)
@@ -78,7 +79,8 @@ class InputChannel:
         self.base = 0  # the producer's messages sent before the last reset
 
     def accept(self, rec: Received) -> int:
-        """Store a sample; return its producer tick (n-th message = n-th activation)."""
+        """Store a sample; return its producer tick (n-th message = n-th activation in the
+        topic's window, ``Schedule.sample_ticks``)."""
         if rec.sequence is not None:
             if rec.sequence <= self.base:
                 return -1  # sent before a reset, still in flight: not part of this run
@@ -86,7 +88,7 @@ class InputChannel:
                 raise NodeFailure(f"sequence gap on {self.graph_topic}: expected message "
                                   f"{self.base + self.received + 1}, got {rec.sequence} "
                                   "(a message was lost)")
-        tick = self.received * self.period
+        tick = self.first + self.received * self.period
         self.history.push_bytes(tick, rec.data)
         self.received += 1
         return tick
@@ -170,7 +172,8 @@ class LockstepRuntime:
                 self.acks[acks].append(channel)
                 depth = max(depth, 1000)  # a burst of messages in one tick is not lost
             else:
-                channel = InputChannel(inp.topic, inp.graph_topic, inp.msg_type, period, drives)
+                channel = InputChannel(inp.topic, inp.graph_topic, inp.msg_type, period, drives,
+                                       sched.sample_ticks(inp.producer, inp.graph_topic)[0])
             self.inputs[inp.graph_topic] = channel
             self.input_subs[inp.graph_topic] = self.transport.subscription(
                 inp.graph_topic, inp.msg_type, depth)

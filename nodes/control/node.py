@@ -189,7 +189,9 @@ class ControlNode(StepNode):
         self.params = self._with_robot(self.params)
         p = self.params
         model = load_model(self.config.world, self.config.layout)
-        self.laser = _laser_mount(model, p.base_body, p.laser_site)
+        layout = self.config.layout  # a robot that enters later: its mount in the world with it
+        mounted = model if layout is None else load_model(self.config.world, layout.everyone)
+        self.laser = _laser_mount(mounted, p.base_body, p.laser_site)
         self.planner = Planner(model, p)
         g = self.config.goal
         if g is None:

@@ -304,11 +304,15 @@ class SwarmPhysics:
         self._edits_text, self._edits = "", []  # the clients' edits (/cosim/world_edits)
         self.substeps, self.dt, self.note = substeps, dt, note
         layout = config.layout
+        self.rng, self.all_robots = rng, tuple(config.robots)
+        present = None if live is None or layout is None else live.robots
         self.rigs = [Rig(model, robot, params, rng,
                          layout.goal_of(robot.name) if robot.name else config.goal,
                          None if robot.name else config.joint_goal)
-                     for robot in config.robots]
+                     for robot in config.robots if present is None or robot.name in present]
         self.names = [rig.name for rig in self.rigs]
+        self.entered: list[Rig] = []  # the robots that entered at this tick
+        self.rebound = False  # whether a robot entered or left (the rigs were made again)
         self.urdf_text = ""
         if params.robot_description:  # the layout's robot as URDF (read once per process)
             self.urdf_text = robot_description_text(layout.description, layout.settings)
@@ -324,13 +328,68 @@ class SwarmPhysics:
         self.contacts.obstacle_events = self.contacts.robot_events = 0
         for rig in self.rigs:
             rig.hits_obstacles = rig.hits_robots = 0
-        self.driven = [rig for rig in self.rigs if rig.drive is not None]
-        self.drives = SwarmDrives(self.driven, dt)
-        self.book = SwarmBook(model, self.rigs)
+        self._bind()
         self.started = False
+
+    def _bind(self) -> None:
+        """The per-tick bookkeeping over the rigs (made again when a robot enters or
+        leaves)."""
+        self.driven = [rig for rig in self.rigs if rig.drive is not None]
+        self.drives = SwarmDrives(self.driven, self.dt)
+        self.book = SwarmBook(self.model, self.rigs)
         self.any_imu = any(rig.imu is not None for rig in self.rigs)
         self.needs_kinematics = any(r.frames is not None and r.frames.needs_kinematics
                                     for r in self.rigs)
+
+    def _rebind_robots(self, moved: np.ndarray) -> None:
+        """Make every rig again for the recompiled world with the robots in it now (the
+        live world's), each one that was there keeping its drive, goal, collision counts and
+        path; a robot that entered starts at rest where its event put it."""
+        old = {rig.name: rig for rig in self.rigs}
+        paths = {rig.name: self.book.path_length(rig) for rig in self.rigs}
+        last = self.book.last_xy
+        slots = {rig.name: self.book.mobile_slot[id(rig)] for rig in self.rigs
+                 if id(rig) in self.book.mobile_slot}
+        rigs = []
+        self.entered = []
+        for robot in self.all_robots:
+            if robot.name not in self.live.robots:
+                continue
+            rig = Rig(self.model, robot, self.params, self.rng,
+                      self.layout.goal_of(robot.name), None)
+            prev = old.get(robot.name)
+            if prev is None:
+                self.entered.append(rig)
+            else:
+                for key in ("goal_time_ns", "hits_obstacles", "hits_robots",
+                            "refused_command", "teleported"):
+                    setattr(rig, key, getattr(prev, key))
+                if prev.drive is not None:
+                    rig.drive = prev.drive
+            rigs.append(rig)
+        contacts = self.contacts
+        self.rigs, self.names = rigs, [rig.name for rig in rigs]
+        self.contacts = SwarmContacts(self.model, rigs)
+        self.contacts.obstacle_events = contacts.obstacle_events
+        self.contacts.robot_events = contacts.robot_events
+        self.contacts.touching = frozenset(
+            (int(moved[a]), int(moved[b])) for a, b in contacts.touching
+            if moved[a] >= 0 and moved[b] >= 0)
+        self._bind()
+        book = self.book
+        for rig in rigs:
+            slot = book.mobile_slot.get(id(rig))
+            if slot is not None and rig.name in paths:
+                book.path[slot] = paths[rig.name]
+        if last is not None and len(book.path):
+            xy = self.data.qpos[book.qpos_index[:, :2]]
+            x, y = xy[:, 0].copy(), xy[:, 1].copy()
+            for rig in rigs:
+                slot = book.mobile_slot.get(id(rig))
+                if slot is not None and rig.name in slots:
+                    x[slot], y[slot] = last[0][slots[rig.name]], last[1][slots[rig.name]]
+            book.last_xy = (x, y)
+        self.rebound = True
 
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
         """Integrate one period for every robot (except at the first activation; not while a
@@ -377,6 +436,11 @@ class SwarmPhysics:
         if first and self.params.robot_description:
             for rig in self.rigs:
                 out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
+        if self.entered:  # a robot that entered at this tick: its latched description
+            if self.params.robot_description and not first:
+                for rig in self.entered:
+                    out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
+            self.entered = []
         return out
 
     def _go_live(self) -> None:
@@ -401,7 +465,11 @@ class SwarmPhysics:
         self.model, self.data = changed
         if self.params.threads > 1:
             mujoco.mju_threadpool(self.data, self.params.threads)
-        self.contacts.rebind(self.model, geom_map(old, self.model))
+        moved = geom_map(old, self.model)
+        if self.layout is not None and (self.rebound or set(self.names) != self.live.robots):
+            self._rebind_robots(moved)  # a robot entered or left: every index may move
+        else:
+            self.contacts.rebind(self.model, moved)
 
     def _publish(self) -> dict[str, Any]:
         d = self.data

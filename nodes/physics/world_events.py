@@ -33,8 +33,10 @@ class LiveWorld:
 
     def __init__(self, world: Path | str, layout: RobotsLayout | None,
                  events: tuple[EventSpec, ...], note=None):
-        self.world, self.events = world, tuple(events)
+        self.world, self.events, self.layout = world, tuple(events), layout
         self.note = note or (lambda text: None)
+        # the robots in the world now, by name (those of the start; events bring others in)
+        self.robots = set() if layout is None else set(layout.at_start.names)
         self.spec = world_spec(world, layout)
         self.model = compile_world(self.spec, world)
         self.sequence: list[int | EventSpec] = []
@@ -91,6 +93,25 @@ class LiveWorld:
 
     def _apply(self, event: EventSpec, what: str) -> bool:
         name = event.name
+        if event.robot is not None:
+            if self.layout is None:
+                self.note(f"{what}: robot {name!r} changes nothing: the scenario has no "
+                          "robots: section to read its description from")
+                return False
+            if name in self.robots or name in self.spawned or name == "world":
+                self.note(f"{what}: robot {name!r} changes nothing: the world has that name")
+                return False
+            apply_event(self.spec, event, self.layout)
+            self.robots.add(name)
+            return True
+        if event.delete is not None and name in self.robots:
+            if name not in {e.robot.name for e in self.events if e.robot is not None}:
+                self.note(f"{what}: delete {name!r} changes nothing: only a robot an event "
+                          "brought in can be taken out")
+                return False
+            apply_event(self.spec, event, self.layout)
+            self.robots.discard(name)
+            return True
         if event.delete is not None and name not in self.spawned:
             self.note(f"{what}: delete {name!r} changes nothing: no spawned object has "
                       "that name now")
@@ -144,7 +165,7 @@ def model_at(world: str, layout: RobotsLayout | None, events: tuple[EventSpec, .
     spec = world_spec(world, layout)
     sequence = json.loads(label) if label else list(range(version))
     for item in sequence:
-        apply_event(spec, events[item] if isinstance(item, int) else edit_event(item))
+        apply_event(spec, events[item] if isinstance(item, int) else edit_event(item), layout)
     return compile_world(spec, world)
 
 

@@ -51,6 +51,12 @@ def scan_angles(beams: int, fov: float) -> tuple[float, float, np.ndarray]:
     return start, inc, start + inc * np.arange(beams)
 
 
+def robot_in(model: mujoco.MjModel, site: str) -> bool:
+    """Whether ``site`` is in ``model`` now; a robot's that enters the run later is not
+    until it does (its sensor node is dormant until then: ``plan.schedule``)."""
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site) >= 0 or "/" not in site
+
+
 class RayCaster:
     """Casts a fixed bundle of rays (in the site frame) from a site of the mirrored world,
     in one mj_multiRay call; against ``target`` (a model and data: a swarm's arena without
@@ -62,7 +68,9 @@ class RayCaster:
         self.others = others  # nodes.sensors.others.OtherRobots: robots seen as discs
         self.target = target if target is not None else mirror
         self.params = params
-        self.site = named_id(mirror.model, mujoco.mjtObj.mjOBJ_SITE, params.site)
+        self._site_model = None  # the model ``site`` is an id of (a robot that enters or
+        # leaves moves every id after it): looked up again when the mirror shows another
+        self.site = self._site() if robot_in(mirror.model, params.site) else -1
         self.local = np.ascontiguousarray(local_dirs, dtype=np.float64)
         self.n = len(self.local)
         self.groups = group_mask(params.geom_groups)
@@ -70,8 +78,14 @@ class RayCaster:
         self.dist = np.zeros(self.n, dtype=np.float64)
         self.normal = np.zeros(3 * self.n, dtype=np.float64)
 
+    def _site(self) -> int:
+        self._site_model = self.mirror.model
+        return named_id(self.mirror.model, mujoco.mjtObj.mjOBJ_SITE, self.params.site)
+
     def cast(self, rng: np.random.Generator) -> np.ndarray:
         """Noisy ranges (inf = no return, -inf = closer than range_min) per ray."""
+        if self.mirror.model is not self._site_model:
+            self.site = self._site()
         d = self.mirror.data
         vec = rotate_rows(self.local, d.site_xmat[self.site]).ravel()
         p = self.params

@@ -32,15 +32,23 @@ class OtherRobots:
     """The other robots' bases and their footprint radius, for ray casting as cylinders."""
 
     def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: RobotModel):
-        bodies = [prefixed(r, layout.base_body) for r in layout.names if r != robot.name]
-        self.bodies = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b)
-                                for b in bodies], dtype=np.int64)
+        self.names = [prefixed(r, layout.base_body) for r in layout.names if r != robot.name]
         self.radius = robot.footprint_radius
+        self._bind(model)
+
+    def _bind(self, model: mujoco.MjModel) -> None:
+        """The other robots' base bodies in ``model``: those in the world now (robots enter
+        and leave a run; their ids move with every change)."""
+        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in self.names]
+        self.bodies = np.array([i for i in ids if i >= 0], dtype=np.int64)
+        self.model = model
 
     def nearer(self, data: mujoco.MjData, origin: np.ndarray, dirs: np.ndarray,
                dist: np.ndarray, range_max: float) -> np.ndarray:
         """``dist`` (MuJoCo's: -1 for no hit) with each beam shortened to the first other
         robot it meets within ``range_max``."""
+        if data.model is not self.model:
+            self._bind(data.model)
         if self.bodies.size == 0:
             return dist
         centres = data.xpos[self.bodies, :2] - origin[:2]

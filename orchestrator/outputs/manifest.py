@@ -65,13 +65,26 @@ def node_entry(stats, proc) -> dict[str, Any]:
     return entry
 
 
+def _served(schedule, name: str, ticks: int) -> int:
+    """How many activations node ``name`` served in the first ``ticks`` ticks (a robot's
+    node only inside its robot's window: ``plan.schedule``)."""
+    if not ticks:
+        return 0
+    period, window = schedule.periods[name], schedule.windows.get(name)
+    if window is None:
+        return (ticks - 1) // period + 1
+    first = -(-window[0] // period) * period
+    last = ticks - 1 if window[1] is None else min(ticks - 1, window[1] - 1)
+    return (last // period * period - first) // period + 1 if last >= first else 0
+
+
 def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str, Any]:
     """Per-node entries of an in-process run: activations served, mean and worst step time
     (CPU and memory are the one process's, under 'orchestrator')."""
     out = {}
     for name in scenario.schedule.order:
         entry: dict[str, Any] = {
-            "ticks": (ticks - 1) // scenario.schedule.periods[name] + 1 if ticks else 0}
+            "ticks": _served(scenario.schedule, name, ticks)}
         n, total, worst = (result.step_ns.get(name) if result else None) or (0, 0, 0)
         if n:
             entry.update(step_ms_mean=round(total / n / 1e6, 4),

@@ -1,0 +1,117 @@
+"""Robots that enter and leave a running simulation (issue 49): a scenario's ``events:``
+bring robots in (``robot: {name, start, goal}``) and take them out (``delete:``).
+
+Each such robot's ``for_each: robot`` nodes (its lidar and controller) are planned and
+started at launch like every other node and are dormant until the tick their robot enters
+(``plan.schedule``'s windows): physics attaches the robot's description at that tick
+boundary (MjSpec attach and recompile, every other body's state kept bit for bit), its
+topics carry samples from then on, and at its delete they go quiet and its nodes stop
+being scheduled. tests/scenarios/swarm_enter.yaml: robot_0 and robot_1 from the start,
+``gone`` in at 0.4 s and out at 1.2 s, ``late`` in at 1 s, driven to its goal.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import mujoco
+import numpy as np
+import pytest
+
+from descriptions.load import load_scenario
+from nodes.physics.world_events import LiveWorld
+from orchestrator.api import run
+from orchestrator.lockstep.inprocess import run_in_process
+from plan.errors import ScenarioError
+from plan.options import RunOptions
+from tests.helpers import ROOT
+
+SCENARIO = ROOT / "tests" / "scenarios" / "swarm_enter.yaml"
+S = 1_000_000_000
+
+
+@pytest.fixture(scope="module")
+def counted():
+    """The scenario over 2 s in-process: how often each node acted and each topic was
+    published, and the first and last tick of each."""
+    scenario = load_scenario(SCENARIO, {"duration": "2s"})
+    count: collections.Counter = collections.Counter()
+    ticks: dict[str, list[int]] = {}
+
+    def observe(k: int, name: str, items) -> None:
+        for key in (name, *(topic for topic, _ in items)):
+            count[key] += 1
+            ticks.setdefault(key, [k, k])[1] = k
+
+    result = run_in_process(scenario, observe)
+    return scenario, count, ticks, result.digest
+
+
+def test_a_robots_nodes_act_only_while_it_is_in_the_world(counted):
+    scenario, count, ticks, _ = counted
+    # 50 Hz ticks: gone is in for ticks [20, 60), late from 50 on; their nodes run at 10 Hz
+    assert scenario.schedule.windows["control@gone"] == (20, 60)
+    assert scenario.schedule.windows["lidar@late"] == (50, None)
+    assert ticks["control@gone"] == [20, 55] and count["control@gone"] == 8
+    assert ticks["lidar@late"] == [50, 100] and count["lidar@late"] == 11
+    assert ticks["control@robot_0"] == [0, 100] and count["control@robot_0"] == 21
+    # physics publishes a robot's topics only while it is there
+    assert ticks["/gone/odom"] == [20, 59] and count["/gone/odom"] == 40
+    assert ticks["/late/odom"][0] == 50 and count["/late/odom"] == 51
+    assert count["/robot_0/odom"] == count["physics"] == 101
+
+
+def test_one_digest_in_process_multi_process_and_packed_by_kind(counted, tmp_path):
+    """Independent runs of the same 2 s: every node its own process, and packed by kind."""
+    _, _, _, reference = counted
+    separate = run(SCENARIO, out=tmp_path, duration="2s")
+    packed = run(SCENARIO, out=tmp_path, duration="2s", options=RunOptions(pack="kind"))
+    assert separate.digest == packed.digest == reference
+
+
+def test_the_robot_that_entered_reaches_its_goal(tmp_path):
+    result = run(SCENARIO, in_process=True, out=tmp_path, duration="4s")
+    metrics = result.metrics
+    assert metrics["late/arrived"] == 1.0, metrics
+    assert 1.0 < metrics["late/time_to_goal"] < 4.0
+    assert metrics["collisions"] == 0
+    odom = [(t, o.pose.pose.position.x) for t, o in result.messages("/late/odom")]
+    assert odom[0][0] == 1 * S and abs(odom[0][1] - -2.5) < 0.01  # it entered at its start
+    assert [t for t, _ in result.messages("/gone/odom")][-1] < 1.2 * S  # quiet once deleted
+
+
+def test_attaching_and_removing_a_robot_keeps_every_other_body_bit_for_bit():
+    scenario = load_scenario(SCENARIO)
+    live = LiveWorld(scenario.world, scenario.robots, tuple(scenario.model.events))
+    data = mujoco.MjData(live.model)
+    for _ in range(50):
+        mujoco.mj_step(live.model, data)
+    before = data.qpos.copy()
+    model, after = live.advance(data, int(0.4 * S))  # gone enters
+    assert model.nq > len(before)
+    assert np.array_equal(after.qpos[:len(before)], before)  # appended after the others
+    assert "gone" in live.robots
+    model, after = live.advance(after, int(1.2 * S))  # late enters, gone leaves
+    assert live.robots == {"robot_0", "robot_1", "late"}
+    assert np.array_equal(after.qpos[:len(before)], before)
+
+
+@pytest.mark.parametrize("events, key, says", [
+    ("- {at: 1s, robot: {name: robot_0, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
+     "events[0] (robot_0).robot.name", "already a robot"),
+    ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}\n"
+     "  - {at: 2s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
+     "events[1] (a).robot.name", "still in the world"),
+    ("- {at: 15ms, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
+     "events[0] (a).at", "not on a tick"),
+])
+def test_bad_robot_events_are_refused_naming_the_key(tmp_path, events, key, says):
+    text = SCENARIO.read_text()
+    head, _, rest = text.partition("events:\n")
+    _, _, tail = rest.partition("success:")
+    path = tmp_path / "bad.yaml"
+    path.write_text(head.replace("../../scenarios/", str(ROOT / "scenarios") + "/")
+                    + "events:\n  " + events + "\nsuccess:" + tail)
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(path)
+    assert key in str(err.value) and says in str(err.value), str(err.value)
