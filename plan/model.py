@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from plan.description_spec import UrdfSpec, UsdSpec
-from plan.events import EventSpec
+from plan.events import EventSpec, Spawnable
 from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]
@@ -272,6 +272,11 @@ class ScenarioModel(Strict):
                                     "[{at: 5s, spawn: {name: box1, shape: box, size: [0.3, "
                                     "0.3, 0.5], pose: {x: 1, y: 0}}}, {at: 8s, delete: box1}] "
                                     "(plan/events.py)")
+    spawnables: list[Spawnable] = Field(default_factory=list, description="what clients may "
+                                        "spawn, as GetSpawnables lists it: files and folders "
+                                        "relative to this file, each a path or {path, "
+                                        "description}, e.g. [models/, {path: "
+                                        "robots/bot.urdf, description: a second robot}]")
 
     @property
     def has_goal(self) -> bool:

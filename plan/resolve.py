@@ -9,7 +9,13 @@ from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
-from plan.events import object_problems, physics_period, robot_windows, timing_problems
+from plan.events import (
+    object_problems,
+    physics_period,
+    robot_windows,
+    spawnable_problems,
+    timing_problems,
+)
 from plan.external_node import complete_model
 from plan.hardware_wiring import hand_wiring_notices, wire_hardware, with_robot_managers
 from plan.kinds import catalogue
@@ -51,6 +57,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
     model = with_event_files(path, model, found, worlds)
+    for key, problem, accepted in spawnable_problems(path.parent, model.spawnables):
+        found.add(ScenarioChecks(path, model).fail(key, problem, accepted))
     where = ScenarioChecks(path, model, origins, worlds, found)
     classes, params = {}, {}
     for i, spec in enumerate(model.nodes):

@@ -115,3 +115,13 @@ def test_bad_robot_events_are_refused_naming_the_key(tmp_path, events, key, says
     with pytest.raises(ScenarioError) as err:
         load_scenario(path)
     assert key in str(err.value) and says in str(err.value), str(err.value)
+
+
+def test_a_spawnable_that_does_not_exist_is_refused_naming_the_key(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(SCENARIO.read_text().replace("../../scenarios/", str(ROOT / "scenarios")
+                                                 + "/") + "spawnables: [models/, x.urdf]\n")
+    (tmp_path / "x.urdf").write_text("<robot name='x'/>")
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(path)
+    assert "spawnables[0].path" in str(err.value) and "x.urdf" not in str(err.value)

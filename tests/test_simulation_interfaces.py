@@ -43,7 +43,7 @@ def test_step_simulate_cancel_reset_play(tmp_path, ros_node):
         assert sorted(features.features) == sorted([
             F.SIMULATION_STATE_GETTING, F.SIMULATION_STATE_SETTING, F.SIMULATION_STATE_PAUSE,
             F.STEP_SIMULATION_SINGLE, F.STEP_SIMULATION_MULTIPLE, F.STEP_SIMULATION_ACTION,
-            F.SIMULATION_RESET])  # no robot in this scenario: no entity features
+            F.SIMULATION_RESET, F.SPAWNABLES])  # no robot here: no entity features
         assert sim.state() == PAUSED
         assert sim.set_state(PAUSED).result == SetSimulationState.Response.ALREADY_IN_TARGET_STATE
 

@@ -20,6 +20,7 @@ from simulation_interfaces.srv import (
     DeleteEntity,
     GetEntities,
     GetSimulatorFeatures,
+    GetSpawnables,
     SpawnEntities,
     SpawnEntity,
 )
@@ -133,6 +134,9 @@ def scenario_file(tmp_path_factory):
     doc["duration"] = "2s"
     doc["interactive"] = True
     doc["nodes"] = [n for n in doc["nodes"] if n["name"] != "camera"]
+    doc["spawnables"] = [str(ROOT / "scenarios" / "robots" / "usd"),
+                         {"path": str(ROOT / "scenarios" / "worlds" / "robot.xml"),
+                          "description": "the nav robot"}]
     path = tmp_path_factory.mktemp("spawn") / "spawn_live.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
@@ -143,6 +147,8 @@ def session(sim: SimClient, checks: bool) -> int:
     assert sim.step(10).result == OK
     features = sim.call(GetSimulatorFeatures, "/get_simulator_features",
                         GetSimulatorFeatures.Request()).features
+    spawnables = sim.call(GetSpawnables, "/get_spawnables",
+                          GetSpawnables.Request(sources=["/no/such/folder"]))
 
     def spawn(req):
         return sim.call(SpawnEntity, "/spawn_entity", req)
@@ -180,6 +186,14 @@ def session(sim: SimClient, checks: bool) -> int:
                 SimulatorFeatures.SPAWNING_RESOURCE_STRING,
                 SimulatorFeatures.SPAWNING_ENTITIES} <= set(features.features)
         assert "sdf" in features.spawn_formats and "urdf" in features.spawn_formats
+        assert SimulatorFeatures.SPAWNABLES in features.features
+        listed = {s.uri: s.description for s in spawnables.spawnables}
+        folder = sorted(f for f in (ROOT / "scenarios" / "robots" / "usd").iterdir()
+                        if f.suffix in (".urdf", ".xacro", ".usd", ".usda", ".xml"))
+        assert [f"file://{f}" for f in folder] == list(listed)[:len(folder)]
+        assert listed[f"file://{ROOT / 'scenarios' / 'worlds' / 'robot.xml'}"] == "the nav robot"
+        assert spawnables.result.result == OK
+        assert "/no/such/folder" in spawnables.result.error_message
         assert crate.result.result == OK and crate.entity_name == "crate", crate.result
         assert "tick 10" in crate.result.error_message
         assert drum.result.result == OK and drum.entity_name == "crate_1", drum.result

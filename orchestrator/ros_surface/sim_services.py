@@ -36,6 +36,7 @@ from simulation_interfaces.srv import (
     GetEntityState,
     GetSimulationState,
     GetSimulatorFeatures,
+    GetSpawnables,
     ResetSimulation,
     SetEntityState,
     SetSimulationState,
@@ -71,6 +72,7 @@ class SimServices:
     def __init__(self, scenario: Scenario, control: RunControl, arrivals: Arrivals | None,
                  paths: RunPaths):
         self.control = control
+        self.scenario = scenario
         self.prefix = service_prefix(scenario.model.simulation_interfaces.namespace)
         self.last_answer = 0.0
         self.executor = None
@@ -140,6 +142,7 @@ class SimServices:
         group = ReentrantCallbackGroup()
         for srv, name, handler in (
                 (GetSimulatorFeatures, "get_simulator_features", self._features),
+                (GetSpawnables, "get_spawnables", self._spawnables),
                 (GetSimulationState, "get_simulation_state", self._get_state),
                 (SetSimulationState, "set_simulation_state", self._set_state),
                 (StepSimulation, "step_simulation", self._step),
@@ -230,7 +233,7 @@ class SimServices:
     def _features(self, request, response):
         features = [F.SIMULATION_STATE_GETTING, F.SIMULATION_STATE_SETTING,
                     F.SIMULATION_STATE_PAUSE, F.STEP_SIMULATION_SINGLE,
-                    F.STEP_SIMULATION_MULTIPLE, F.STEP_SIMULATION_ACTION]
+                    F.STEP_SIMULATION_MULTIPLE, F.STEP_SIMULATION_ACTION, F.SPAWNABLES]
         if self.control.cannot_reset is None:
             features.append(F.SIMULATION_RESET)
         if self.robot is not None:
@@ -249,7 +252,22 @@ class SimServices:
         response.features.custom_info = (
             "cosim: a deterministic lockstep co-simulation; one tick per step; services "
             f"under {self.prefix}; a reset covers time and state together; entities: the "
-            f"robot and spawned objects{objects}; see docs/how-to/ros-interfaces.md")
+            f"robot and spawned objects{objects}; robots enter and leave through the "
+            "scenario's events: (docs/how-to/world-events.md), a SpawnEntity of a robot is "
+            "refused; get_spawnables lists the scenario's spawnables:; see "
+            "docs/how-to/ros-interfaces.md")
+        return response
+
+    def _spawnables(self, request, response):
+        from simulation_interfaces.msg import Spawnable
+
+        from orchestrator.ros_surface.spawnables import list_spawnables
+
+        found, unknown = list_spawnables(self.scenario, list(request.sources))
+        response.spawnables = [Spawnable(uri=uri, description=text) for uri, text in found]
+        response.result = _result(Result.RESULT_OK, "" if not unknown else
+                                  "not recognised (not a file or folder here): "
+                                  + ", ".join(unknown))
         return response
 
     def _get_state(self, request, response):
