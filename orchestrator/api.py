@@ -11,6 +11,16 @@ Errors are the ones the command line reports: ``ScenarioError`` (bad input, noth
 started: exit code 2) and ``SimulationError`` (a node failed: exit code 3).
 ``check_node(MyNode, params)`` runs a step class through cosim's rules before it joins a
 scenario (``runtime.node_check``).
+
+Robots and objects enter and leave a run at a tick (``plan.events``): ``spawn_robot``,
+``spawn_robot_swarm``, ``spawn_object`` and ``delete`` make events, and ``run(...,
+events=[...])`` adds them to the scenario's (docs/tutorials/robots-enter.md):
+
+    base = load("scenarios/swarm.yaml")
+    result = run(base, in_process=True, events=[
+        spawn_robot("late", at="2s", start=(-3.0, 0.0, 0.0), goal=(3.0, 0.0)),
+        *spawn_robot_swarm(base, 3, at="1s", region={"x": [-1, 1], "y": [-1, 1]}),
+        delete("late", at="6s")])
 """
 
 from __future__ import annotations
@@ -33,7 +43,8 @@ from runtime.node_check import NodeCheckError, NodeCheckReport, check_node
 
 __all__ = ["EXIT_CODES", "Arrivals", "FinishedRun", "NodeCheckError", "NodeCheckReport",
            "RunOptions", "ScenarioError", "ScenarioWarning", "SimulationError", "check_node",
-           "load", "overrides_for", "replay", "run"]
+           "delete", "load", "overrides_for", "replay", "run", "spawn_object", "spawn_robot",
+           "spawn_robot_swarm"]
 
 EXIT_CODES = {"success": 0, "goal_not_met": 1, "failed": 3, "write_failed": 5,
               "interrupted": 130}
@@ -67,10 +78,100 @@ def overrides_for(*, seed: int | None = None, duration: str | int | float | None
     return out
 
 
-def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
+Event = dict[str, Any]  # one item of a scenario's events: list (plan.events.EventSpec)
+
+
+def _planar(pose) -> dict[str, float]:
+    """(x, y) or (x, y, yaw), or a mapping with x, y and yaw, as a pose mapping."""
+    if isinstance(pose, Mapping):
+        return {key: float(value) for key, value in pose.items()}
+    return dict(zip(("x", "y", "yaw"), (float(v) for v in pose), strict=False))
+
+
+def spawn_robot(name: str, *, at: str | int, start, goal) -> Event:
+    """An event that brings a robot in at ``at`` ('2s', '400ms'): a copy of the scenario's
+    ``robots:`` description named ``name`` (its namespace), at ``start`` and going to
+    ``goal`` ((x, y) or (x, y, yaw)), with every ``for_each: robot`` node of the scenario
+    (its lidar, its controller), dormant until then."""
+    return {"at": at, "robot": {"name": name, "start": _planar(start), "goal": _planar(goal)}}
+
+
+def spawn_object(name: str, *, at: str | int, shape: str, pose, size=(), **more: Any) -> Event:
+    """An event that puts an object in at ``at``: a box, cylinder, sphere or mesh
+    (``plan.events.ObjectSpec``: ``size``, ``mesh``, ``static``, ``mass``, ``rgba``, ...)."""
+    spec = {"name": name, "shape": shape, "pose": _planar(pose), **more}
+    if size:
+        spec["size"] = list(size)
+    return {"at": at, "spawn": spec}
+
+
+def delete(name: str, *, at: str | int) -> Event:
+    """An event that takes the robot or object ``name`` (that an earlier event brought in)
+    out at ``at``: its topics go quiet, its nodes stop being scheduled."""
+    return {"at": at, "delete": name}
+
+
+def spawn_robot_swarm(scenario: str | Path | Scenario, count: int, *, at: str | int,
+                      region: Mapping[str, Any], goal_region: Mapping[str, Any] | None = None,
+                      prefix: str = "swarm", clearance: float = 0.8, seed: int | None = None
+                      ) -> list[Event]:
+    """``count`` robots entering at ``at``, named PREFIX_0, ..., placed from ``seed`` (the
+    scenario's by default) in ``region`` ({x: [x0, x1], y: [y0, y1]}) clear of the world's
+    obstacles and of the robots there from the start, at least ``clearance`` apart; each
+    goal in ``goal_region``, or its start mirrored through the region's centre."""
+    from descriptions.swarm_world import swarm_model
+    from descriptions.world_geometry import robot_footprint_radius, static_obstacles
+    from descriptions.worldfile import compile_world, load_world_spec
+    from plan.model import RobotsSpec
+    from plan.obstacles import Obstacle
+    from plan.robot_placement import place_robots
+
+    loaded = load(scenario)
+    layout = loaded.robots
+    if layout is None:
+        raise ScenarioError(loaded.file, "robots", "robots enter as copies of the robots: "
+                            "section's description, and the scenario has none.",
+                            "a scenario with a robots: section.")
+    world = loaded.world
+    obstacles = static_obstacles(compile_world(load_world_spec(world, stage_robots_too=False),
+                                               world))
+    footprint = robot_footprint_radius(swarm_model(world, layout.everyone),
+                                       f"{layout.robots[0].name}/{layout.base_body}")
+    there = [Obstacle(name=r.name, geom=-1, kind="robot", centre=r.start[:2],
+                      z_range=(-1e9, 1e9), radius=footprint)
+             for r in layout.robots if r.enter_ns == 0]
+    spec = RobotsSpec(count=count, region=region, goal_region=goal_region,
+                      name_prefix=prefix, clearance=clearance)
+    placed = place_robots(loaded.file, spec, list(obstacles) + there, footprint,
+                          loaded.model.seed if seed is None else seed, [])
+    return [spawn_robot(r.name, at=at, start=r.start, goal=r.goal) for r in placed]
+
+
+def _with_events(scenario: str | Path | Scenario, events: list[Event]) -> dict[str, Any]:
+    """The override of ``events`` that adds ``events`` to the scenario's own, in time order
+    (those at one time in the order given, after the scenario's)."""
+    from plan.events import parse_time_ns
+
+    if isinstance(scenario, Scenario):
+        own = scenario.model
+    else:
+        own = load_scenario(scenario).model
+    items = [{**e.model_dump(mode="json", exclude_none=True, exclude={"at"}),
+              "at": f"{e.at}ns"} for e in own.events]
+    items += [dict(e) for e in events]
+    items.sort(key=lambda e: parse_time_ns(e["at"]))  # stable: the given order kept
+    return {"events": items}
+
+
+def load(scenario: str | Path | Scenario, *, events: list[Event] | None = None,
+         **overrides: Any) -> Scenario:
     """Load and check a scenario file (or re-load a Scenario) with overrides; see
-    ``overrides_for`` for the keywords. Raises ScenarioError on anything wrong."""
+    ``overrides_for`` for the keywords. ``events`` are added to the scenario's events
+    (``spawn_robot``, ``spawn_object``, ``delete``). Raises ScenarioError on anything
+    wrong."""
     extra = overrides_for(**overrides)
+    if events:
+        extra.update(_with_events(scenario, events))
     if isinstance(scenario, Scenario):
         if not extra:
             return scenario
@@ -81,7 +182,7 @@ def load(scenario: str | Path | Scenario, **overrides: Any) -> Scenario:
 def run(scenario: str | Path | Scenario, *, in_process: bool = False,
         out: str | Path = "runs", check: bool = True, options: RunOptions | None = None,
         external: Arrivals | Replay | None = None, real_time_factor: float | None = None,
-        **overrides: Any) -> FinishedRun:
+        events: list[Event] | None = None, **overrides: Any) -> FinishedRun:
     """Run a scenario (a file or a loaded Scenario) and return its FinishedRun.
 
     ``in_process=True`` steps every node in this process with no transport (the reference,
@@ -96,8 +197,10 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     the next tick of the external node), or a function tick -> {topic: message} (a replay).
     ``real_time_factor`` paces the run on the wall clock for people watching (1.0: real
     time; ``RunOptions.real_time_factor``): the same digest, in sim time / R of wall time.
+    ``events`` (``spawn_robot``, ``spawn_robot_swarm``, ``spawn_object``, ``delete``) are
+    added to the scenario's own: each happens at its tick, the same in every driver.
     """
-    loaded = load(scenario, **overrides)
+    loaded = load(scenario, events=events, **overrides)
     chosen = (options or RunOptions()).with_(out=Path(out), in_process=in_process)
     if real_time_factor is not None:
         chosen = chosen.with_(real_time_factor=real_time_factor)

@@ -125,3 +125,19 @@ def test_a_spawnable_that_does_not_exist_is_refused_naming_the_key(tmp_path):
     with pytest.raises(ScenarioError) as err:
         load_scenario(path)
     assert "spawnables[0].path" in str(err.value) and "x.urdf" not in str(err.value)
+
+
+def test_events_from_python_are_those_of_the_file(counted, tmp_path):
+    """swarm_enter's events given through orchestrator.api to the scenario without them:
+    the same run, digest for digest."""
+    from orchestrator.api import delete, spawn_robot
+
+    bare = tmp_path / "bare.yaml"
+    text = SCENARIO.read_text().replace("../../scenarios/", str(ROOT / "scenarios") + "/")
+    head, _, rest = text.partition("events:\n")
+    bare.write_text(head + "success:" + rest.partition("success:")[2])
+    events = [spawn_robot("late", at="1s", start=(-2.5, 0.0, 0.0), goal=(-1.2, 0.0)),
+              spawn_robot("gone", at="400ms", start=(0.0, 2.5, -1.5708), goal=(0.0, -2.5)),
+              delete("gone", at="1200ms")]
+    result = run(bare, in_process=True, out=tmp_path, duration="2s", events=events)
+    assert result.digest == counted[3]
