@@ -4,7 +4,9 @@ every node that needs a robot is given instead of finding it through naming conv
 A scenario with one robot has a swarm of one: the same model, with an empty name and prefix.
 In a swarm every robot's model is the description's model scoped to it (``scoped``): the same
 links, joints and sensors, every MuJoCo name and TF frame prefixed ``ROBOT/`` (REP-105, as
-robot_state_publisher's ``frame_prefix`` does).
+robot_state_publisher's ``frame_prefix`` does). A robot whose ROS namespace is not its name
+(a lone robot of a ``robots:`` section lives at the root) keeps its MuJoCo names and has its
+frames in its namespace (``in_namespace``): ``base_link`` at the root.
 
 The model is plain frozen data (names and numbers), so it pickles into forked and spawned nodes
 and compares equal across processes.
@@ -110,6 +112,18 @@ class RobotModel:
     notes: tuple[str, ...] = field(default=(), compare=False)  # what the conversion changed
     reader: str = ""  # the description reader that made it (descriptions.readers: 'urdf',
     # 'usd'); '' for a robot read from a compiled MJCF or USD world by its names
+    namespace: str = ""  # its ROS namespace: topics /NS/..., frames NS/...; '' the root
+
+    @property
+    def frame_prefix(self) -> str:
+        """The prefix of its TF frames: 'robot_3/' in its namespace, '' at the root (its
+        MuJoCo names' is ``prefix``)."""
+        return f"{self.namespace}/" if self.namespace else ""
+
+    def frame(self, mujoco_name: str) -> str:
+        """The TF frame of one of its MuJoCo names (a body of an MJCF robot): the MuJoCo
+        prefix swapped for the frame prefix."""
+        return self.frame_prefix + mujoco_name.removeprefix(self.prefix)
 
     @property
     def described(self) -> bool:
@@ -137,7 +151,7 @@ class RobotModel:
             return self
         p = f"{robot}/"
         return replace(
-            self, name=robot, prefix=p, base_link=p + self.base_link,
+            self, name=robot, prefix=p, namespace=robot, base_link=p + self.base_link,
             base_body=p + self.base_body if self.base_body else "",
             drive=None if self.drive is None else replace(
                 self.drive, left_joint=p + self.drive.left_joint,
@@ -153,3 +167,19 @@ class RobotModel:
                         for k in self.links),
             joints=tuple(replace(j, name=p + j.name, parent=p + j.parent, child=p + j.child)
                          for j in self.joints))
+
+    def in_namespace(self, namespace: str) -> RobotModel:
+        """This (scoped) model with its TF frames in ROS namespace ``namespace`` ('' the
+        root: ``base_link``, ``base_scan``) instead of under its name; its MuJoCo names
+        (bodies, sites, joints, actuators) keep their prefix."""
+        if namespace == self.namespace:
+            return self
+        old, new = self.frame_prefix, f"{namespace}/" if namespace else ""
+
+        def f(frame: str) -> str:
+            return new + frame.removeprefix(old)
+        return replace(
+            self, namespace=namespace, base_link=f(self.base_link), base_body=self.base,
+            sensors=tuple(replace(s, link=f(s.link)) for s in self.sensors),
+            links=tuple(replace(k, name=f(k.name)) for k in self.links),
+            joints=tuple(replace(j, parent=f(j.parent), child=f(j.child)) for j in self.joints))

@@ -143,7 +143,8 @@ def read_robot(model: mujoco.MjModel, names: RobotNames = RobotNames(), robot: s
                             model.body(int(model.body_parentid[child])).name,
                             model.body(child).name, limits))
     return RobotModel(
-        name=robot, prefix=f"{robot}/" if robot else "", base_link=names.base_frame,
+        name=robot, prefix=f"{robot}/" if robot else "", namespace=robot,
+        base_link=names.base_frame,
         mobile=mobile, footprint_radius=robot_footprint_radius(model, names.base_body),
         drive=drive, actuated=tuple(actuated), sensors=tuple(sensors), links=tuple(links),
         joints=tuple(joints), source=source, base_body=names.base_body)
@@ -168,8 +169,8 @@ def wheel_geometry(model: mujoco.MjModel, left_joint: str, right_joint: str
 def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ...]:
     """Every robot of a scenario's world, read once per process: the one robot of the world
     (an unnamed swarm of one) or, with a swarm's ``layout`` (``plan.robots.RobotsLayout``),
-    each robot of the swarm world under its prefixed names. None in a world without the
-    base body (a world of sensors alone)."""
+    each robot of the swarm world under its prefixed names, its frames in its namespace.
+    None in a world without the base body (a world of sensors alone)."""
     if layout is None:
         model = load_world_model(world)
         if mujoco.mj_name2id(model, BODY, names.base_body) < 0:
@@ -177,10 +178,11 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
         return (read_robot(model, names, source=str(world)),)
     if reader_for(layout.description).described:  # its own model: links, sensors, drive
         robot = load_robot(layout.description, layout.settings).model
-        return tuple(robot.scoped(r) for r in layout.names)
+        return tuple(robot.scoped(r).in_namespace(layout.namespace_of(r))
+                     for r in layout.names)
     model = swarm_model(Path(world), layout.everyone)  # robots that enter later too
     return tuple(read_robot(model, names.scoped(r), r, str(layout.description))
-                 for r in layout.names)
+                 .in_namespace(layout.namespace_of(r)) for r in layout.names)
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, what: str) -> int:

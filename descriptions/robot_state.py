@@ -3,8 +3,9 @@ robot (one a reader of descriptions.readers made, any format: only its robot mod
 read from the MuJoCo state: a transform per URDF joint (parent link -> child link,
 fixed joints once for /tf_static, moving ones per tick for /tf), ``odom -> root link`` for a
 mobile robot, and the joint states of every movable joint. Frame names are the model's link
-names (``robot_3/base_scan`` in a swarm, as ``frame_prefix`` gives them); joint names in
-joint states are the description's own (the topic is namespaced instead)."""
+names (``robot_3/base_scan`` in a swarm, as ``frame_prefix`` gives them; ``base_scan`` for a
+robot at the root); joint names in joint states are the description's own (the topic is
+namespaced instead)."""
 
 from __future__ import annotations
 
@@ -111,7 +112,7 @@ class RobotStateFrames:
         if not self.robot.mobile:
             return None
         quat = np.asarray(data.xquat[self.root], dtype=float)
-        return LinkTransform(self.robot.prefix + self.odom_frame, self.robot.base_link,
+        return LinkTransform(self.robot.frame_prefix + self.odom_frame, self.robot.base_link,
                              tuple(float(v) for v in data.xpos[self.root]),
                              tuple(float(v) for v in (-quat if quat[0] < 0 else quat)))
 

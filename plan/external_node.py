@@ -10,7 +10,7 @@ from plan.checks import ScenarioChecks
 from plan.interactive import FED_INPUTS, PARAMS_TYPE, params_topic
 from plan.kinds import catalogue
 from plan.model import InputSpec, NodeSpec, ScenarioModel
-from plan.robots import per_robot
+from plan.robots import per_robot, robot_namespaces
 from plan.scenario import EXTERNAL_NAME
 
 
@@ -56,11 +56,12 @@ def with_client_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, topics: di
         return spec
     cls = where.node_class(i, spec)[1]
     accepted = cls.accepted_inputs(where.node_params(i, spec, cls))
-    accepted = per_robot(accepted, spec.robots) or set()
+    spaces = robot_namespaces(where.model.robots, spec.robots)
+    accepted = per_robot(accepted, spaces) or set()
     wanted = {own: kind for own, kind in FED_INPUTS.items() if own in accepted}
     listed = {inp.topic for inp in spec.inputs}
     wanted.update({own: kind for own, kind in per_robot(cls.client_inputs(
-        where.node_params(i, spec, cls)), spec.robots).items() if own not in listed})
+        where.node_params(i, spec, cls)), spaces).items() if own not in listed})
     if cls.runtime_params:
         wanted[params_topic(spec.name)] = PARAMS_TYPE
     listed = {inp.topic for inp in spec.inputs}

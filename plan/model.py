@@ -79,7 +79,8 @@ class NodeSpec(Strict):
                                "'valgrind'; it must exec the node (keep its pid)")
     for_each: Literal["robot"] | None = Field(None, description="robot: one instance of this "
                                               "node per robot of the robots: section, named "
-                                              "NAME@ROBOT, its topics under /ROBOT/")
+                                              "NAME@ROBOT, its topics under the robot's "
+                                              "namespace (/ROBOT/; a lone robot's at the root)")
     robots: list[Name] | None = Field(None, min_length=1, description="with for_each: only "
                                       "these robots (default: every robot)")
 
@@ -123,9 +124,14 @@ class PlanarPose(Strict):
 
 
 class NamedRobot(Strict):
-    """One robot of a robots: list: its name (its namespace), start pose and goal."""
+    """One robot of a robots: list: its name, its namespace, start pose and goal."""
 
-    name: Name = Field(description="letters, digits and _; the robot's namespace")
+    name: Name = Field(description="letters, digits and _; the robot's name (and its "
+                       "namespace when it has one)")
+    namespace: Name | None = Field(None, description="the robot's ROS namespace and TF frame "
+                                   "prefix (/NS/cmd_vel, NS/base_link); default: its name when "
+                                   "the section has several robots, none when it has one (the "
+                                   "root: /cmd_vel, base_link, as robot_state_publisher)")
     start: PlanarPose | None = Field(None, description="where it starts; in a USD stage "
                                      "with robot prims, the prim named so places it instead")
     goal: PlanarPose = Field(description="where it must get to")
@@ -138,9 +144,10 @@ class RobotsSpec(Strict):
     and goal."""
 
     description: str | None = Field(None, description="the MJCF, URDF, xacro or USD of one robot "
-                                    "(like worlds/robot.xml), relative to this file; its names get "
-                                    "the prefix ROBOT/; default: the one a USD stage's robot "
-                                    "prims name (cosim:robot:mjcf)")
+                                    "(like worlds/robot.xml), relative to this file; each robot's "
+                                    "topics and frames get its namespace (several robots, or one "
+                                    "with named[].namespace); default: the one a USD stage's "
+                                    "robot prims name (cosim:robot:mjcf)")
     base_body: str = Field("base_link", description="the robot's root body in the description")
     urdf: UrdfSpec | None = Field(None, description="how a URDF or xacro description is read "
                                   "(xacro args, packages, wheels, sensors, ...; "

@@ -120,7 +120,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
                  nodes.items()}
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()},
                         edges, windows, topic_windows)
-    warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges)
+    warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges, layout)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
 
@@ -229,12 +229,18 @@ def check_events(where: ScenarioChecks, model: ScenarioModel, outputs: dict, wor
         where.found.add(where.fail(key, problem, accepted))
 
 
-def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge]) -> list[str]:
-    """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it)."""
+def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge],
+                      layout: RobotsLayout | None = None) -> list[str]:
+    """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it);
+    a template's own topics in its robot's namespace are no remap of the scenario's."""
     consumed = {e.topic for e in edges}
+
+    def namespace(node: str) -> str:
+        robot = robot_of(node) or ""
+        return layout.namespace_of(robot) if robot and layout is not None else robot
     return [ScenarioNotice(path, f"nodes ({plan.name}).remap.{own}", f"{graph} is published "
                           "but no node of the scenario consumes it (only ROS tools will see "
                           "it).", "a remap to a topic a node of the scenario consumes.")
             for plan in nodes.values() for own, graph in plan.output_names.items()
             if own != graph and graph not in consumed
-            and graph != namespaced(robot_of(plan.name) or "", own)]  # a template's own
+            and graph != namespaced(namespace(plan.name), own)]

@@ -5,6 +5,7 @@ and the description are read by descriptions/robot_layout.py, which calls this."
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import numpy as np
 from plan.errors import ScenarioError
 from plan.model import RobotsSpec
 from plan.obstacles import Obstacle, place_problem
-from plan.robots import RobotPlacement
+from plan.robots import RobotPlacement, robot_namespace
 
 PLACEMENT_TRIES = 400  # seeded draws per robot before the count is declared not to fit
 
@@ -40,10 +41,30 @@ def place_robots(path: Path, spec: RobotsSpec, obstacles: list[Obstacle], footpr
                          "(a list of robots).", "count: N with region: {x: [x0, x1], y: "
                          "[y0, y1]}, or named: [{name, start: {x, y}, goal: {x, y}}, ...].")
     if mounts:
-        return _from_stage(where, spec, mounts, obstacles, footprint)
-    if spec.named is not None:
-        return _named(where, spec, obstacles, footprint)
-    return _placed(where, spec, obstacles, footprint, seed)
+        robots = _from_stage(where, spec, mounts, obstacles, footprint)
+    elif spec.named is not None:
+        robots = _named(where, spec, obstacles, footprint)
+    else:
+        robots = _placed(where, spec, obstacles, footprint, seed)
+    return _namespaced(where, spec, robots)
+
+
+def _namespaced(where: _Where, spec: RobotsSpec, robots: list[RobotPlacement]
+                ) -> list[RobotPlacement]:
+    """Each robot with its ROS namespace (``plan.robots.robot_namespace``: a lone robot at
+    the root unless it names one); two robots in one namespace are refused."""
+    out: list[RobotPlacement] = []
+    taken: dict[str, str] = {}
+    for robot in robots:
+        namespace = robot_namespace(spec, robot.name)
+        if namespace in taken:
+            i = next(i for i, e in enumerate(spec.named or []) if e.name == robot.name)
+            raise where.fail(f"robots.named[{i}].namespace", f"robots {taken[namespace]!r} and "
+                             f"{robot.name!r} would share the namespace {namespace!r}.",
+                             "a distinct namespace per robot.")
+        taken[namespace] = robot.name
+        out.append(replace(robot, namespace=namespace))
+    return out
 
 
 def _from_stage(where: _Where, spec: RobotsSpec, mounts, obstacles, footprint: float
@@ -56,7 +77,7 @@ def _from_stage(where: _Where, spec: RobotsSpec, mounts, obstacles, footprint: f
                          "needs a goal.", "named: [{name: <prim name>, goal: {x, y}}, ...], "
                          "one entry per robot prim of the stage.")
     placed = {name: pose for name, _, pose in mounts}
-    goals = {}
+    goals, namespaces = {}, {}
     for i, entry in enumerate(spec.named):
         key = f"robots.named[{i}]"
         if entry.name not in placed:
@@ -67,11 +88,12 @@ def _from_stage(where: _Where, spec: RobotsSpec, mounts, obstacles, footprint: f
                              "prim's pose); a start here would contradict it.",
                              "leave start out.")
         goals[entry.name] = entry.goal
+        namespaces[entry.name] = entry.namespace
     missing = [name for name in placed if name not in goals]
     if missing:
         raise where.fail("robots.named", f"no goal for the stage's robot {missing[0]!r}.",
                          "an entry {name, goal} for every robot prim of the stage.")
-    named = [NamedRobot(name=name, goal=goals[name],
+    named = [NamedRobot(name=name, goal=goals[name], namespace=namespaces[name],
                         start=PlanarPose(x=pose[0], y=pose[1], yaw=pose[2]))
              for name, pose in placed.items()]
     return _named(where, spec.model_copy(update={"named": named}), obstacles, footprint)

@@ -6,8 +6,14 @@ a ``count`` of robots placed from the scenario seed inside a ``region`` (at leas
 start mirrored through the region's centre), or ``named`` robots with their starts and goals.
 The world file is the arena only; every process builds the same world from it: the arena
 with one copy of the description per robot attached at its start, every name (bodies,
-joints, sites, actuators, sensors) prefixed ``ROBOT/`` (``robot_3/base_link``), so the TF
-frames read from the bodies carry the REP-105 multi-robot prefix as they are.
+joints, sites, actuators, sensors) prefixed ``ROBOT/`` (``robot_3/base_link``).
+
+Namespaces (``robot_namespace``): with several robots each robot's topics live under its
+namespace, its name unless ``named[].namespace`` gives another, and its TF frames carry the
+REP-105 multi-robot prefix (``robot_3/base_link``). A lone robot lives at the root, as
+robot_state_publisher and a one-robot Gazebo world publish it (``/cmd_vel``, ``/scan``,
+``/joint_states``, frames ``odom`` and ``base_link``), unless its entry names a namespace.
+Its MuJoCo names keep the ``ROBOT/`` prefix: only ROS-facing names drop it.
 
 Placing: plan/robot_placement.py (checked against the world by
 descriptions/robot_layout.py); the swarm world: descriptions/swarm_world.py; node templates:
@@ -17,7 +23,8 @@ Conventions (docs/tutorials/swarm.md): each robot's topics live under its namesp
 (``/robot_3/odom``, ``/robot_3/scan``, ``/robot_3/cmd_vel``); ``/tf``, ``/tf_static``,
 ``/clock`` and cosim's own ``/cosim/...`` topics are shared. A node with ``for_each: robot``
 becomes one node per robot named ``NAME@ROBOT`` (its own seed stream, as every node's seed
-comes from its name) with every topic namespaced; the world node (physics, one MuJoCo
+comes from its name; the ROS node NAME in the robot's namespace) with every topic
+namespaced; the world node (physics, one MuJoCo
 world: a class with ``every_robot``) declares its topics for one robot and serves every
 robot's under its namespace (``per_robot``; its spec's ``robots`` lists them), one input per
 robot. A scenario without a robots: section is a swarm of one unnamed robot.
@@ -35,13 +42,15 @@ SHARED_TOPICS = ("/tf", "/tf_static", "/clock")
 
 @dataclass(frozen=True)
 class RobotPlacement:
-    """One robot: its name (namespace and name prefix), start and goal as (x, y, yaw)."""
+    """One robot: its name (its MuJoCo name prefix, and its node instances' suffix), start
+    and goal as (x, y, yaw), its ROS namespace ('' for the root: ``robot_namespace``)."""
 
     name: str
     start: tuple[float, float, float]
     goal: tuple[float, float, float]
     enter_ns: int = 0  # when it enters the world (a scenario event's robot: later)
     leave_ns: int | None = None  # when an event deletes it; None: it stays to the end
+    namespace: str | None = None  # its ROS namespace ('' the root); None: its name
 
 
 @dataclass(frozen=True)
@@ -81,6 +90,12 @@ class RobotsLayout:
         """The robot named ``name``."""
         return next(r for r in self.robots if r.name == name)
 
+    def namespace_of(self, name: str) -> str:
+        """Robot ``name``'s ROS namespace ('' for the root); a robot the section does not
+        place is under its name."""
+        robot = next((r for r in self.robots if r.name == name), None)
+        return name if robot is None or robot.namespace is None else robot.namespace
+
     def goal_of(self, name: str) -> dict[str, float]:
         """The goal of robot ``name`` as the scenario's ``goal:`` would give it."""
         x, y, yaw = self.placement(name).goal
@@ -93,24 +108,54 @@ class RobotsLayout:
         return max(1, math.ceil(self.success_fraction * len(self.robots) - 1e-9))
 
 
-def namespaced(robot: str, topic: str) -> str:
-    """``topic`` under robot's namespace: '/robot_3/scan'; shared topics stay as they are."""
-    if topic in SHARED_TOPICS or topic.startswith("/cosim/"):
+def robot_namespace(section, robot: str) -> str:
+    """The ROS namespace of robot ``robot`` of the scenario's ``robots:`` section (a
+    ``plan.model.RobotsSpec``, or None): the entry's ``namespace`` where it names one, else
+    the robot's name when the section has several robots (or does not place this one), else
+    '' (a lone robot lives at the root)."""
+    if section is None:
+        return robot
+    entries = section.named or []
+    entry = next((e for e in entries if e.name == robot), None)
+    if entry is not None and entry.namespace is not None:
+        return entry.namespace
+    several = (section.count or len(entries)) > 1
+    placed = entry is not None or (section.named is None and section.count is not None and
+                                   robot in {f"{section.name_prefix}_{i}"
+                                             for i in range(section.count)})
+    return robot if several or not placed else ""
+
+
+def robot_namespaces(section, robots: list[str] | None) -> list[str] | None:
+    """``robot_namespace`` of each of ``robots`` (a world node's spec.robots); None without."""
+    return None if robots is None else [robot_namespace(section, r) for r in robots]
+
+
+def frame_prefix(namespace: str) -> str:
+    """The TF frame prefix of a robot in ``namespace``: 'robot_3/'; '' at the root."""
+    return f"{namespace}/" if namespace else ""
+
+
+def namespaced(namespace: str, topic: str) -> str:
+    """``topic`` under a robot's namespace: '/robot_3/scan'; as it is at the root (''), and
+    shared topics stay as they are."""
+    if not namespace or topic in SHARED_TOPICS or topic.startswith("/cosim/"):
         return topic
-    return f"/{robot}{topic}"
+    return f"/{namespace}{topic}"
 
 
-def per_robot(topics, robots: list[str] | None):
-    """A world node's topics (a dict topic -> value or a set) as it serves ``robots``: each
-    robot's own under its namespace, the shared ones once; as they are without robots."""
-    if not robots or topics is None:
+def per_robot(topics, namespaces: list[str] | None):
+    """A world node's topics (a dict topic -> value or a set) as it serves robots in
+    ``namespaces``: each robot's own under its namespace, the shared ones once; as they are
+    without robots (or for one robot at the root)."""
+    if not namespaces or topics is None:
         return topics
     if isinstance(topics, dict):
         out = {}
         for topic, value in topics.items():
-            out.update({namespaced(r, topic): value for r in robots})
+            out.update({namespaced(r, topic): value for r in namespaces})
         return out
-    return {namespaced(r, topic) for topic in topics for r in robots}
+    return {namespaced(r, topic) for topic in topics for r in namespaces}
 
 
 def merged_names(given: list[tuple[str, dict]]) -> dict:
@@ -138,15 +183,17 @@ def ros_name_chars(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_]", "_", text)
 
 
-def ros_identity(node_name: str) -> tuple[str, str]:
+def ros_identity(node_name: str, namespace: str | None = None) -> tuple[str, str]:
     """(name, namespace) of a cosim node as a ROS 2 node: 'control' -> ('control', '/'),
-    'control@robot_3' -> ('control', '/robot_3'), as the robot's topics are namespaced.
+    'control@robot_3' -> ('control', '/robot_3'), as the robot's topics are namespaced;
+    ``namespace`` is the robot's where it is not its name ('' at the root: '/').
     Characters a ROS 2 node name may not hold become '_'."""
     base, _, robot = node_name.partition("@")
     name = ros_name_chars(base)
     if name[:1].isdigit():
         name = f"_{name}"
-    return name, f"/{robot}" if robot else "/"
+    namespace = robot if namespace is None else namespace
+    return name, f"/{namespace}" if namespace else "/"
 
 
 def topic_token(node_name: str) -> str:

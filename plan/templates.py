@@ -1,6 +1,6 @@
-"""Node templates: a node with ``for_each: robot`` becomes one node per robot, and the world
-node (physics) gets every robot's name (its spec's ``robots``) and one input per robot
-(plan/robots.py)."""
+"""Node templates: a node with ``for_each: robot`` becomes one node per robot, its topics in
+the robot's namespace (a lone robot's at the root), and the world node (physics) gets every
+robot's name (its spec's ``robots``) and one input per robot (plan/robots.py)."""
 
 from __future__ import annotations
 
@@ -45,12 +45,13 @@ def expand_nodes(path: Path, model: ScenarioModel, layout: RobotsLayout | None
                 raise ScenarioError(path, f"{key}.robots[{j}]", f"there is no robot {robot!r}.",
                                     f"one of {', '.join(layout.names[:8])}"
                                     f"{', ...' if len(layout.names) > 8 else ''}.")
-        nodes += [_instance(spec, robot, path.parent) for robot in chosen]
+        nodes += [_instance(spec, robot, layout.namespace_of(robot), path.parent)
+                  for robot in chosen]
         origins.update({f"{spec.name}@{robot}": i for robot in chosen})
     return model.model_copy(update={"nodes": nodes}), origins
 
 
-def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
+def _instance(spec: NodeSpec, robot: str, namespace: str, scenario_dir: Path) -> NodeSpec:
     cls = class_of(spec)
     params = dict(spec.params)
     own = {inp.topic for inp in spec.inputs}
@@ -64,12 +65,12 @@ def _instance(spec: NodeSpec, robot: str, scenario_dir: Path) -> NodeSpec:
             own |= set(cls.client_inputs(checked))
         except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
             pass
-    remap = {topic: namespaced(robot, spec.remap.get(topic, topic)) for topic in own}
-    remap.update({topic: namespaced(robot, graph) for topic, graph in spec.remap.items()})
+    remap = {topic: namespaced(namespace, spec.remap.get(topic, topic)) for topic in own}
+    remap.update({topic: namespaced(namespace, graph) for topic, graph in spec.remap.items()})
     remap = {topic: graph for topic, graph in remap.items() if graph != topic}
     command = spec.command
-    if command is not None:
-        command = [*command, "--ros-args", "-r", f"__ns:=/{robot}"]
+    if command is not None and namespace:
+        command = [*command, "--ros-args", "-r", f"__ns:=/{namespace}"]
     return spec.model_copy(update={"name": f"{spec.name}@{robot}", "params": params,
                                    "remap": remap, "command": command, "for_each": None,
                                    "robots": None})
@@ -85,5 +86,6 @@ def _world_node(spec: NodeSpec, layout: RobotsLayout) -> NodeSpec:
         if namespaced("r", graph) == graph:
             inputs.append(inp)
         else:
-            inputs += [InputSpec(topic=namespaced(r, graph), mode=inp.mode) for r in layout.names]
+            inputs += [InputSpec(topic=namespaced(layout.namespace_of(r), graph),
+                                 mode=inp.mode) for r in layout.names]
     return spec.model_copy(update={"robots": layout.names, "inputs": inputs, "remap": {}})

@@ -10,7 +10,7 @@ from pydantic import BaseModel
 from plan.checks import ScenarioChecks
 from plan.interactive import params_topic
 from plan.model import NodeSpec
-from plan.robots import per_robot
+from plan.robots import per_robot, robot_namespaces
 from plan.ros_types import ros_type
 from plan.scenario import InputPlan
 
@@ -32,9 +32,10 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
                  ) -> tuple[dict[str, type], dict[str, str], frozenset[str]]:
     """The node's outputs under graph names (after remap), own -> graph names, and the
     own names of its latched outputs (published once, at the first activation)."""
+    spaces = robot_namespaces(where.model.robots, spec.robots)
     try:
-        own = per_robot(cls.outputs(params), spec.robots)
-        latched = per_robot(cls.latched_outputs(params), spec.robots)
+        own = per_robot(cls.outputs(params), spaces)
+        latched = per_robot(cls.latched_outputs(params), spaces)
     except Exception as exc:  # noqa: BLE001 - the node class's code: the user's to fix
         key = "module" if spec.module else "kind"
         what = ("does not implement outputs(params)" if isinstance(exc, NotImplementedError)
@@ -53,7 +54,8 @@ def node_outputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, param
                          "of every activation and as a latched one.",
                          "each topic in one of outputs() and latched_outputs().")
     own = {**own, **latched}
-    accepted = per_robot(cls.accepted_inputs(params), spec.robots)
+    accepted = per_robot(cls.accepted_inputs(params),
+                         robot_namespaces(where.model.robots, spec.robots))
     known = set(own) | {inp.topic for inp in spec.inputs} | (accepted or set())
     for source in spec.remap:
         if source not in known:
@@ -93,7 +95,8 @@ def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params
     """The node's inputs resolved to producers; every input needs a publisher. The
     problems of each input are kept in ``where.found`` (the input left out), so that all
     of them are reported."""
-    accepted = per_robot(cls.accepted_inputs(params), spec.robots)
+    accepted = per_robot(cls.accepted_inputs(params),
+                         robot_namespaces(where.model.robots, spec.robots))
     plans, seen = [], set()
     for j in range(len(spec.inputs)):
         with where.found.collecting():
@@ -127,15 +130,17 @@ def _input_plan(where: ScenarioChecks, i: int, j: int, spec: NodeSpec, cls: type
                          "of it can be scheduled.", "a topic published at every "
                          "activation (ROS tools and foreign programs read a latched "
                          "topic with transient-local durability).")
-    check_input_type(where, i, inp.topic, cls, params, graph, source, spec.robots)
+    check_input_type(where, i, inp.topic, cls, params, graph, source,
+                     robot_namespaces(where.model.robots, spec.robots))
     return InputPlan(inp.topic, graph, source.name, inp.mode, source.msg)
 
 
 def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, params: BaseModel,
-                     graph: str, source: Producer, robots: list[str] | None = None) -> None:
+                     graph: str, source: Producer, namespaces: list[str] | None = None) -> None:
     """The producer publishes the message type this node takes on ``topic`` (when it
-    says which), or the error names the parameter that sets this node's type."""
-    wanted = per_robot(cls.input_types(params), robots).get(topic)
+    says which; a world node's per robot in ``namespaces``), or the error names the
+    parameter that sets this node's type."""
+    wanted = per_robot(cls.input_types(params), namespaces).get(topic)
     if wanted is None or source.msg is wanted:
         return
     own_key = cls.type_keys.get(topic)

@@ -1,6 +1,6 @@
 """One robot in a ``robots:`` section (a user's robot doing nav's task, scenarios/nav_urdf.yaml)
 gets nav's report: the map with its plan, path, lidar returns and goal, and its speed, turn
-rate and distances over time, read from the robot's namespaced topics."""
+rate and distances over time, read from the robot's topics (at the root: it is alone)."""
 
 from __future__ import annotations
 

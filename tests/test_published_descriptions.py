@@ -79,15 +79,15 @@ def test_a_world_rooted_arm_runs_with_one_digest_and_its_own_frames(tmp_path):
         assert run.code == 0, run.stderr
         assert run.manifest["outcome"]["metrics"]["ur/x"] == pytest.approx(0.5)
     assert inproc.manifest["digest"] == multi.manifest["digest"]
-    states = bag_messages(inproc.run_dir, "/ur/joint_states")[-1]
+    states = bag_messages(inproc.run_dir, "/joint_states")[-1]  # a lone robot: the root
     assert list(states.name) == ARM_JOINTS
     assert list(states.position) == pytest.approx([0.3, -0.3, 0.5], abs=0.05)
     static = {(t.header.frame_id, t.child_frame_id): t.transform.translation
               for t in bag_messages(inproc.run_dir, "/tf_static")[0].transforms}
-    assert static[("ur/world", "ur/base_link")].z == pytest.approx(0.02)
+    assert static[("world", "base_link")].z == pytest.approx(0.02)
     moving = {(t.header.frame_id, t.child_frame_id)
               for t in bag_messages(inproc.run_dir, "/tf")[-1].transforms}
-    assert ("ur/base_link", "ur/shoulder_link") in moving
+    assert ("base_link", "shoulder_link") in moving
 
 
 # -- ASCII STL and COLLADA meshes ------------------------------------------------------
@@ -172,7 +172,7 @@ def test_the_mesh_robot_runs_and_describe_draws_its_colours(tmp_path):
 
     result = run(MESHBOT_RUN, in_process=True, out=tmp_path)
     assert result.success, result.error
-    assert list(result.last("/meshbot/joint_states").position) == pytest.approx([0.8], abs=0.05)
+    assert list(result.last("/joint_states").position) == pytest.approx([0.8], abs=0.05)
     png = tmp_path / "meshbot.png"
     out = subprocess.run([sys.executable, "-m", "descriptions.describe", str(MESHBOT_RUN),
                           "--picture", str(png)], capture_output=True, text=True, timeout=120,

@@ -340,12 +340,13 @@ def recorded_inputs(run_dir, scenario) -> dict[int, dict]:
 
 # -- a Nav2 user's diff drive controller -------------------------------------------------------
 
-@pytest.mark.parametrize(("scenario", "ns", "limit"), [
-    ("nav_control.yaml", "", 0.8),  # cosim's MJCF robot
-    ("nav_urdf_control.yaml", "/mybot", 0.8),  # a URDF robot in xacro, the robot's own node
+@pytest.mark.parametrize(("scenario", "base", "limit"), [
+    ("nav_control.yaml", "/cosim/base_command", 0.8),  # cosim's MJCF robot
+    # a URDF robot in xacro, the robot's own node; alone, so at the root
+    ("nav_urdf_control.yaml", "/cmd_vel", 0.8),
 ])
 def test_the_nav_controller_reaches_the_goal_through_a_diff_drive_controller(
-        tmp_path, scenario, ns, limit):
+        tmp_path, scenario, base, limit):
     """The built-in controller's TwistStamped goes to the diff drive controller's ~/cmd_vel;
     the controller drives the base; its wheel odometry follows the ground truth; one digest
     in-process and multi-process."""
@@ -353,13 +354,12 @@ def test_the_nav_controller_reaches_the_goal_through_a_diff_drive_controller(
 
     done = run(ROOT / "scenarios" / scenario, in_process=True, out=tmp_path / "a")
     assert done.success
-    base = f"{ns}/cmd_vel" if ns else "/cosim/base_command"
     with BagReader(done.run_dir / "bag") as bag:
         odom = message_class("nav_msgs/msg/Odometry")
-        truth = dict(bag.messages(f"{ns}/odom", odom))
-        wheels = dict(bag.messages(f"{ns}/diff_drive_controller/odom", odom))
+        truth = dict(bag.messages("/odom", odom))
+        wheels = dict(bag.messages("/diff_drive_controller/odom", odom))
         commands = list(bag.messages(base, message_class("geometry_msgs/msg/Twist")))
-        assert bag.counts[f"{ns}/diff_drive_controller/cmd_vel"] > 0
+        assert bag.counts["/diff_drive_controller/cmd_vel"] > 0
     assert len(commands) == len(truth)  # the controller drives the base at every update
     assert max(abs(c.linear.x) for _, c in commands) <= limit + 1e-9  # linear.x.max_velocity
     end = max(wheels)

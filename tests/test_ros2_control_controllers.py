@@ -165,15 +165,15 @@ def arm_scenario(tmp_path, effort_joint: str = "wrist_3"):
 def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
     from orchestrator.api import run
 
-    commands = {"/myarm/arm/commands": Float64MultiArray(data=[0.3, -0.2, 0.4, 0.1]),
-                "/myarm/spin/commands": Float64MultiArray(data=[1.0]),
-                "/myarm/push/commands": Float64MultiArray(data=[0.5])}
+    commands = {"/arm/commands": Float64MultiArray(data=[0.3, -0.2, 0.4, 0.1]),
+                "/spin/commands": Float64MultiArray(data=[1.0]),
+                "/push/commands": Float64MultiArray(data=[0.5])}
     done = run(arm_scenario(tmp_path), in_process=True, out=tmp_path / "runs",
                external=lambda k: commands if k >= 1 else {})
     with BagReader(done.run_dir / "bag") as bag:
-        states = [m for _, m in bag.messages("/myarm/joint_states",
+        states = [m for _, m in bag.messages("/joint_states",
                                              message_class("sensor_msgs/msg/JointState"))]
-        sent = [m for _, m in bag.messages("/myarm/joint_commands",
+        sent = [m for _, m in bag.messages("/joint_commands",
                                            message_class("std_msgs/msg/Float64MultiArray"))]
     # physics' /joint_commands: each joint's value as its actuator takes it, in its order
     assert list(sent[-1].data) == [0.3, -0.2, 0.4, 0.1, 1.0, 0.5]
@@ -274,9 +274,9 @@ def test_a_moveit_users_gripper_goal_is_answered_by_the_gripper_controller(tmp_p
                       "gripper": {"joint": "wrist_1", "goal_tolerance": 0.02}})
     sim = SimClient(ros_node)
     with orchestrate(path, tmp_path / "out", "--paused", "--duration", "2s") as proc:
-        sim.send_goal(ParallelGripperCommand, "/myarm/gripper/gripper_cmd",
+        sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
                       gripper_goal("", 0.3, 0.3), accepted=False)
-        grasp = sim.send_goal(ParallelGripperCommand, "/myarm/gripper/gripper_cmd",
+        grasp = sim.send_goal(ParallelGripperCommand, "/gripper/gripper_cmd",
                               gripper_goal("", 0.3))
         sim.set_state(SimulationState.STATE_PLAYING)
         sim.spin_until(lambda: grasp.result.done(), timeout=120)

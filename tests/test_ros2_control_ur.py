@@ -22,7 +22,7 @@ from tests.sim_client import OK, SimClient, live_runs
 from tests.test_ros2_control import ABORTED, CANCELED, SUCCEEDED, TICK_NS, goal, recorded_inputs
 
 SCENARIO = ROOT / "tests" / "scenarios" / "ur5e_control.yaml"
-NS = "/ur"  # the robot's name in the scenario: its manager and controllers live under it
+NS = ""  # a lone robot lives at the root: /controller_manager, as UR users run it
 JTC = f"{NS}/joint_trajectory_controller/follow_joint_trajectory"
 JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
           "wrist_2_joint", "wrist_3_joint"]

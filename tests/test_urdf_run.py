@@ -1,6 +1,8 @@
 """A robot described in xacro runs as a cosim robot (scenarios/nav_urdf.yaml): it reaches the
 nav goal with one digest in-process and multi-process, and a plain rclpy subscriber sees
-/robot_description, /joint_states and TF under the URDF's own names. Bad settings are
+/robot_description, /joint_states and TF under the URDF's own names, at the root as
+robot_state_publisher publishes one robot (tests/test_robot_namespace.py: with a namespace,
+and two robots). Bad settings are
 scenario errors (exit 2) naming the key."""
 
 from __future__ import annotations
@@ -43,10 +45,10 @@ def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                          reliability=ReliabilityPolicy.RELIABLE)
     got: dict[str, list] = {"description": [], "joints": [], "tf": [], "static": []}
-    node.create_subscription(String, "/mybot/robot_description", got["description"].append,
+    node.create_subscription(String, "/robot_description", got["description"].append,
                              latched)
     node.create_subscription(TFMessage, "/tf_static", got["static"].append, latched)
-    node.create_subscription(JointState, "/mybot/joint_states", got["joints"].append, 100)
+    node.create_subscription(JointState, "/joint_states", got["joints"].append, 100)
     node.create_subscription(TFMessage, "/tf", got["tf"].append, 100)
     # as a ROS user does: start the run paused, see its topics, then play (a lockstep run
     # does not wait for outside subscribers, and a whole run takes two seconds of wall time,
@@ -57,7 +59,7 @@ def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
     sim = SimClient(ros_node)
     try:
         sim.spin_until(lambda: all(node.get_publishers_info_by_topic(t) for t in (
-            "/mybot/joint_states", "/tf", "/mybot/robot_description", "/tf_static")))
+            "/joint_states", "/tf", "/robot_description", "/tf_static")))
         sim.spin(0.5)  # the run's writers match the subscriptions too
         assert sim.set_state(SimulationState.STATE_PLAYING).result == OK
         deadline = time.monotonic() + 120
@@ -72,17 +74,17 @@ def test_ros_users_see_the_robot_under_its_own_names(tmp_path, ros_node):
         _, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     counts = {k: len(v) for k, v in got.items()}
-    assert got["description"], f"no /mybot/robot_description; received {counts}"
+    assert got["description"], f"no /robot_description; received {counts}"
     urdf = got["description"][-1].data
     assert '<robot name="mybot"' in urdf and "<samples>360</samples>" in urdf  # expanded
     static = {(t.header.frame_id, t.child_frame_id) for m in got["static"] for t in m.transforms}
-    assert ("mybot/base_link", "mybot/base_scan") in static
-    assert ("mybot/camera_link", "mybot/camera_optical_frame") in static
+    assert ("base_link", "base_scan") in static
+    assert ("camera_link", "camera_optical_frame") in static
     moving = {(t.header.frame_id, t.child_frame_id) for m in got["tf"] for t in m.transforms}
-    assert ("mybot/odom", "mybot/base_footprint") in moving
-    assert ("mybot/base_link", "mybot/wheel_left_link") in moving
+    assert ("odom", "base_footprint") in moving
+    assert ("base_link", "wheel_left_link") in moving
     frames = {c for _, c in static | moving}
-    assert {f"mybot/{link}" for link in LINKS} - {"mybot/base_footprint"} <= frames
+    assert LINKS - {"base_footprint"} <= frames
     assert got["joints"] and got["joints"][-1].name == ["wheel_left_joint", "wheel_right_joint"]
 
 
@@ -212,8 +214,8 @@ def test_a_xacro_arg_reaches_the_lidar_through_the_gazebo_tag(tmp_path):
     run = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet", "--duration", "1s",
                       "--set", "robots.urdf.args.lidar_samples=180")
     assert run.code == 1, run.stderr  # 1 s: the goal is not reached yet
-    scan = bag_messages(run.run_dir, "/mybot/scan")[0]
-    assert len(scan.ranges) == 180 and scan.header.frame_id == "mybot/base_scan"
+    scan = bag_messages(run.run_dir, "/scan")[0]
+    assert len(scan.ranges) == 180 and scan.header.frame_id == "base_scan"
     assert scan.range_max == pytest.approx(12.0)
 
 
@@ -239,13 +241,13 @@ def test_a_urdf_arm_follows_joint_commands_to_its_last_target(tmp_path):
     assert run.manifest["outcome"]["metrics"]["target"] == 2.0  # the third of three
     last = yaml.safe_load((ROOT / "scenarios" / "arm_urdf.yaml").read_text())
     target = last["nodes"][1]["params"]["targets"][-1]
-    states = bag_messages(run.run_dir, "/myarm/joint_states")[-1]
+    states = bag_messages(run.run_dir, "/joint_states")[-1]
     assert states.name == ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2",
                            "wrist_3"]
     assert list(states.position) == pytest.approx(target, abs=0.05)
     moving = {(t.header.frame_id, t.child_frame_id)
               for t in bag_messages(run.run_dir, "/tf")[-1].transforms}
-    assert ("myarm/wrist_2_link", "myarm/wrist_3_link") in moving
+    assert ("wrist_2_link", "wrist_3_link") in moving
     static = {(t.header.frame_id, t.child_frame_id)
               for t in bag_messages(run.run_dir, "/tf_static")[0].transforms}
-    assert ("myarm/wrist_3_link", "myarm/tool0") in static
+    assert ("wrist_3_link", "tool0") in static

@@ -199,13 +199,13 @@ def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_p
 def test_a_usd_robot_reaches_the_nav_goal_and_an_arm_its_targets(tmp_path):
     nav = run(ROOT / "scenarios" / "nav_usd_robot.yaml", in_process=True, out=tmp_path)
     assert nav.success and nav.metrics["mybot/arrived"] == 1.0
-    assert nav.last("/mybot/joint_states").name == list(WHEELS)
-    description = nav.last("/mybot/robot_description").data
+    assert nav.last("/joint_states").name == list(WHEELS)  # a lone robot: at the root
+    description = nav.last("/robot_description").data
     assert "<robot name=\"mybot\">" in description and ".stl\"" in description
     assert "usd-robots" not in description  # no machine's path: one digest everywhere
     arm = run(ROOT / "scenarios" / "arm_usd.yaml", in_process=True, out=tmp_path)
     assert arm.metrics["target"] == 2.0  # the third of three reached
-    states = arm.last("/myarm/joint_states")
+    states = arm.last("/joint_states")
     assert states.name == ARM
     assert list(states.position) == pytest.approx([-0.6, 0.4, 1.1, 0.5, -0.8, 0.3], abs=0.05)
 

@@ -157,8 +157,9 @@ class JointTargetsNode(StepNode):
 
 def commanded_joints(robot: RobotModel) -> list[str]:
     """The joints ``robot`` commands by position, in its model's order, as its
-    /joint_states names them (a URDF robot's own names, without a swarm's prefix)."""
+    /joint_states names them (a URDF robot's own names, without a swarm's prefix; an MJCF
+    robot's in its namespace)."""
     joints = [a.joint for a in robot.actuated if a.interface == "position"]
     if robot.described:
-        joints = [j.removeprefix(robot.prefix) for j in joints]
-    return joints
+        return [j.removeprefix(robot.prefix) for j in joints]
+    return [robot.frame(j) for j in joints]

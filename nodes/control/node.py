@@ -224,7 +224,7 @@ class ControlNode(StepNode):
 
     def _with_robot(self, params: ControlParams) -> ControlParams:
         """The parameters with the robot's names as its model gives them: its base body,
-        lidar site and base frame, the odometry frame under its prefix."""
+        lidar site and base frame, the odometry frame in its namespace."""
         robots = robots_of(self.config, self.description_names(params))
         if len(robots) != 1:
             raise ValueError(f"the control node drives one robot; world {self.config.world} "
@@ -236,9 +236,9 @@ class ControlNode(StepNode):
                              f"{params.laser_site or RobotNames().laser_site!r}")
         update = {
             "base_body": robot.base, "laser_site": lidar.mujoco_name,
-            "frame_id": robot.prefix + params.frame_id,
+            "frame_id": robot.frame_prefix + params.frame_id,
             "base_frame": robot.base_link if params.base_frame is None
-            else robot.prefix + params.base_frame}
+            else robot.frame_prefix + params.base_frame}
         if robot.described and "robot_radius" not in params.model_fields_set:
             update["robot_radius"] = robot.footprint_radius  # a URDF's, from its collisions
         return params.model_copy(update=update)

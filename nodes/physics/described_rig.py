@@ -33,7 +33,7 @@ def described_params(params, robot: RobotModel):
     drive = robot.drive
     return params.model_copy(update={
         "base_body": robot.base, "base_frame": robot.base_link,
-        "odom_frame": robot.prefix + params.odom_frame,
+        "odom_frame": robot.frame_prefix + params.odom_frame,
         "wheel_joints": None if drive is None else (drive.left_joint, drive.right_joint),
         "wheel_actuators": ("", "") if drive is None else (drive.left_actuator,
                                                            drive.right_actuator),
@@ -54,7 +54,7 @@ class DescribedRobotFrames:
     def __init__(self, model: mujoco.MjModel, params: TfParams, robot: RobotModel,
                  odom_frame: str):
         self.frames = RobotStateFrames(model, robot, odom_frame)
-        self.odom_frame, self.base_frame = robot.prefix + odom_frame, robot.base_link
+        self.odom_frame, self.base_frame = robot.frame_prefix + odom_frame, robot.base_link
         self.mobile = self.publishes_base = robot.mobile  # odom -> base: a mobile robot's
         self.moving: list = []  # no body pairs: its moving links are ``links``
         data = mujoco.MjData(model)

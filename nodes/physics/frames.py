@@ -138,8 +138,11 @@ class RobotFrames:
 
     def __init__(self, model: mujoco.MjModel, params: TfParams, base_body: str,
                  base_frame: str, odom_frame: str, extra_sites: dict[str, str],
-                 joints: list[str] | tuple[str, ...] = ()):
+                 joints: list[str] | tuple[str, ...] = (), frame_of_body=None):
+        """``frame_of_body``: a body's MuJoCo name -> its TF frame (a robot whose frames
+        are in a namespace other than its MuJoCo prefix); default: the name."""
         self.model = model
+        self.body_frame = frame_of_body or str
         self.params = params
         self.odom_frame = odom_frame
         self.base_frame = base_frame
@@ -174,7 +177,8 @@ class RobotFrames:
         return []
 
     def _frame_of(self, body: int) -> str:
-        return self.base_frame if body == self.base else self.model.body(body).name
+        return (self.base_frame if body == self.base
+                else self.body_frame(self.model.body(body).name))
 
     def _chain(self, body: int) -> None:
         """Add the transforms from the base body down to ``body`` (each once, parents first)."""
@@ -187,6 +191,8 @@ class RobotFrames:
         for body in reversed(path):
             parent = int(model.body_parentid[body])
             name = model.body(body).name
+            if name:
+                name = self.body_frame(name)
             if not name:
                 raise ValueError(f"body {body} on the way to a sensor frame has no name; "
                                  "name it in the MJCF (it becomes a TF frame)")

@@ -7,7 +7,9 @@ One node steps the whole world (robots collide with each other, and the step is 
 ``/ROBOT/odom``, ``/ROBOT/joint_states``, ``/ROBOT/imu`` and, taking ``/ROBOT/cmd_vel`` and
 ``/ROBOT/joint_commands``; ``/tf`` carries every robot's moving frames (``map ->
 ROBOT/odom -> ROBOT/base_link -> ...``), ``/tf_static`` their fixed ones, once, and
-``/cosim/world_state`` the whole world's state for the sensor nodes' mirrors.
+``/cosim/world_state`` the whole world's state for the sensor nodes' mirrors. A robot at the
+root (a lone robot of a robots: section) has its topics and frames unprefixed (``/odom``,
+``odom -> base_link``), its MuJoCo names still ``ROBOT/...`` (``RobotModel.namespace``).
 
 Collisions are counted apart: a robot touching an obstacle, and two robots touching each
 other (one event for the pair). Each robot's goal is checked in ground truth; the
@@ -41,7 +43,7 @@ from nodes.physics.world import named_id
 from nodes.physics.world_events import LiveWorld, geom_map
 from plan.events import parse_edits
 from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
-from plan.robots import namespaced, prefixed
+from plan.robots import frame_prefix, namespaced, prefixed
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 
@@ -50,29 +52,32 @@ ACTUATOR = mujoco.mjtObj.mjOBJ_ACTUATOR
 BODY = mujoco.mjtObj.mjOBJ_BODY
 
 
-def robot_params(params, robot: str):
+def robot_params(params, robot: str, namespace: str | None = None):
     """The physics parameters with every name of the description as robot ``robot``'s
-    copy has it in the swarm world (``robot_3/base_link``), frames likewise; as they are
-    for the unnamed robot."""
+    copy has it in the swarm world (``robot_3/base_link``), frames in its ROS
+    ``namespace`` (default: its name; '' the root: ``base_link``); as they are for the
+    unnamed robot."""
     if not robot:
         return params
     p = lambda name: prefixed(robot, name)  # noqa: E731 - one short rename, used a lot
+    fp = frame_prefix(robot if namespace is None else namespace)
+    f = lambda frame: fp + frame  # noqa: E731 - its frames' rename
     tf = params.tf
     if tf is not None:
         tf = tf.model_copy(update={
-            "sites": {p(site): p(frame) for site, frame in tf.sites.items()},
-            "cameras": [CameraFrames(camera=p(c.camera), link_frame=p(c.link_frame),
-                                     color_optical_frame=p(c.color_optical_frame),
-                                     depth_optical_frame=p(c.depth_optical_frame))
+            "sites": {p(site): f(frame) for site, frame in tf.sites.items()},
+            "cameras": [CameraFrames(camera=p(c.camera), link_frame=f(c.link_frame),
+                                     color_optical_frame=f(c.color_optical_frame),
+                                     depth_optical_frame=f(c.depth_optical_frame))
                         for c in tf.cameras]})
     imu = params.imu
     if imu is not None:
-        imu = imu.model_copy(update={key: p(getattr(imu, key)) for key in
-                                     ("site", "frame_id", "gyro", "accelerometer",
-                                      "orientation")})
+        imu = imu.model_copy(update={key: (f if key == "frame_id" else p)(getattr(imu, key))
+                                     for key in ("site", "frame_id", "gyro", "accelerometer",
+                                                 "orientation")})
     return params.model_copy(update={
-        "base_body": p(params.base_body), "odom_frame": p(params.odom_frame),
-        "base_frame": p(params.base_frame),
+        "base_body": p(params.base_body), "odom_frame": f(params.odom_frame),
+        "base_frame": f(params.base_frame),
         "wheel_joints": None if params.wheel_joints is None else tuple(map(p, params.wheel_joints)),
         "wheel_actuators": tuple(map(p, params.wheel_actuators)),
         "position_joints": tuple(map(p, params.position_joints)),
@@ -93,7 +98,7 @@ class Rig:
             self.params = params = described_params(params, robot)
             self.described = DescribedRobotFrames(model, tf or TfParams(), robot, odom)
         else:
-            self.params = params = robot_params(params, robot.name)
+            self.params = params = robot_params(params, robot.name, robot.namespace)
         self.base = named_id(model, BODY, robot.base)
         free = model.body_jntadr[self.base]
         self.mobile = free >= 0 and model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
@@ -120,11 +125,11 @@ class Rig:
         self.joint_v = model.jnt_dofadr[joints]
         # what /joint_states carries: the commanded joints, or a described robot's movable ones
         self.state_names, self.state_q, self.state_v = (
-            (self.joint_names, self.joint_q, self.joint_v) if self.described is None
-            else self.described.state_joints)
+            ([robot.frame(j) for j in self.joint_names], self.joint_q, self.joint_v)
+            if self.described is None else self.described.state_joints)
         self.odom_frame = params.odom_frame
         self.base_frame = robot.base_link
-        self.topics = {t: robot_topic(robot.name, t) for t in
+        self.topics = {t: namespaced(robot.namespace, t) for t in
                        (CMD_VEL, JOINT_COMMANDS, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC, ODOM,
                         JOINT_STATES, IMU, ROBOT_DESCRIPTION)}
         self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
@@ -134,7 +139,8 @@ class Rig:
         elif params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
             self.frames = RobotFrames(model, params.tf, robot.base, self.base_frame,
-                                      self.odom_frame, imu_site, self.position_joints)
+                                      self.odom_frame, imu_site, self.position_joints,
+                                      robot.frame)
         self.goal = goal
         goal_joints = [] if joint_goal is None else [named_id(model, JOINT, j)
                                                      for j in joint_goal["positions"]]
@@ -231,11 +237,6 @@ class Rig:
         if (np.hypot(x - g["x"], y - g["y"]) <= g["position_tolerance"]
                 and abs(yaw_error) <= g["yaw_tolerance"]):
             self.goal_time_ns = tick.time_ns
-
-
-def robot_topic(robot: str, topic: str) -> str:
-    """A robot's topic: under its namespace in a swarm, as it is for the unnamed robot."""
-    return namespaced(robot, topic) if robot else topic
 
 
 class SwarmContacts:

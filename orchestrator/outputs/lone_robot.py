@@ -1,6 +1,7 @@
 """A scenario with one robot in a ``robots:`` section (a user's robot, URDF or MJCF, doing
-nav's task) gets nav's report, not the swarm's: its topics are under the robot's namespace,
-its goal is the robot's (``orchestrator.outputs.picture`` draws it)."""
+nav's task) gets nav's report, not the swarm's: its topics are at the root (or under the
+namespace its entry names), its goal is the robot's (``orchestrator.outputs.picture`` draws
+it)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ def topics_of(scenario, topics: tuple[str, ...]) -> dict[str, str]:
     """Each of nav's ``topics`` -> the topic the run has it on (under its lone robot's
     namespace, if it has one)."""
     robot = lone_robot(scenario)
-    return {t: namespaced(robot, t) if robot else t for t in topics}
+    namespace = scenario.robots.namespace_of(robot) if robot else ""
+    return {t: namespaced(namespace, t) for t in topics}
 
 
 def robot_goal(scenario):

@@ -196,11 +196,15 @@ def robots_world(scenario: Scenario, laser_frame: str) -> World:
     and where its robot's laser (``laser_frame``, a site of the robot's) sits on it."""
     from descriptions.swarm_world import swarm_model
     from descriptions.world_geometry import site_offset
+    from plan.robots import frame_prefix
 
     world = World()
-    model = swarm_model(scenario.world, scenario.robots)
+    layout = scenario.robots
+    model = swarm_model(scenario.world, layout)
     add_obstacles(world, model)
-    world.laser = site_offset(model, laser_frame)
+    robot = layout.robots[0].name  # the frame in its namespace, the site under its prefix
+    site = f"{robot}/{laser_frame.removeprefix(frame_prefix(layout.namespace_of(robot)))}"
+    world.laser = site_offset(model, site)
     return world
 
 

@@ -51,7 +51,7 @@ def swarm_figure(scenario, bag: Path, outcome):
     from matplotlib.patches import Circle
 
     layout = scenario.robots
-    topics = tuple(namespaced(r, "/odom") for r in layout.names)
+    topics = tuple(namespaced(layout.namespace_of(r), "/odom") for r in layout.names)
     data = read_bag(Path(bag), topics)
     world = arena(scenario)
     colours = colormaps["tab20" if len(layout.names) > 10 else "tab10"]

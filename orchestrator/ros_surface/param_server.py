@@ -23,7 +23,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from nodes.live_params import change_message, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.interactive import params_topic
-from plan.robots import ros_identity
+from plan.robots import robot_of, ros_identity
 from plan.scenario import EXTERNAL_NAME, NodePlan
 from plan.validation import describe_validation_error, field_of, inner_model
 from runtime.arrivals import Arrivals
@@ -36,7 +36,9 @@ class NodeParameters:
     """One cosim node's parameters on an rclpy node named like it."""
 
     def __init__(self, context, plan: NodePlan, cls: type, arrivals: Arrivals | None,
-                 control: RunControl, external_period: int):
+                 control: RunControl, external_period: int, namespace: str | None = None):
+        """``namespace``: the ROS namespace of the node's robot where it is not the robot's
+        name ('' at the root; ``plan.robots.ros_identity``)."""
         import rclpy
 
         self.plan = plan
@@ -51,7 +53,7 @@ class NodeParameters:
         self.changes: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._resetting = False
-        name, namespace = ros_identity(plan.name)
+        name, namespace = ros_identity(plan.name, namespace)
         self.node = rclpy.create_node(name, namespace=namespace, context=context,
                                       enable_rosout=False)
         for name, value in self.scenario_values.items():
@@ -124,8 +126,11 @@ def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, cont
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
     for plan in scenario.nodes.values():
         if plan.role.runs_step_runtime:
+            robot = robot_of(plan.name)
+            namespace = (scenario.robots.namespace_of(robot)
+                         if robot and scenario.robots is not None else None)
             yield NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control,
-                                 period)
+                                 period, namespace)
 
 
 def describe(model: type[BaseModel], name: str, runtime: bool) -> ParameterDescriptor:
