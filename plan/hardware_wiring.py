@@ -1,25 +1,20 @@
-"""Physics wired to a robot's controller manager by the plan, not by the scenario's remaps.
+"""A robot's controller manager folded into the physics node by the plan.
 
-A node class with ``hardware_role`` (the controller manager) stands between the physics
-node and the robot's hardware: it reads the joints on ``/cosim/hardware_states`` and writes
-the joint commands on ``/cosim/hardware_commands`` and the base's twist on
-``/cosim/base_command``, which are physics' ``/joint_states``, ``/joint_commands`` and
-``/cmd_vel`` of that robot. The scenario names none of them; the plan connects the two ends
-one of two ways, chosen by the manager's own topics:
+A node class with ``hardware_role`` (the controller manager, kind ``ros2_control``) is
+declared by the scenario (or added for every robot by ``robots.controllers``,
+:func:`with_robot_managers`) and checked as a node of its own; then :func:`fold_managers`
+takes it out of the node list and gives it to the physics node (its parameter
+``controller_manager``), which runs it in its step over MjData, as mujoco_ros2_control's
+system interface does (nodes/ros2_control/hosted.py). The manager's inputs (its
+controllers' command topics and goals, the switch topic) become physics' inputs, delayed (a
+controller takes at its update what arrived before it) but those clients feed at the tick;
+its outputs are physics'. Physics' own ``/joint_commands`` and ``/cmd_vel`` give way to
+controllers that command the joints and the wheels.
 
-- **The controllers are the robot's face.** When the manager publishes or takes one of the
-  robot's topics itself (``/joint_states`` from a joint state broadcaster, ``/joint_commands``
-  where a forward controller's commands are remapped), physics' robot topics move to the
-  hardware names, as ros2_control's hardware has no topics of its own. This needs physics
-  remappable, so a scenario without a ``robots:`` section.
-- **Physics is the robot's face.** Otherwise physics keeps its topics (``/joint_states``
-  reaches ROS users from physics) and the manager reads and writes them: its hardware
-  topics are remapped to the robot's (``/mybot/joint_states``, ``/mybot/cmd_vel`` for a
-  ``for_each: robot`` manager).
-
-A scenario that already wires a hardware topic by hand (a remap naming one) is left as it
-is, so files written before this still run. ``robots.controllers`` adds the manager itself
-(:func:`with_robot_managers`).
+The manager must run at the physics node's rate (its controllers file's ``update_rate``).
+Scenarios written for the manager as a node of its own wired physics to it with remaps to
+``/cosim/hardware_states``, ``/cosim/hardware_commands`` and ``/cosim/base_command``: such
+remaps and inputs are dropped, each with a notice (``--strict`` refuses them).
 """
 
 from __future__ import annotations
@@ -29,108 +24,159 @@ from pathlib import Path
 from plan.errors import ScenarioError, ScenarioNotice
 from plan.kinds import catalogue, class_of
 from plan.model import InputSpec, NodeSpec, ScenarioModel
-from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES
+from plan.robots import robot_of
+from plan.scenario import EXTERNAL_NAME
+from plan.topic_names import CMD_VEL, JOINT_COMMANDS
 
 HARDWARE_STATES = "/cosim/hardware_states"
 HARDWARE_COMMANDS = "/cosim/hardware_commands"
 BASE_COMMAND = "/cosim/base_command"
-HARDWARE_OF = {JOINT_STATES: HARDWARE_STATES, JOINT_COMMANDS: HARDWARE_COMMANDS,
-               CMD_VEL: BASE_COMMAND}
-"""Physics' robot topic -> the hardware topic the controller manager knows it as."""
-HARDWARE_TOPICS = frozenset(HARDWARE_OF.values())
-
-
-def _topics(spec: NodeSpec, cls: type, scenario_dir: Path) -> tuple[set[str], set[str]] | None:
-    """(every topic the node knows, its outputs and client-fed inputs) by its own names;
-    None where its parameters are wrong (the checks report that)."""
-    try:
-        params = cls.Params.model_validate(spec.params, context={"scenario_dir": scenario_dir})
-        outputs = set(cls.outputs(params)) | set(cls.latched_outputs(params))
-        face = outputs | set(cls.client_inputs(params))
-        known = face | set(cls.accepted_inputs(params) or ()) | {i.topic for i in spec.inputs}
-    except Exception:  # noqa: BLE001 - reported by the scenario's checks with its key
-        return None
-    return known, face
+HARDWARE_TOPICS = frozenset({HARDWARE_STATES, HARDWARE_COMMANDS, BASE_COMMAND})
+"""The topics a separate controller manager and physics were once wired by (dropped)."""
 
 
 def hand_wired(model: ScenarioModel) -> bool:
-    """Whether a remap of the scenario already names a hardware topic (either side)."""
+    """Whether a remap or input of the scenario names a hardware topic."""
     return any(topic in HARDWARE_TOPICS for spec in model.nodes
-               for pair in spec.remap.items() for topic in pair)
+               for topic in [*spec.remap, *spec.remap.values(),
+                             *(inp.topic for inp in spec.inputs)])
 
 
 def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice]:
-    """A notice for each remap that names a hardware topic in a scenario with a controller
-    manager: cosim wires them itself, so the remap (and the manager's listed
-    ``/cosim/hardware_states`` input) may be deleted; ``--strict`` refuses them."""
+    """A notice for each remap or input that names a hardware topic in a scenario with a
+    controller manager: the manager runs in the physics step, so they are dropped;
+    ``--strict`` refuses them."""
     if not any(getattr(class_of(spec), "hardware_role", False) for spec in model.nodes):
         return []
-    return [ScenarioNotice(path, f"nodes[{i}] ({spec.name}).remap.{own}", f"{own} -> {graph} "
-                           "wires physics to the controller manager by hand; cosim wires "
-                           "them itself (docs/concepts/topics.md, ros2_control).",
-                           "delete the remaps naming /cosim/ topics, and the controller "
-                           "manager's /cosim/hardware_states input.")
-            for i, spec in enumerate(model.nodes) for own, graph in spec.remap.items()
-            if own in HARDWARE_TOPICS or graph in HARDWARE_TOPICS]
+    said = ("the controller manager runs in the physics node's step (it reads and writes "
+            "MjData, docs/concepts/topics.md, ros2_control): this is dropped.")
+    fix = "delete the remaps and inputs naming /cosim/hardware_* and /cosim/base_command."
+    out = [ScenarioNotice(path, f"nodes[{i}] ({spec.name}).remap.{own}", f"{own} -> {graph}: "
+                          + said, fix)
+           for i, spec in enumerate(model.nodes) for own, graph in spec.remap.items()
+           if own in HARDWARE_TOPICS or graph in HARDWARE_TOPICS]
+    out += [ScenarioNotice(path, f"nodes[{i}] ({spec.name}).inputs[{j}]", f"input {inp.topic}: "
+                           + said, fix)
+            for i, spec in enumerate(model.nodes) for j, inp in enumerate(spec.inputs)
+            if inp.topic in HARDWARE_TOPICS]
+    return out
 
 
-def wire_hardware(path: Path, model: ScenarioModel, has_robots: bool) -> ScenarioModel:
-    """The model with physics and every controller manager connected (module docstring):
-    the remaps added to the physics node or to the managers, each manager's hardware state
-    input (same tick) and physics' command inputs (delayed) listed where the scenario does
-    not list them. ``has_robots``: the
-    scenario has a ``robots:`` section (physics' topics are then not remappable)."""
+def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int]
+                  ) -> tuple[ScenarioModel, list[ScenarioNotice] | None]:
+    """The checked, expanded model with every controller manager node folded into the
+    physics node (module docstring); ``params``: each node's checked parameters, by index.
+    Notices for physics' inputs that the controllers replace (None: no manager, nothing
+    changed). Exit 2 where a manager cannot
+    run in physics' step: no physics node, a rate other than physics', managers for some
+    robots only or declared twice, a controller topic remapped in a swarm."""
     nodes = list(model.nodes)
-    by_hand = hand_wired(model)
     classes = {i: class_of(spec) for i, spec in enumerate(nodes)}
     managers = [i for i, cls in classes.items() if getattr(cls, "hardware_role", False)]
+    if not managers:
+        return model, None
+    first = managers[0]
+    key = _key(nodes, origins, first)
     worlds = [i for i, cls in classes.items() if getattr(cls, "every_robot", False)]
-    if not managers or len(worlds) != 1:
-        return model
-    physics = worlds[0]
-    physics_topics = _topics(nodes[physics], classes[physics], path.parent)
+    if len(worlds) != 1:
+        raise ScenarioError(path, key, "a controller manager runs in the physics node's step, "
+                            "and the scenario has no physics node." if not worlds else
+                            "a controller manager runs in the physics node's step, and the "
+                            "scenario has several.", "one node of kind physics.")
+    w = worlds[0]
+    physics = nodes[w]
+    if len({origins.get(nodes[i].name, i) for i in managers}) > 1:
+        raise ScenarioError(path, _key(nodes, origins, managers[1]), "a second controller "
+                            "manager: one runs for each robot, in the physics step.",
+                            "one ros2_control node (for_each: robot in a robots: scenario), "
+                            "or robots.controllers.")
+    robots = physics.robots or []
+    served = sorted(robot_of(nodes[i].name) or "" for i in managers)
+    if sorted(robots or [""]) != served:
+        raise ScenarioError(path, key, "a controller manager runs in the physics node's step "
+                            "for every robot; this one is for " + (", ".join(served) or
+                                                                   "the scenario's robot")
+                            + " only.", "for_each: robot without robots: (every robot).")
+    spec = nodes[first]
+    if spec.period_ns != physics.period_ns:
+        raise ScenarioError(path, f"{key}.rate", "the controller manager runs in the physics "
+                            "node's step, at its rate; physics runs at another.",
+                            "the same rate for both (physics' rate, and update_rate in the "
+                            "controllers file).")
+    cls = classes[first]
+    hosted = cls.hosted_params(params[first], spec.name.partition("@")[0])
+    joints, base = cls.takes_hardware(params[first])
+    replaced = ({JOINT_COMMANDS} if joints else set()) | ({CMD_VEL} if base else set())
+    fed = set(_external_topics(nodes))
+    inputs, remap, notices = [], {}, []
     for i in managers:
-        spec, topics = nodes[i], _topics(nodes[i], classes[i], path.parent)
-        if topics is None or physics_topics is None:
+        manager = nodes[i]
+        robot = robot_of(manager.name)
+        for own_topic, graph in manager.remap.items():
+            if graph in HARDWARE_TOPICS or own_topic in HARDWARE_TOPICS:
+                continue
+            under = graph[:-len(own_topic)] if graph.endswith(own_topic) else None
+            if robot is not None and (under is None or under.count("/") > 1):
+                raise ScenarioError(path, f"{key}.remap.{own_topic}", "a controller's topic "
+                                    "remapped in a swarm: each robot's manager runs in the "
+                                    "physics step, its topics under the robot's namespace.",
+                                    "no remap (a node of the robot remaps its end instead).")
+            if robot is None:
+                remap[own_topic] = graph
+        for inp in manager.inputs:
+            if inp.topic in HARDWARE_TOPICS:
+                continue
+            graph = manager.remap.get(inp.topic, inp.topic)
+            topic = graph if robot is not None else inp.topic
+            mode = inp.mode if graph in fed else "delayed"
+            inputs.append(InputSpec(topic=topic, mode=mode))
+    kept = []
+    for j, inp in enumerate(physics.inputs):
+        local = _local(inp.topic, robots)
+        if inp.topic in HARDWARE_TOPICS or local in replaced:
+            if local in replaced:
+                notices.append(ScenarioNotice(path, f"{_key(nodes, origins, w)}.inputs[{j}]",
+                                              f"{inp.topic}: the robot's controllers command "
+                                              "its hardware in the physics step, so physics "
+                                              "does not take it; it is dropped.",
+                                              "delete the input (a controller's topic, such "
+                                              "as the diff drive's ~/cmd_vel, takes it)."))
             continue
-        known, face = topics
-        used = {robot: hw for robot, hw in HARDWARE_OF.items() if hw in known}
-        taken = sorted({spec.remap.get(t, t) for t in face} & set(HARDWARE_OF))
-        if by_hand:
-            pass  # wired as before: only the state input is listed for it
-        elif taken and (has_robots or spec.for_each is not None):
-            raise ScenarioError(path, f"nodes[{i}] ({spec.name})", f"its controllers "
-                                f"publish or take {taken[0]}, which physics serves for each "
-                                "robot of the robots: section.", f"controllers that leave "
-                                f"{taken[0]} to physics (it publishes /ROBOT/joint_states), "
-                                "or a scenario without a robots: section.")
-        elif taken:
-            remap = {robot: hw for robot, hw in used.items() if robot in physics_topics[0]}
-            nodes[physics] = _remapped(nodes[physics], remap)
-        else:
-            nodes[i] = _remapped(spec, {hw: robot for robot, hw in used.items()})
-        if HARDWARE_STATES in known:
-            nodes[i] = _with_input(nodes[i], HARDWARE_STATES, "same_tick", first=True)
-        if not by_hand:  # physics takes the commands the manager writes, a tick later
-            for robot, hw in used.items():
-                if hw != HARDWARE_STATES and robot in physics_topics[0]:
-                    nodes[physics] = _with_input(nodes[physics], robot, "delayed")
-    return model.model_copy(update={"nodes": nodes})
+        kept.append(inp)
+    listed = {inp.topic for inp in kept}
+    for inp in inputs:
+        if inp.topic not in listed:
+            listed.add(inp.topic)
+            kept.append(inp)
+    physics_remap = {t: g for t, g in physics.remap.items()
+                     if t not in HARDWARE_TOPICS and g not in HARDWARE_TOPICS}
+    folded = physics.model_copy(update={
+        "params": {**physics.params, "controller_manager": hosted.model_dump()},
+        "inputs": kept, "remap": {**remap, **physics_remap}})
+    nodes[w] = folded
+    nodes = [n for i, n in enumerate(nodes) if i not in managers]
+    return model.model_copy(update={"nodes": nodes}), notices
 
 
-def _with_input(spec: NodeSpec, topic: str, mode: str, first: bool = False) -> NodeSpec:
-    """``spec`` taking ``topic`` (its own name) in ``mode``, first or last among its inputs,
-    unless it lists that topic already."""
-    if any(inp.topic == topic for inp in spec.inputs):
-        return spec
-    added = InputSpec(topic=topic, mode=mode)
-    inputs = [added, *spec.inputs] if first else [*spec.inputs, added]
-    return spec.model_copy(update={"inputs": inputs})
+def _local(topic: str, robots: list[str]) -> str:
+    """``topic`` without the namespace of the robot it is under ('/robot_2/cmd_vel' ->
+    '/cmd_vel'), as it is where it is under none."""
+    head, _, rest = topic[1:].partition("/")
+    return f"/{rest}" if rest and head in robots else topic
 
 
-def _remapped(spec: NodeSpec, remap: dict[str, str]) -> NodeSpec:
-    """``spec`` with ``remap`` added under its own remaps (a remap it has wins)."""
-    return spec.model_copy(update={"remap": {**remap, **spec.remap}})
+def _external_topics(nodes: list[NodeSpec]) -> dict[str, str]:
+    """The graph topics the external node feeds (clients of an interactive run)."""
+    for spec in nodes:
+        if spec.name == EXTERNAL_NAME:
+            return dict(spec.params.get("topics", {}))
+    return {}
+
+
+def _key(nodes: list[NodeSpec], origins: dict[str, int], i: int) -> str:
+    """A node's key as the file gives it (a template instance: its template's)."""
+    name = nodes[i].name
+    return f"nodes[{origins.get(name, i)}] ({name.partition('@')[0]})"
 
 
 MANAGER_NAME = "controller_manager"

@@ -143,9 +143,11 @@ class Scenario:
     @property
     def trailing_nodes(self) -> frozenset[str]:
         """The nodes that may trail the others by up to one activation: leaves of the graph
-        (nothing consumes their outputs), not foreign. Their metrics never decide an early
-        stop, on any driver."""
-        return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].role.is_foreign)
+        (nothing consumes their outputs), not foreign, and not a node that runs a controller
+        manager (its metrics answer the manager's services at every tick). Their metrics
+        never decide an early stop, on any driver."""
+        return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].role.is_foreign
+                         and getattr(self.nodes[n].params, "controller_manager", None) is None)
 
     def producer_of(self, topic: str) -> str:
         """The node that publishes a graph topic."""

@@ -1,6 +1,7 @@
-"""Physics wired to a robot's controller manager by the plan (plan/hardware_wiring.py): no
-scenario remaps cosim's hardware topics, a file that still does resolves the same, and what
-cannot be wired is refused naming the node."""
+"""A robot's controller manager folded into the physics node by the plan
+(plan/hardware_wiring.py): its topics are physics', no topic runs between controllers and
+hardware, a file that still wires the old hardware topics resolves the same with notices,
+and what cannot run in physics' step is refused naming the node."""
 
 from __future__ import annotations
 
@@ -29,65 +30,86 @@ def _copy(tmp_path: Path, name: str, text: str) -> Path:
     return path
 
 
-def test_a_manager_with_a_broadcaster_takes_physics_joint_topics():
+def test_a_manager_runs_in_physics_and_its_controllers_topics_are_physics():
     scenario = load_scenario(SCENARIOS / "arm_control.yaml")
-    physics = scenario.nodes["physics"].output_names
-    assert physics["/joint_states"] == "/cosim/hardware_states"
-    assert scenario.nodes["controller_manager"].output_names["/joint_states"] == "/joint_states"
-    assert ("/cosim/hardware_states", "/cosim/hardware_states", "physics") in _wiring(
-        scenario)["controller_manager"]
-    assert ("/joint_commands", "/cosim/hardware_commands", "controller_manager") in _wiring(
-        scenario)["physics"]
+    assert "controller_manager" not in scenario.nodes  # folded into physics
+    physics = scenario.nodes["physics"]
+    assert physics.params.controller_manager.name == "controller_manager"
+    # the broadcaster's /joint_states is the robot's; the trajectory controller's state
+    assert physics.output_names["/joint_states"] == "/joint_states"
+    assert "/joint_trajectory_controller/controller_state" in physics.outputs
+    # the forward controller's ~/commands (remapped to /joint_commands) is physics' input,
+    # delayed; physics' own /joint_commands gives way to the controllers
+    wiring = {i.topic: (i.graph_topic, i.producer, i.mode) for i in physics.inputs}
+    assert wiring["/forward_position_controller/commands"] == ("/joint_commands", "arm",
+                                                                "delayed")
+    assert "/joint_commands" not in wiring
+    topics = {t for plan in scenario.nodes.values() for t in plan.outputs}
+    assert not [t for t in topics if t.startswith("/cosim/hardware") or t ==
+                "/cosim/base_command"]
 
 
-def test_a_robots_manager_reads_and_writes_physics_own_topics():
-    scenario = load_scenario(SCENARIOS / "nav_urdf_control.yaml")
-    manager = scenario.nodes["controller_manager@mybot"]
-    assert manager.output_names["/cosim/base_command"] == "/mybot/cmd_vel"
-    assert ("/cosim/hardware_states", "/mybot/joint_states", "physics") in _wiring(
-        scenario)["controller_manager@mybot"]
-    assert scenario.nodes["physics"].output_names["/mybot/joint_states"] == "/mybot/joint_states"
+def test_a_robots_manager_takes_its_controllers_topics_under_its_namespace():
+    scenario = load_scenario(SCENARIOS / "swarm_urdf_control.yaml")
+    physics = scenario.nodes["physics"]
+    assert not [n for n in scenario.nodes if n.startswith("controller_manager")]
+    wiring = {i.topic: (i.graph_topic, i.producer) for i in physics.inputs}
+    assert wiring["/robot_2/diff_drive_controller/cmd_vel"] == (
+        "/robot_2/diff_drive_controller/cmd_vel", "control@robot_2")
+    assert wiring["/robot_2/controller_manager/cosim/switch"][1] == "external"
+    assert "/robot_2/cmd_vel" not in wiring  # the diff drive controller drives the wheels
+    assert "/robot_2/diff_drive_controller/odom" in physics.outputs
 
 
 def test_a_scenario_wired_by_hand_resolves_as_before(tmp_path):
     text = (SCENARIOS / "arm_control.yaml").read_text()
     by_hand = text.replace(
         "      imu: null\n", "      imu: null\n    remap: {/joint_states: /cosim/hardware_states,"
-        " /joint_commands: /cosim/hardware_commands}\n", 1)
+        " /joint_commands: /cosim/hardware_commands}\n    inputs:\n      - {topic: "
+        "/joint_commands, mode: delayed}\n", 1)
     assert by_hand != text
     path = _copy(tmp_path, "arm_control.yaml", by_hand)
     scenario = load_scenario(path)
     assert _wiring(scenario) == _wiring(load_scenario(SCENARIOS / "arm_control.yaml"))
-    said = [w for w in scenario.warnings if "by hand" in w]
+    said = [w for w in scenario.warnings if "physics node's step" in w.problem
+            or "controllers command" in w.problem]
     assert [w.key for w in said] == ["nodes[0] (physics).remap./joint_states",
-                                     "nodes[0] (physics).remap./joint_commands"]
-    assert "delete the remaps naming /cosim/ topics" in said[0].accepted
-    assert not [w for w in load_scenario(SCENARIOS / "arm_control.yaml").warnings
-                if "by hand" in w]
+                                     "nodes[0] (physics).remap./joint_commands",
+                                     "nodes[0] (physics).inputs[0]"]
+    assert "delete the remaps and inputs naming /cosim/hardware_*" in said[0].accepted
+    assert not load_scenario(SCENARIOS / "arm_control.yaml").warnings
 
 
-def test_a_broadcaster_per_robot_is_refused_naming_the_node(tmp_path):
+def test_a_broadcaster_per_robot_publishes_each_robots_joint_states(tmp_path):
     controllers = tmp_path / "with_broadcaster.yaml"
     own = (SCENARIOS / "robots/mybot_description/config/mybot_controllers.yaml").read_text()
     controllers.write_text(own.replace(
         "    diff_drive_controller:\n      type:", "    joint_state_broadcaster:\n      type: "
         "joint_state_broadcaster/JointStateBroadcaster\n\n    diff_drive_controller:\n"
         "      type:", 1))
-    text = (SCENARIOS / "nav_urdf_control.yaml").read_text().replace(
-        "robots/mybot_description/config/mybot_controllers.yaml", "with_broadcaster.yaml")
+    text = (SCENARIOS / "swarm_urdf_control.yaml").read_text().replace(
+        "controllers/swarm_mybot_controllers.yaml", "with_broadcaster.yaml")
+    scenario = load_scenario(_copy(tmp_path, "swarm.yaml", text))
+    physics = scenario.nodes["physics"]
+    assert physics.output_names["/robot_3/joint_states"] == "/robot_3/joint_states"
+    assert "/robot_3/dynamic_joint_states" in physics.outputs
+
+
+def test_a_manager_at_another_rate_than_physics_is_refused_naming_the_node(tmp_path):
+    text = (SCENARIOS / "nav_control.yaml").read_text()
+    slow = text.replace("    rate: 50\n    params:\n      start:", "    rate: 100\n"
+                        "    params:\n      start:", 1)
+    assert slow != text
     with pytest.raises(ScenarioError) as err:
-        load_scenario(_copy(tmp_path, "nav_urdf_control.yaml", text))
-    assert "(controller_manager)" in err.value.key
-    assert "/joint_states" in err.value.problem and "robots: section" in err.value.problem
+        load_scenario(_copy(tmp_path, "nav_control.yaml", slow))
+    assert err.value.key == "nodes[3] (controller_manager).rate"
+    assert "physics node's step" in err.value.problem
 
 
 def _one_line(text: str) -> str:
-    """nav_urdf_control's text with its controller manager node given as robots.controllers
-    and physics listing no input (its /cmd_vel is the manager's)."""
-    manager = text.index("  - name: controller_manager")
-    physics_input = "    inputs:\n      - {topic: /cmd_vel, mode: delayed}\n"
-    assert text.count(physics_input) == 1
-    text = text[:manager].replace(physics_input, "")
+    """nav_urdf_control's text with its controller manager node given as
+    robots.controllers."""
+    text = text[:text.index("  - name: controller_manager")]
     return text.replace("  position_tolerance:", "  controllers: robots/mybot_description/"
                         "config/mybot_controllers.yaml\n  position_tolerance:", 1)
 
@@ -97,14 +119,11 @@ def test_robots_controllers_is_the_per_robot_manager_node(tmp_path):
     one_line = load_scenario(_copy(tmp_path, "one_line.yaml", _one_line(text)))
     written = load_scenario(SCENARIOS / "nav_urdf_control.yaml")
     assert "controller_manager" not in _one_line(text).split("nodes:")[1]
-    for scenario in (one_line, written):
-        manager = scenario.nodes["controller_manager@mybot"]
-        assert manager.period_ticks * scenario.tick_ns == 20_000_000  # update_rate: 50
     assert _wiring(one_line) == _wiring(written)
     assert {n: p.output_names for n, p in one_line.nodes.items()} == {
         n: p.output_names for n, p in written.nodes.items()}
-    assert one_line.nodes["controller_manager@mybot"].params == \
-        written.nodes["controller_manager@mybot"].params
+    assert one_line.nodes["physics"].params == written.nodes["physics"].params
+    assert written.nodes["physics"].params.controller_manager is not None
 
 
 @pytest.mark.parametrize("change, problem", [

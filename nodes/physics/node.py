@@ -24,6 +24,13 @@ Outputs at tick k are the state at time t_k: tick 0 publishes the initial state,
 activation integrates one node period (a whole number of world timesteps) and publishes:
 /odom, /joint_states, /cosim/world_state, /tf (nodes.physics.frames) and /imu
 (nodes.physics.imu); /tf_static once, at the first activation, latched.
+
+A robot's controller manager runs in this step (``controller_manager``, set by the plan from
+the scenario's ``ros2_control`` node or ``robots.controllers``: nodes.ros2_control.hosted):
+after integrating up to the tick it reads the joints from MjData, updates the controllers and
+writes their commands to the actuators; the controllers' topics are this node's (each
+robot's under its namespace), a joint state broadcaster's /joint_states the robot's, and
+/joint_commands and /cmd_vel give way to the controllers that command the joints and wheels.
 """
 
 from __future__ import annotations
@@ -48,6 +55,8 @@ from nodes.physics.imu import ImuParams, imu_problems
 from nodes.physics.swarm import SwarmPhysics, robot_params
 from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
 from nodes.physics.world_events import LiveWorld
+from nodes.ros2_control import hosted
+from nodes.ros2_control.hosted import HostedManagerParams
 from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
 from plan.obstacles import place_problem
 from plan.timeutil import format_ns
@@ -96,6 +105,10 @@ class PhysicsParams(BaseModel):
         "threads of MuJoCo's engine pool (collision and the islands' constraint solving "
         "in parallel); the state is the same at any count, so the digest is too. Pays off "
         "from a few hundred robots in one world (bench/README.md)"))
+    controller_manager: HostedManagerParams | None = Field(None, description=(
+        "each robot's controller manager, run in this node's step at its rate (set by the "
+        "plan from the scenario's ros2_control node or robots.controllers; not written by "
+        "hand)"))
 
 
 class PhysicsNode(StepNode):
@@ -116,6 +129,8 @@ class PhysicsNode(StepNode):
             out["/tf"] = TFMessage
         if params.imu is not None:
             out["/imu"] = Imu
+        if params.controller_manager is not None:  # the controllers' topics, a robot's
+            out.update(hosted.publications(params.controller_manager))
         return out
 
     @classmethod
@@ -131,8 +146,19 @@ class PhysicsNode(StepNode):
     def input_types(cls, params: PhysicsParams) -> dict[str, type]:
         """/cmd_vel as Twist, or TwistStamped with ``enable_stamped_cmd_vel``."""
         twist = TwistStamped if params.enable_stamped_cmd_vel else Twist
-        return {CMD_VEL: twist, MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState,
-                WORLD_EDITS_TOPIC: String}
+        out = {CMD_VEL: twist, MIRROR_TOPIC: Odometry, MIRROR_JOINTS_TOPIC: JointState,
+               WORLD_EDITS_TOPIC: String}
+        if params.controller_manager is not None:
+            out.update(hosted.subscriptions(params.controller_manager))
+        return out
+
+    @classmethod
+    def client_inputs(cls, params: PhysicsParams) -> dict[str, str]:
+        """What ROS 2 clients feed the robot's controller manager (switches, its controllers'
+        command topics and goals), if it has one."""
+        if params.controller_manager is None:
+            return {}
+        return hosted.client_inputs(params.controller_manager)
 
     @classmethod
     def description_names(cls, params: PhysicsParams) -> dict[str, Any]:
@@ -229,6 +255,14 @@ class PhysicsNode(StepNode):
             step = timestep_ns(model, "")
         except ValueError:
             return []  # the world's own problem, reported when it loads
+        manager = params.controller_manager
+        if manager is not None:
+            rate = hosted.read(manager).update_rate
+            if period_ns * rate != NS_PER_S:
+                return [("rate", f"the controller manager runs in this node's step, and its "
+                         f"controllers file says update_rate: {rate}, this node runs at "
+                         f"{float(NS_PER_S / period_ns):g} Hz.", f"rate: {rate} here (or "
+                         "update_rate: the physics node's rate in the controllers file).")]
         if period_ns % step == 0:
             return []
         fits = [NS_PER_S // (k * step) for k in range(1, 1000)
@@ -248,7 +282,13 @@ class PhysicsNode(StepNode):
         a swarm, each robot's (``plan.robots.per_robot``)."""
         mobile = ({CMD_VEL, SET_POSE_TOPIC, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC}
                   if params.wheel_joints is not None else set())
-        return mobile | {JOINT_COMMANDS, WORLD_EDITS_TOPIC}
+        out = mobile | {JOINT_COMMANDS, WORLD_EDITS_TOPIC}
+        if params.controller_manager is not None:  # the controllers command the hardware
+            joints, base = hosted.takes_hardware(params.controller_manager)
+            out -= {JOINT_COMMANDS} if joints else set()
+            out -= {CMD_VEL} if base else set()
+            out |= set(hosted.subscriptions(params.controller_manager))
+        return out
 
     def setup(self) -> None:
         """Load the world, check the timestep against the period and place the robots."""
@@ -278,5 +318,6 @@ class PhysicsNode(StepNode):
 
     def metrics(self) -> dict[str, float]:
         """Collision events, the ground-truth planar pose, and whether it reached the goal
-        (a swarm: per robot, and the swarm's totals)."""
+        (a swarm: per robot, and the swarm's totals); a controller manager's
+        (``controller_manager/...``, ``ROBOT/controller_manager/...`` in a swarm)."""
         return self.swarm.metrics()

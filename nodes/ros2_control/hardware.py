@@ -1,12 +1,7 @@
 """cosim's hardware for the controller manager: which joints and interfaces the robot
-exports (``HardwareInfo``, from the robot model and its MuJoCo actuators) and, until the
-hardware lives in the physics step, how the manager reads and writes it over topics
-(``TopicHardware``): the physics node's /joint_states (/cosim/hardware_states to the
-manager) read into the controllers' ``HardwareState``; the commands written as physics'
-/joint_commands (/cosim/hardware_commands: one value per commanded joint, in its order,
-each what its actuator takes) and, for a mobile base's wheels, as the base twist that
-physics' drive realises (physics' /cmd_vel, /cosim/base_command). The plan connects these
-names to physics' topics (``plan.hardware_wiring``); no scenario remaps them.
+exports (``HardwareInfo``, from the robot model and its MuJoCo actuators: each command
+interface is one a joint's actuator realises, a mobile base's wheels take velocities). The
+physics step reads and writes it over MjData (``nodes.ros2_control.hosted.MujocoSystem``).
 
 A command interface a controller claims and MuJoCo cannot realise (a velocity command for
 a joint whose actuator is a position servo, a joint no actuator drives) is a problem naming
@@ -18,15 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import mujoco
-from geometry_msgs.msg import Twist
 
-from nodes.ros2_control import fast_messages as fast
-from nodes.ros2_control.interface import Claim, JointReading
-from plan.hardware_wiring import (  # noqa: F401 - the names the plan wires to physics
-    BASE_COMMAND,
-    HARDWARE_COMMANDS,
-    HARDWARE_STATES,
-)
+from nodes.ros2_control.interface import Claim
 
 
 @dataclass(frozen=True)
@@ -41,7 +29,7 @@ class CommandJoint:
 
 @dataclass(frozen=True)
 class DriveWheels:
-    """A differential drive's wheels (velocity commands, realised as the base's twist)."""
+    """A differential drive's wheels (velocity commands to their velocity actuators)."""
 
     left: str
     right: str
@@ -153,57 +141,6 @@ def hardware_info(model, robot, command_joints: list[str] | None = None) -> Hard
         drive = DriveWheels(local(d.left_joint), local(d.right_joint), d.wheel_radius,
                             d.wheel_separation)
     return HardwareInfo(joints, tuple(commands), drive)
-
-
-class TopicHardware:
-    """The hardware read from and written to the physics node's topics (see the module):
-    ``state`` is the mapping the controllers are loaned, refreshed in place by ``read``;
-    ``command`` holds the last value of every command interface."""
-
-    def __init__(self, info: HardwareInfo, write_joints: bool, write_base: bool):
-        self.info = info
-        self.write_joints = write_joints
-        self.write_base = write_base and info.drive is not None
-        self.state: dict[str, JointReading] = {}
-        self.command: dict[str, float] = {}
-
-    def read(self, msg) -> None:
-        """Take the physics node's JointState."""
-        self.state.clear()
-        self.state.update({n: JointReading(p, v, e) for n, p, v, e in zip(
-            msg.name, msg.position, _padded(msg.velocity, msg.name),
-            _padded(msg.effort, msg.name), strict=True)})
-
-    def start(self) -> None:
-        """Before the first update: hold every position where it is, nothing else moves."""
-        for c in self.info.commands:
-            if c.interface:
-                self.command[f"{c.name}/{c.interface}"] = (
-                    self.state[c.name].position if c.interface == "position" else 0.0)
-        if self.info.drive is not None:
-            self.command[f"{self.info.drive.left}/velocity"] = 0.0
-            self.command[f"{self.info.drive.right}/velocity"] = 0.0
-
-    def write(self, commands: dict[str, float]) -> dict[str, object]:
-        """Take the controllers' commands (an interface no controller commands keeps its last
-        value); the messages that carry every command to physics."""
-        self.command.update(commands)
-        out: dict[str, object] = {}
-        if self.write_joints:
-            out[HARDWARE_COMMANDS] = fast.float64_array(
-                [self.command.get(f"{c.name}/{c.interface}", 0.0) for c in self.info.commands])
-        if self.write_base:
-            d = self.info.drive
-            left, right = self.command[f"{d.left}/velocity"], self.command[f"{d.right}/velocity"]
-            twist = Twist()
-            twist.linear.x = d.radius * (left + right) / 2.0
-            twist.angular.z = d.radius * (right - left) / d.separation
-            out[BASE_COMMAND] = twist
-        return out
-
-
-def _padded(values, names) -> list[float]:
-    return list(values) if len(values) == len(names) else [0.0] * len(names)
 
 
 def unservable(controllers, info: HardwareInfo) -> dict[str, str]:

@@ -1,12 +1,12 @@
-"""The controller manager node: ros2_control's standard controllers, configured by the user's
-own controllers file, stepped in lockstep between the physics node and the ROS 2 world.
+"""The controller manager as a scenario declares it: ros2_control's standard controllers,
+configured by the user's own controllers file (a ``ros2_control`` node, or the one
+``robots.controllers`` adds for every robot).
 
-It runs at the file's ``update_rate`` (the node's ``rate`` must be that rate). At every
-activation it reads the hardware's joint state (``nodes.ros2_control.hardware``: physics'
-/joint_states, which the plan wires to ``/cosim/hardware_states``, ``hardware_role``),
-applies controller switches, gives each active controller the messages of its topics and
-updates it (``nodes.ros2_control.manager``), and writes the commands to the hardware
-(physics' /joint_commands and /cmd_vel, wired likewise).
+It does not run as a node of its own: the plan folds it into the physics node
+(``plan.hardware_wiring``), which runs it in its step over MjData
+(``nodes.ros2_control.hosted``), at the physics node's rate, which must be the file's
+``update_rate``. This class holds what the scenario's checks ask of it: its parameters, the
+controllers file's problems, what the robot's hardware can serve, its topics.
 
 Each controller's topics are its type's (``nodes/ros2_control/controllers/``), ``~/x`` under
 its name, as ros2_controllers' Jazzy documentation gives them. An inactive controller
@@ -18,8 +18,9 @@ Switches (controller_manager/switch_controller) enter on ``/controller_manager/c
 (std_msgs/String: ``+name`` activates, ``-name`` deactivates), and so do load_controller,
 unload_controller and configure_controller (``load:name``, ``unload:name``,
 ``configure:name``), each a line with its request id (``nodes.ros2_control.requests``).
-The metrics report each controller's state and the trajectory controllers' goals, which the
-orchestrator's controller manager services answer from.
+The metrics (physics', under ``controller_manager/``) report each controller's state and the
+trajectory controllers' goals, which the orchestrator's controller manager services answer
+from.
 """
 
 from __future__ import annotations
@@ -28,25 +29,15 @@ import functools
 from pathlib import Path
 from typing import Any
 
-from geometry_msgs.msg import Twist
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import String
 
 from nodes.contract import StepNode, Tick
 from nodes.ros2_control import config as c
-from nodes.ros2_control.hardware import (
-    BASE_COMMAND,
-    HARDWARE_COMMANDS,
-    HARDWARE_STATES,
-    TopicHardware,
-    hardware_info,
-    unservable,
-)
-from nodes.ros2_control.interface import NS_PER_S, Fresh
-from nodes.ros2_control.manager import ControllerManager, claim_conflict, load, resolve
+from nodes.ros2_control.hardware import hardware_info
+from nodes.ros2_control.interface import NS_PER_S
+from nodes.ros2_control.manager import claim_conflict, load, resolve
 from nodes.ros2_control.registry import served_types
-from nodes.ros2_control.requests import apply_request, request_lines
 
 SWITCH_TOPIC = "/controller_manager/cosim/switch"
 SWITCH_TYPE = "std_msgs/msg/String"  # '+name' activates, '-name' deactivates, space-separated
@@ -72,6 +63,25 @@ class ControllerManagerParams(BaseModel):
         path = (base / value).resolve()
         c.read_controllers_file(path)  # a ControllersFileError says what is wrong
         return str(path)
+
+
+class HostedManagerParams(ControllerManagerParams):
+    """A controller manager run in the physics node's step: its node's parameters, and the
+    name its metrics go under (``NAME/...``; ``ROBOT/NAME/...`` in a swarm)."""
+
+    name: str = Field("controller_manager", description="the controller manager's name "
+                      "(its metrics: NAME/key, ROBOT/NAME/key in a swarm)")
+
+
+def takes_hardware(params: ControllerManagerParams) -> tuple[bool, bool]:
+    """(whether a controller of the file commands joints, whether one drives the base's
+    wheels): physics' own /joint_commands and /cmd_vel give way to them."""
+    joints = base = False
+    for ctrl in load(read(params)).values():
+        if ctrl is not None and ctrl.claim().command:
+            base |= ctrl.drives_base
+            joints |= not ctrl.drives_base
+    return joints, base
 
 
 def read(params: ControllerManagerParams) -> c.ControllersFile:
@@ -100,23 +110,20 @@ def at_start(params: ControllerManagerParams, file: c.ControllersFile) -> list[s
 
 
 class ControllerManagerNode(StepNode):
-    """ros2_control's controller manager with its standard controllers, in lockstep."""
+    """ros2_control's controller manager with its standard controllers, as declared; run
+    in the physics node's step (see the module)."""
 
     Params = ControllerManagerParams
     needs_world = True
-    hardware_role = True  # physics is wired to it by the plan (plan/hardware_wiring.py)
+    hardware_role = True  # folded into the physics node by the plan (plan/hardware_wiring.py)
 
     @classmethod
     def outputs(cls, params: ControllerManagerParams) -> dict[str, type]:
-        """Every controller's published topics and the hardware's commands."""
+        """Every controller's published topics."""
         out: dict[str, type] = {}
         for name, ctrl in load(read(params)).items():
-            if ctrl is None:
-                continue
-            out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
-            if ctrl.claim().command:
-                out[BASE_COMMAND if ctrl.drives_base else HARDWARE_COMMANDS] = (
-                    Twist if ctrl.drives_base else Float64MultiArray)
+            if ctrl is not None:
+                out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
         return out
 
     @classmethod
@@ -133,14 +140,13 @@ class ControllerManagerNode(StepNode):
 
     @classmethod
     def accepted_inputs(cls, params: ControllerManagerParams) -> set[str]:
-        """The hardware's joint state and what clients feed."""
-        return {HARDWARE_STATES, *cls.client_inputs(params)}
+        """What clients feed."""
+        return set(cls.client_inputs(params))
 
     @classmethod
     def input_types(cls, params: ControllerManagerParams) -> dict[str, type]:
-        """JointState from physics; the command topics' types."""
-        return {HARDWARE_STATES: JointState, SWITCH_TOPIC: String,
-                **cls._subscriptions(params)}
+        """The switch topic's and the command topics' types."""
+        return {SWITCH_TOPIC: String, **cls._subscriptions(params)}
 
     @classmethod
     def world_problems(cls, params: ControllerManagerParams, model, goal
@@ -202,6 +208,17 @@ class ControllerManagerNode(StepNode):
         return []
 
     @classmethod
+    def hosted_params(cls, params: ControllerManagerParams, name: str) -> BaseModel:
+        """The physics node's ``controller_manager`` parameter that runs this manager in its
+        step (nodes.ros2_control.hosted), named ``name``."""
+        return HostedManagerParams(**{**params.model_dump(), "name": name})
+
+    @classmethod
+    def takes_hardware(cls, params: ControllerManagerParams) -> tuple[bool, bool]:
+        """(whether its controllers command joints, whether they drive the base's wheels)."""
+        return takes_hardware(params)
+
+    @classmethod
     def natural_rate(cls, params: ControllerManagerParams) -> int:
         """The controllers file's update_rate."""
         return read(params).update_rate
@@ -216,81 +233,7 @@ class ControllerManagerNode(StepNode):
                      f"runs at {float(NS_PER_S / period_ns):g} Hz.", f"rate: {rate}.")]
         return []
 
-    def setup(self) -> None:
-        """Read the file, load and configure the controllers, find the robot's hardware."""
-        from nodes.physics.world import load_model
-
-        self.file = read(self.params)
-        model = load_model(self.config.world, self.config.layout)
-        robot = self.config.robots[0] if self.config.robots else None
-        info = hardware_info(model, robot, self.params.command_joints)
-        self.manager = ControllerManager(self.file)
-        self.manager.unservable = unservable(self.manager.controllers, info)
-        self.declared = self.outputs(self.params)
-        self.hardware = TopicHardware(info, HARDWARE_COMMANDS in self.declared,
-                                      BASE_COMMAND in self.declared)
-        self.fresh = Fresh()
-        self.request, self.refused = 0, []  # the newest request handled; refused this tick
-        self.first = True
-        for note in self.manager.notes():
-            self.note(note)
-        for name, why in self.manager.unservable.items():
-            self.note(f"{name}: {why}: it is loaded, and its activation is refused.")
-
     def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
-        """One update of the controller manager."""
-        hw = inputs.get(HARDWARE_STATES)
-        if hw is None:
-            raise RuntimeError(f"the controller manager needs {HARDWARE_STATES} (physics' "
-                               "/joint_states, wired by the plan) at every update")
-        self.hardware.read(hw)
-        state = self.hardware.state
-        commands: dict[str, float] = {}
-        if self.first:
-            self.hardware.start()
-            commands.update(self.manager.activate(at_start(self.params, self.file),
-                                                  state).commands)
-            self.first = False
-        commands.update(self._switch(inputs.get(SWITCH_TOPIC)))
-        done = self.manager.update(tick.time_ns, self.config.period_ns, inputs,
-                                   self.config.held_inputs)
-        for note in done.notes:
-            self.note(note)
-        commands.update(done.commands)
-        out = {**done.published, **self.hardware.write(commands)}
-        # lockstep wants one message per declared topic and activation: an inactive
-        # controller's topics carry an empty message of their type, nothing of the controller
-        for topic, cls in self.declared.items():
-            if topic not in out:
-                out[topic] = cls()
-        return out
-
-    def _switch(self, msg) -> dict[str, float]:
-        """The requests of the switch topic (``nodes.ros2_control.requests``) not handled
-        before: a request with an id once, one without when the message is new."""
-        self.refused = []
-        if msg is None:
-            return {}
-        new = self.fresh(SWITCH_TOPIC, msg)
-        commands: dict[str, float] = {}
-        for rid, body in request_lines(msg.data):
-            if (rid is None and not new) or (rid is not None and rid <= self.request):
-                continue
-            self.request = max(self.request, rid or 0)
-            done, why = apply_request(self.manager, body, self.hardware.state)
-            commands.update(done)
-            if why:
-                self.note(why if rid is None else f"{why} (request {rid})")
-                if rid is not None:
-                    self.refused.append(rid)
-        return commands
-
-    def metrics(self) -> dict[str, float]:
-        """Each controller's state (active:<name> 1 or 0; state:<name> 0 unloaded,
-        1 unconfigured, 2 inactive, 3 active) and each trajectory controller's
-        newest action goal: its number, state (0 none, 1 active, 2 succeeded, 3 aborted,
-        4 cancelled or preempted), result code and the joint that broke a tolerance; the
-        newest request handled (``request``) and those refused at this tick
-        (``refused:<id>`` 1)."""
-        return {**self.manager.metrics(), "request": float(self.request),
-                **{f"refused:{r}": 1.0 for r in self.refused}}
+        """Never called: the plan folds the manager into the physics node's step."""
+        raise RuntimeError("a controller manager runs in the physics node's step "
+                           "(nodes.ros2_control.hosted), not as a node of its own")

@@ -34,19 +34,20 @@ class ManagerHardware:
     state_joints: tuple[str, ...]
 
 
-def manager_hardware(scenario, name: str) -> ManagerHardware:
-    """The hardware controller manager node ``name`` of ``scenario`` drives (its robot's in a
-    swarm), as the node finds it at setup."""
+def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware:
+    """The hardware the controller manager of robot ``robot`` ('' the unnamed one) drives,
+    in the physics node ``physics`` that runs it, as that node finds it at setup."""
     import mujoco
 
     from nodes.physics.world import load_model
     from runtime.build import node_config
 
-    config = node_config(scenario, name)
-    robot = config.robots[0] if config.robots else None
+    config = node_config(scenario, physics)
+    found = [r for r in config.robots if r.name == robot] or list(config.robots[:1])
     model = load_model(config.world, config.layout)
-    info = hardware_info(model, robot, config.params.command_joints)
-    prefix = robot.prefix if robot is not None else ""
+    info = hardware_info(model, found[0] if found else None,
+                         config.params.controller_manager.command_joints)
+    prefix = found[0].prefix if found else ""
     kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     moving = {model.joint(j).name[len(prefix):] for j in range(model.njnt)
               if int(model.jnt_type[j]) in kinds and model.joint(j).name.startswith(prefix)}

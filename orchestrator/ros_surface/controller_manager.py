@@ -1,4 +1,5 @@
-"""The controller manager's face of an interactive run with a ``ros2_control`` node: the
+"""The controller manager's face of an interactive run whose robots have a controller
+manager (run in the physics node's step: nodes.ros2_control.hosted): the
 services of controller_manager_msgs under ``/controller_manager/`` (``list_controllers``
 with claimed interfaces, ``list_controller_types``, ``list_hardware_interfaces``,
 ``list_hardware_components``, ``switch_controller`` with upstream's strictness,
@@ -10,9 +11,11 @@ ros2_control_node does: ``/robot_2/controller_manager/list_controllers``,
 ``/robot_2/joint_trajectory_controller/follow_joint_trajectory``.
 
 What changes the run (a goal, a cancel, a switch) is put into the run's external arrivals and
-enters the controller manager node at its next activation, at a tick boundary, recorded like
-any message; the answers follow the node's metrics of the ticks the master decides (its
-controllers' states, each trajectory controller's newest goal: number, state, result code).
+enters the physics node, where the manager runs, at its next activation, at a tick boundary,
+recorded like any message; the answers follow physics' metrics of the manager
+(``controller_manager/...``, ``ROBOT/controller_manager/...`` in a swarm) at the ticks the
+master decides (its controllers' states, each trajectory controller's newest goal: number,
+state, result code).
 """
 
 from __future__ import annotations
@@ -36,10 +39,10 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
-from nodes.registry import KINDS
 from nodes.ros2_control.controllers.joint_trajectory_controller import GOAL
 from nodes.ros2_control.goals import ACTIVE, CANCEL_ID, DEACTIVATED, GOAL_ID
 from nodes.ros2_control.hardware import unservable
+from nodes.ros2_control.hosted import metric_prefix
 from nodes.ros2_control.manager import STATE_CODES, lifecycle_problem, load, resolve
 from nodes.ros2_control.node import SWITCH_TOPIC, at_start, read
 from nodes.ros2_control.registry import BASE_CLASS, served_types
@@ -47,6 +50,7 @@ from nodes.ros2_control.switching import STRICTNESS, plan_switch
 from orchestrator.ros_surface import controller_hardware as hardware
 from orchestrator.ros_surface.controller_actions import FACES
 from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
+from plan.robots import namespaced
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
@@ -62,23 +66,30 @@ class ControllerManagerServer:
     """list/switch controllers and the trajectory controllers' actions of one node."""
 
     def __init__(self, node, group, control: RunControl, arrivals: Arrivals, plan,
-                 answering=lambda handler: handler, scenario: Scenario | None = None):
-        """``answering`` wraps the handlers that wait on the run (switch_controller, a goal's
-        execution) so that the end of the run waits for their answers before the servers go
-        (``SimServices.close``): a goal open when the run ends gets its result.
+                 answering=lambda handler: handler, scenario: Scenario | None = None,
+                 robot: str = "", namespace: str = ""):
+        """``plan``: the physics node's, which runs the manager of robot ``robot`` (its
+        metrics' prefix; '' the unnamed robot), whose topics are under ``namespace`` ('' the
+        root). ``answering`` wraps the handlers that wait on the run (switch_controller, a
+        goal's execution) so that the end of the run waits for their answers before the
+        servers go (``SimServices.close``): a goal open when the run ends gets its result.
         ``scenario``: where the hardware lists find the robot's hardware."""
         self.control = control
         self.arrivals = arrivals
-        self.manager = plan.name
+        self.physics = plan.name
+        self.robot = robot
         self.scenario = scenario
-        self.file = read(plan.params)
-        self.topics = {inp.topic: inp.graph_topic for inp in plan.inputs
-                       if inp.producer == EXTERNAL_NAME}
+        params = plan.params.controller_manager
+        self.prefix = metric_prefix(params.name, robot)
+        self.file = read(params)
+        # the manager's own topics (its robot's, without the namespace) -> graph names
+        self.topics = {_local(inp.topic, namespace): inp.graph_topic for inp in plan.inputs
+                       if inp.producer == EXTERNAL_NAME and _local(inp.topic, namespace)}
         # a robot's manager lives under its namespace: '/robot_2' ('' for the scenario's own)
         self.ns = self.topics[SWITCH_TOPIC][:-len(SWITCH_TOPIC)]
         prefix = f"{self.ns}/controller_manager/"
         self.controllers = load(self.file)  # what each claims and offers, from its parameters
-        starting = at_start(plan.params, self.file)
+        starting = at_start(params, self.file)
         self.states = {name: ("unconfigured" if ctrl is None else "active" if name in starting
                               else "inactive") for name, ctrl in self.controllers.items()}
         self._hardware = None
@@ -116,7 +127,8 @@ class ControllerManagerServer:
                 self.faces[name] = face
                 if face.feedback_topic is not None:
                     own = resolve(name, face.feedback_topic)
-                    topic = plan.output_names.get(own, self.ns + own)
+                    topic = plan.output_names.get(namespaced(namespace, own),
+                                                  self.ns + own)
                     node.create_subscription(
                         ctrl.publications()[face.feedback_topic], topic, self._feedback(name),
                         QoSProfile(depth=10), callback_group=group)
@@ -128,14 +140,16 @@ class ControllerManagerServer:
         control.observers.append(self._observe)
 
     def _observe(self, tick: int, reports: dict) -> None:
-        done = reports.get(self.manager)
+        done = reports.get(self.physics)
         if done is None:
             return
+        n = len(self.prefix)
+        mine = {k[n:]: v for k, v in done.metrics.items() if k.startswith(self.prefix)}
         with self._cond:
             self._seq += 1
-            self._reports.append((self._seq, dict(done.metrics)))
+            self._reports.append((self._seq, mine))
             for name in self.controllers:
-                code = done.metrics.get(f"state:{name}")
+                code = mine.get(f"state:{name}")
                 if code is None:
                     continue
                 if code == STATE_CODES["unloaded"]:
@@ -173,7 +187,8 @@ class ControllerManagerServer:
     def hardware(self):
         """The robot's hardware (read from the world once, at the first question)."""
         if self._hardware is None:
-            self._hardware = hardware.manager_hardware(self.scenario, self.manager)
+            self._hardware = hardware.manager_hardware(self.scenario, self.physics,
+                                                       self.robot)
         return self._hardware
 
     def _hardware_interfaces(self, request, response):
@@ -383,11 +398,37 @@ class ControllerManagerServer:
 def controller_managers(node, group, scenario: Scenario, control: RunControl,
                         arrivals: Arrivals | None, answering
                         ) -> list[ControllerManagerServer]:
-    """A server for every ros2_control node of the scenario, when the run's arrivals are
-    live (an interactive run); ``answering``: see ``ControllerManagerServer``."""
+    """A server for every robot's controller manager (run in the physics node's step),
+    when the run's arrivals are live (an interactive run); ``answering``: see
+    ``ControllerManagerServer``."""
     if arrivals is None:
         return []
-    return [ControllerManagerServer(node, group, control, arrivals, plan, answering, scenario)
-            for plan in scenario.nodes.values() if plan.class_ref == KINDS["ros2_control"]
-            and any(inp.topic == SWITCH_TOPIC and inp.producer == EXTERNAL_NAME
-                    for inp in plan.inputs)]
+    out = []
+    for plan in scenario.nodes.values():
+        if getattr(plan.params, "controller_manager", None) is None:
+            continue
+        fed = {inp.topic for inp in plan.inputs if inp.producer == EXTERNAL_NAME}
+        for robot in plan.spec.robots or [""]:
+            namespace = _namespace(scenario, robot)
+            if namespaced(namespace, SWITCH_TOPIC) in fed:
+                out.append(ControllerManagerServer(node, group, control, arrivals, plan,
+                                                   answering, scenario, robot, namespace))
+    return out
+
+
+def _namespace(scenario: Scenario, robot: str) -> str:
+    """Robot ``robot``'s ROS namespace ('' the root; its name in a swarm)."""
+    layout = scenario.robots
+    if not robot or layout is None:
+        return robot
+    namespace_of = getattr(layout, "namespace_of", None)
+    return namespace_of(robot) if namespace_of is not None else robot
+
+
+def _local(topic: str, namespace: str) -> str:
+    """A physics topic of the robot in ``namespace`` as the manager names it ('' when it is
+    another robot's)."""
+    if not namespace:
+        return topic
+    head = f"/{namespace}/"
+    return topic[len(head) - 1:] if topic.startswith(head) else ""

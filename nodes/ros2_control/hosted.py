@@ -1,0 +1,241 @@
+"""Controller managers hosted in the physics node's step, as mujoco_ros2_control's
+``MujocoSystemInterface`` runs ros2_control inside the simulator's loop.
+
+The plan folds a scenario's controller manager (a ``ros2_control`` node, or the one
+``robots.controllers`` adds for every robot) into the physics node (``plan.hardware_wiring``):
+physics' parameters carry it (``HostedManagerParams``) and physics makes one
+``HostedManagers``, which keeps a ``ControllerManager`` and a ``MujocoSystem`` per robot. At
+every activation of physics, after integrating up to the tick, each manager reads its robot's
+joints straight from MjData into the controllers' ``HardwareState`` (``read``), takes the
+messages and requests of its topics, updates its active controllers, and writes their
+commands straight into MjData's actuator controls (``write``): a position, velocity or
+effort command to the joint's MuJoCo actuator, a diff drive's wheel speeds to the wheels'
+velocity actuators (physics' own drive and its limiter stand aside: one limiter, the
+controller's). The commands act over the next period, as ros2_control's read, update, write
+come before the simulator's next step. No topic runs between controllers and hardware; the
+controllers' own topics (``~/x`` under the controller's name, the switch topic) are physics'
+inputs and outputs under the names a separate manager had, each robot's under its
+namespace in a swarm.
+
+The manager runs at the physics node's rate, which must be the controllers file's
+``update_rate``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from nodes.ros2_control.hardware import HardwareInfo, hardware_info, unservable
+from nodes.ros2_control.interface import Fresh, JointReading
+from nodes.ros2_control.manager import ControllerManager, load, resolve
+from nodes.ros2_control.node import (  # noqa: F401 - the physics node's names for them
+    SWITCH_TOPIC,
+    SWITCH_TYPE,
+    ControllerManagerParams,
+    HostedManagerParams,
+    at_start,
+    message_type_name,
+    read,
+    takes_hardware,
+)
+from nodes.ros2_control.requests import apply_request, request_lines
+from plan.robots import namespaced
+
+
+def publications(params: ControllerManagerParams) -> dict[str, type]:
+    """Every loaded controller's published topics, under the graph's names for one robot."""
+    out: dict[str, type] = {}
+    for name, ctrl in load(read(params)).items():
+        if ctrl is not None:
+            out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
+    return out
+
+
+def subscriptions(params: ControllerManagerParams) -> dict[str, type]:
+    """Every loaded controller's subscribed topics and the switch topic, for one robot."""
+    from std_msgs.msg import String
+
+    out: dict[str, type] = {SWITCH_TOPIC: String}
+    for name, ctrl in load(read(params)).items():
+        if ctrl is not None:
+            out.update({resolve(name, t): m for t, m in ctrl.subscriptions().items()})
+    return out
+
+
+def client_inputs(params: ControllerManagerParams) -> dict[str, str]:
+    """What ROS 2 clients feed an interactive run: switches, command topics, goals."""
+    return {SWITCH_TOPIC: SWITCH_TYPE, **{t: message_type_name(m) for t, m in
+                                          subscriptions(params).items() if t != SWITCH_TOPIC}}
+
+
+class MujocoSystem:
+    """One robot's hardware over MjData: its joints' state read into ``state`` (the mapping
+    the controllers are loaned, refreshed in place), command interfaces written to the
+    actuators that realise them."""
+
+    def __init__(self, model, info: HardwareInfo, joints: list[str], qadr, dadr,
+                 wheels: list[int] | None):
+        self.info = info
+        self.joints = joints
+        self.qadr = np.asarray(qadr, dtype=np.int64)
+        self.dadr = np.asarray(dadr, dtype=np.int64)
+        self.state: dict[str, JointReading] = {n: JointReading(0.0) for n in joints}
+        self.actuator: dict[str, int] = {}  # 'joint/interface' -> actuator id
+        for c in info.commands:
+            if c.interface:
+                self.actuator[f"{c.name}/{c.interface}"] = mujoco.mj_name2id(
+                    model, mujoco.mjtObj.mjOBJ_ACTUATOR, c.actuator)
+        if info.drive is not None and wheels is not None:
+            self.actuator[f"{info.drive.left}/velocity"] = int(wheels[0])
+            self.actuator[f"{info.drive.right}/velocity"] = int(wheels[1])
+
+    def read(self, data) -> None:
+        """The joints' positions, velocities and actuator efforts, now (new readings: a
+        controller may keep an earlier one)."""
+        q = data.qpos[self.qadr].tolist()
+        v = data.qvel[self.dadr].tolist()
+        e = data.qfrc_actuator[self.dadr].tolist()
+        self.state.update({name: JointReading(p, dv, de) for name, p, dv, de in
+                           zip(self.joints, q, v, e, strict=True)})
+
+    def start(self, data) -> None:
+        """Before the first update: every position servo holds where its joint is, every
+        other command is zero."""
+        for interface, a in self.actuator.items():
+            joint, _, kind = interface.rpartition("/")
+            reading = self.state.get(joint)
+            data.ctrl[a] = reading.position if kind == "position" and reading else 0.0
+
+    def write(self, data, commands: dict[str, float]) -> None:
+        """The controllers' commands into the actuators (an interface no controller
+        commands keeps its last value)."""
+        ctrl = data.ctrl
+        for interface, value in commands.items():
+            a = self.actuator.get(interface)
+            if a is not None:
+                ctrl[a] = value
+
+
+class RobotManager:
+    """One robot's controller manager: its controllers, requests and hardware."""
+
+    def __init__(self, params: HostedManagerParams, system: MujocoSystem, robot: str,
+                 namespace: str, held: frozenset[str], note):
+        """``robot``: its name (its metrics' prefix), ``namespace``: its topics' ('' the
+        root); ``held``: physics' inputs fed by the external node."""
+        self.params = params
+        self.file = read(params)
+        self.system = system
+        self.robot = robot
+        self.note = note
+        self.manager = ControllerManager(self.file)
+        self.manager.unservable = unservable(self.manager.controllers, system.info)
+        self.declared = publications(params)
+        self.inputs = list(subscriptions(params))
+        self.graph = {t: namespaced(namespace, t) for t in [*self.inputs, *self.declared]}
+        self.held = frozenset(t for t in self.inputs if self.graph[t] in held)
+        self.fresh = Fresh()
+        self.request, self.refused = 0, []  # the newest request handled; refused this tick
+        self.first = True
+        for text in self.manager.notes():
+            note(text)
+        for name, why in self.manager.unservable.items():
+            note(f"{name}: {why}: it is loaded, and its activation is refused.")
+
+    def step(self, time_ns: int, period_ns, data, inputs: dict[str, Any], out: dict) -> None:
+        """Read, update, write; what the controllers publish into ``out`` (physics' names)."""
+        system = self.system
+        system.read(data)
+        mine = {t: inputs[self.graph[t]] for t in self.inputs if self.graph[t] in inputs}
+        commands: dict[str, float] = {}
+        if self.first:
+            system.start(data)
+            commands.update(self.manager.activate(at_start(self.params, self.file),
+                                                  system.state).commands)
+            self.first = False
+        commands.update(self._switch(mine.get(SWITCH_TOPIC)))
+        done = self.manager.update(time_ns, period_ns, mine, self.held)
+        for text in done.notes:
+            self.note(text)
+        commands.update(done.commands)
+        system.write(data, commands)
+        # lockstep wants one message per declared topic and activation: an inactive
+        # controller's topics carry an empty message of their type, nothing of the controller
+        for topic, cls in self.declared.items():
+            msg = done.published.get(topic)
+            out[self.graph[topic]] = cls() if msg is None else msg
+
+    def _switch(self, msg) -> dict[str, float]:
+        """The requests of the switch topic (``nodes.ros2_control.requests``) not handled
+        before: a request with an id once, one without when the message is new."""
+        self.refused = []
+        if msg is None:
+            return {}
+        new = self.fresh(SWITCH_TOPIC, msg)
+        commands: dict[str, float] = {}
+        for rid, body in request_lines(msg.data):
+            if (rid is None and not new) or (rid is not None and rid <= self.request):
+                continue
+            self.request = max(self.request, rid or 0)
+            done, why = apply_request(self.manager, body, self.system.state)
+            commands.update(done)
+            if why:
+                self.note(why if rid is None else f"{why} (request {rid})")
+                if rid is not None:
+                    self.refused.append(rid)
+        return commands
+
+    def metrics(self) -> dict[str, float]:
+        """Each controller's state (``active:<name>`` 1 or 0; ``state:<name>`` 0 unloaded,
+        1 unconfigured, 2 inactive, 3 active), each trajectory controller's newest goal
+        (number, state, result code, the joint that broke a tolerance), the newest request
+        handled (``request``) and those refused at this tick (``refused:<id>`` 1)."""
+        return {**self.manager.metrics(), "request": float(self.request),
+                **{f"refused:{r}": 1.0 for r in self.refused}}
+
+
+def metric_prefix(name: str, robot: str) -> str:
+    """Where a hosted manager's metrics go in physics': 'controller_manager/' for the
+    unnamed robot, 'robot_2/controller_manager/' in a swarm."""
+    return f"{robot}/{name}/" if robot else f"{name}/"
+
+
+class HostedManagers:
+    """Every robot's controller manager in the physics step (the module says how)."""
+
+    def __init__(self, params: HostedManagerParams, model, rigs, robots, held: frozenset[str],
+                 note):
+        """``rigs``: physics' robots (nodes.physics.swarm.Rig), ``robots``: their models."""
+        self.params = params
+        self.managers: list[RobotManager] = []
+        for rig, robot in zip(rigs, robots, strict=True):
+            info = hardware_info(model, robot, params.command_joints)
+            prefix = robot.prefix or ""
+            joints = [n[len(prefix):] if prefix and n.startswith(prefix) else n
+                      for n in rig.state_names]
+            wheels = rig.wheel_act if rig.drive is not None else None
+            system = MujocoSystem(model, info, joints, rig.state_q, rig.state_v, wheels)
+            namespace = getattr(robot, "namespace", rig.name)  # '' for a robot at the root
+            self.managers.append(RobotManager(params, system, rig.name, namespace, held,
+                                              note))
+        joints, base = takes_hardware(params)
+        self.commands_joints = joints
+        self.drives_base = base
+
+    def step(self, time_ns: int, period_ns, data, inputs: dict[str, Any], out: dict) -> None:
+        """One update of every robot's manager, at the state physics publishes at the tick;
+        their topics into ``out`` (over physics' own of the same name: a joint state
+        broadcaster's /joint_states is the robot's)."""
+        for manager in self.managers:
+            manager.step(time_ns, period_ns, data, inputs, out)
+
+    def metrics(self) -> dict[str, float]:
+        """Each manager's metrics under ``metric_prefix``."""
+        out: dict[str, float] = {}
+        for manager in self.managers:
+            prefix = metric_prefix(self.params.name, manager.robot)
+            out.update({prefix + k: v for k, v in manager.metrics().items()})
+        return out
