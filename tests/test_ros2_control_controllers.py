@@ -149,14 +149,10 @@ def arm_scenario(tmp_path, effort_joint: str = "wrist_3"):
                                  "goal": {"x": 0.0, "y": 0.0}}]},
            "success": {"reach_goal": False, "max_collisions": 0},
            "nodes": [{"name": "physics", "kind": "physics", "rate": 50,
-                      "params": {"robot_description": True, "imu": None},
-                      "inputs": [{"topic": "/joint_commands", "mode": "delayed"}]},
+                      "params": {"robot_description": True, "imu": None}},
                      {"name": "controller_manager", "kind": "ros2_control",
                       "for_each": "robot", "rate": 50,
-                      "params": {"controllers": "controllers.yaml"},
-                      "remap": {"/cosim/hardware_states": "/joint_states",
-                                "/cosim/hardware_commands": "/joint_commands"},
-                      "inputs": [{"topic": "/cosim/hardware_states", "mode": "same_tick"}]}]}
+                      "params": {"controllers": "controllers.yaml"}}]}
     path = tmp_path / "arm_groups.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
@@ -173,13 +169,11 @@ def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
     with BagReader(done.run_dir / "bag") as bag:
         states = [m for _, m in bag.messages("/joint_states",
                                              message_class("sensor_msgs/msg/JointState"))]
-        sent = [m for _, m in bag.messages("/joint_commands",
-                                           message_class("std_msgs/msg/Float64MultiArray"))]
-    # physics' /joint_commands: each joint's value as its actuator takes it, in its order
-    assert list(sent[-1].data) == [0.3, -0.2, 0.4, 0.1, 1.0, 0.5]
+        # the commands reach the actuators in the physics step: no topic carries them
+        assert "/joint_commands" not in bag.counts
     # before any command: positions held, no motion (test_the_hardware_holds_... tells held
     # from zero, which this arm, starting at zero, cannot)
-    assert list(sent[0].data) == [0.0] * 6
+    assert max(abs(p) for p in states[1].position) < 1e-6
     end = dict(zip(states[-1].name, zip(states[-1].position, states[-1].velocity,
                                          strict=True), strict=True))
     for joint, target in zip(ARM_JOINTS, [0.3, -0.2, 0.4, 0.1], strict=True):
@@ -192,19 +186,30 @@ def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
 
 
 def test_the_hardware_holds_positions_where_the_arm_starts_until_a_command():
-    from sensor_msgs.msg import JointState
+    """The MuJoCo system reads the joints from MjData and writes commands straight to the
+    actuators: before the first update each position servo holds where its joint is."""
+    import mujoco
 
-    from nodes.ros2_control.hardware import TopicHardware
+    from nodes.ros2_control.hosted import MujocoSystem
 
+    joints = "".join(f'<body><joint name="{j}"/><geom size=".1" mass="1"/></body>'
+                     for j in ("j1", "j2", "j3"))
+    model = mujoco.MjModel.from_xml_string(
+        f"<mujoco><worldbody>{joints}</worldbody><actuator>"
+        '<position name="s1" joint="j1" kp="10"/><velocity name="s2" joint="j2" kv="1"/>'
+        '<position name="s3" joint="j3" kp="10"/></actuator></mujoco>')
+    data = mujoco.MjData(model)
+    data.qpos[:] = [0.3, -0.2, 0.7]
     info = HardwareInfo(("j1", "j2", "j3"), (CommandJoint("j1", "position", "s1"),
                                              CommandJoint("j2", "velocity", "s2"),
                                              CommandJoint("j3", "position", "s3")))
-    hardware = TopicHardware(info, write_joints=True, write_base=False)
-    hardware.read(JointState(name=["j1", "j2", "j3"], position=[0.3, -0.2, 0.7]))
-    hardware.start()
-    assert list(hardware.write({})["/cosim/hardware_commands"].data) == [0.3, 0.0, 0.7]
-    assert list(hardware.write({"j3/position": 0.1})["/cosim/hardware_commands"].data) == [
-        0.3, 0.0, 0.1]
+    system = MujocoSystem(model, info, ["j1", "j2", "j3"], [0, 1, 2], [0, 1, 2], None)
+    system.read(data)
+    assert [system.state[j].position for j in ("j1", "j2", "j3")] == [0.3, -0.2, 0.7]
+    system.start(data)
+    assert list(data.ctrl) == [0.3, 0.0, 0.7]
+    system.write(data, {"j3/position": 0.1, "j9/position": 5.0})  # j9: no such interface
+    assert list(data.ctrl) == [0.3, 0.0, 0.1]
 
 
 def test_an_interface_mujoco_cannot_realise_is_refused_naming_the_joint(tmp_path):
