@@ -12,14 +12,14 @@ from typing import Any
 
 import mujoco
 
-from descriptions.robot_layout import robots_layout
+from descriptions.robot_layout import entering_robot, robots_layout
 from descriptions.robot_model import RobotModel
 from descriptions.robot_reader import RobotNames, world_robots
 from descriptions.swarm_world import swarm_model
 from descriptions.world_edits import object_problem, world_objects
 from descriptions.worldfile import check_world
 from plan.errors import WorldError
-from plan.events import ObjectSpec, WorldObjects
+from plan.events import ObjectSpec, RobotEntry, WorldObjects
 from plan.load import read_scenario
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
@@ -36,6 +36,11 @@ class MujocoWorlds:
     def robots_layout(self, path: Path, model: ScenarioModel) -> RobotsLayout | None:
         """The robots: section checked against the world and placed."""
         return robots_layout(path, model)
+
+    def entering_robot(self, path: Path, entry: RobotEntry, key: str, base_body: str
+                       ) -> tuple[Path, str, str]:
+        """A robot with its own description, read (``robot_layout.entering_robot``)."""
+        return entering_robot(path, entry, key, base_body)
 
     def swarm_model(self, world: Path, layout: RobotsLayout) -> mujoco.MjModel:
         """The arena with every robot of the layout."""

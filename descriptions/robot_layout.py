@@ -79,6 +79,33 @@ def robots_layout(path: Path, model: ScenarioModel) -> RobotsLayout | None:
     return layout
 
 
+def entering_robot(path: Path, entry, key: str, base_body: str) -> tuple[Path, str, str]:
+    """A robot an event brings in with its own description (``plan.events.RobotEntry``):
+    (the description, its reader's settings, its root body); a ScenarioError naming
+    ``key`` (``events[i] (name).robot``) when the file is missing or does not load."""
+    where = _Where(path)
+    description = (path.parent / entry.description).resolve()
+    if not description.is_file():
+        raise where.fail(f"{key}.description", f"{entry.description!r} does not exist "
+                         f"(looked for {description}).", "the MJCF, URDF, xacro or USD of "
+                         "one robot, relative to this file.")
+    reader = reader_for(description)
+    for other in READERS:
+        k = other.settings_key
+        if k not in (None, reader.settings_key) and getattr(entry, k) is not None:
+            raise where.fail(f"{key}.{k}", f"{k}: settings for {reader.title} description, "
+                             f"not {other.title} one.", f"{k}: only with a {other.files} "
+                             "description.")
+    if not reader.described:
+        _footprint(where, description, base_body)
+        return description, "", base_body
+    try:
+        settings, robot = _described_robot(path, entry, description, reader)
+    except ScenarioError as exc:
+        raise where.fail(f"{key}.description", exc.problem, exc.accepted) from None
+    return description, settings, robot.base_link
+
+
 def _described_robot(path: Path, spec: RobotsSpec, description: Path, reader: Reader):
     """A described robot (URDF, xacro, USD) read with its settings: (the settings as the
     layout carries them, the robot model); its losses said once, here, where its reader

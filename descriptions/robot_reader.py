@@ -176,13 +176,19 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
         if mujoco.mj_name2id(model, BODY, names.base_body) < 0:
             return ()
         return (read_robot(model, names, source=str(world)),)
-    if reader_for(layout.description).described:  # its own model: links, sensors, drive
-        robot = load_robot(layout.description, layout.settings).model
-        return tuple(robot.scoped(r).in_namespace(layout.namespace_of(r))
-                     for r in layout.names)
-    model = swarm_model(Path(world), layout.everyone)  # robots that enter later too
-    return tuple(read_robot(model, names.scoped(r), r, str(layout.description))
-                 .in_namespace(layout.namespace_of(r)) for r in layout.names)
+    return tuple(_layout_robot(world, layout, names, r).in_namespace(layout.namespace_of(r))
+                 for r in layout.names)
+
+
+def _layout_robot(world: Path, layout, names: RobotNames, name: str) -> RobotModel:
+    """Robot ``name`` of a swarm: a described one from its own model (links, sensors,
+    drive), an MJCF one as the swarm world with every robot has it (robots that enter
+    later too); each from its own description (an event's robot may have another)."""
+    description, settings = layout.source_of(name)
+    if reader_for(description).described:
+        return load_robot(description, settings).model.scoped(name)
+    model = swarm_model(Path(world), layout.everyone)
+    return read_robot(model, names.scoped(name), name, str(description))
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, what: str) -> int:

@@ -24,10 +24,9 @@ def swarm_spec(world: Path, layout: RobotsLayout) -> mujoco.MjSpec:
     """The arena with one prefixed copy of the description per robot in it at time 0, at
     its start (a robot that enters later is attached then: ``attach_robot``)."""
     spec = load_world_spec(world, stage_robots_too=False)  # a stage's robots: attached here
-    robot = robot_spec(layout.description, layout.settings)  # a described one: once per process
     spec.copy_during_attach = True
-    for r in layout.at_start.robots:
-        attach_robot(spec, robot, r.name, r.start)
+    for r in layout.at_start.robots:  # a described robot: read once per process
+        attach_robot(spec, robot_spec(*layout.source_of(r.name)), r.name, r.start)
     return spec
 
 

@@ -48,7 +48,7 @@ def apply_event(spec: mujoco.MjSpec, event: EventSpec, layout: RobotsLayout | No
     elif event.robot is not None:
         if layout is not None and layout.robots:  # an arena without robots takes none
             r = event.robot
-            attach_robot(spec, robot_spec(layout.description, layout.settings), r.name,
+            attach_robot(spec, robot_spec(*layout.source_of(r.name)), r.name,
                          (r.start.x, r.start.y, r.start.yaw))
     elif (root := robot_root(spec, event.delete, layout)) is not None:
         spec.delete(root)  # its joints, actuators and sensors go with it (MuJoCo >= 3.3)
@@ -58,9 +58,9 @@ def apply_event(spec: mujoco.MjSpec, event: EventSpec, layout: RobotsLayout | No
 
 def robot_root(spec: mujoco.MjSpec, name: str, layout: RobotsLayout | None):
     """The root body of robot ``name``'s copy in ``spec``, or None: no such robot."""
-    if layout is None:
+    if layout is None or name not in layout.names:
         return None
-    return spec.body(f"{name}/{layout.base_body}")
+    return spec.body(f"{name}/{layout.base_of(name)}")
 
 
 def add_object(spec: mujoco.MjSpec, obj: ObjectSpec) -> None:

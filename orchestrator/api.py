@@ -88,12 +88,26 @@ def _planar(pose) -> dict[str, float]:
     return dict(zip(("x", "y", "yaw"), (float(v) for v in pose), strict=False))
 
 
-def spawn_robot(name: str, *, at: str | int, start, goal) -> Event:
+def spawn_robot(name: str, *, at: str | int, start, goal, description: str | Path | None = None,
+                urdf: Mapping[str, Any] | None = None, usd: Mapping[str, Any] | None = None
+                ) -> Event:
     """An event that brings a robot in at ``at`` ('2s', '400ms'): a copy of the scenario's
-    ``robots:`` description named ``name`` (its namespace), at ``start`` and going to
-    ``goal`` ((x, y) or (x, y, yaw)), with every ``for_each: robot`` node of the scenario
-    (its lidar, its controller), dormant until then."""
-    return {"at": at, "robot": {"name": name, "start": _planar(start), "goal": _planar(goal)}}
+    ``robots:`` description, or of ``description`` (an MJCF, URDF, xacro or USD file, read
+    with ``urdf`` or ``usd`` settings as the robots: section's; paths from the working
+    directory), named ``name`` (its namespace), at ``start`` and going to ``goal`` ((x, y) or
+    (x, y, yaw)), with every ``for_each: robot`` node of the scenario (its lidar, its
+    controller), dormant until then."""
+    robot: dict[str, Any] = {"name": name, "start": _planar(start), "goal": _planar(goal)}
+    if description is not None:
+        robot["description"] = str(Path(description).resolve())
+    for key, settings in (("urdf", urdf), ("usd", usd)):
+        if settings is not None:
+            settings = dict(settings)
+            if "packages" in settings:
+                settings["packages"] = {package: str(Path(folder).resolve())
+                                        for package, folder in settings["packages"].items()}
+            robot[key] = settings
+    return {"at": at, "robot": robot}
 
 
 def spawn_object(name: str, *, at: str | int, shape: str, pose, size=(), **more: Any) -> Event:

@@ -20,6 +20,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
+from plan.description_spec import UrdfSpec, UsdSpec
 from plan.obstacles import Obstacle
 from plan.timeutil import Ns, format_ns, parse_duration_ns
 
@@ -132,13 +133,21 @@ class RobotPose(_Strict):
 
 class RobotEntry(_Strict):
     """A robot that enters the running world: a copy of the ``robots:`` section's
-    description under its own name (its namespace), with every ``for_each: robot`` node of
-    the scenario (planned at launch, dormant until it enters; plan/robots.py)."""
+    description, or of its own, under its own name (its namespace), with every ``for_each:
+    robot`` node of the scenario (planned at launch, dormant until it enters;
+    plan/robots.py)."""
 
     name: EventName = Field(description="letters, digits and _; its namespace, unique among "
                             "the robots and objects")
     start: RobotPose = Field(description="where it enters")
     goal: RobotPose = Field(description="where it must get to")
+    description: str | None = Field(None, description="its own description (MJCF, URDF, "
+                                    "xacro or USD), relative to this file; default: the "
+                                    "robots: section's")
+    urdf: UrdfSpec | None = Field(None, description="how its URDF or xacro description is "
+                                  "read, as robots.urdf")
+    usd: UsdSpec | None = Field(None, description="how its USD description is read, as "
+                                "robots.usd")
 
 
 class EventSpec(_Strict):

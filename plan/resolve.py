@@ -50,7 +50,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
                                                                   exclude={"nodes"}))
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     section_robots = frozenset(layout.names) if layout is not None else frozenset()
-    layout = entering_robots(path, model, layout)  # events' robots: planned from the start
+    layout = entering_robots(path, model, layout, worlds)  # events' robots: planned now
+    model = read_settings_out(model)
     hand_wired = hand_wiring_notices(path, model)
     model = with_robot_managers(path, model)  # robots.controllers
     model = wire_hardware(path, model, layout is not None)  # physics to its controller manager
@@ -125,8 +126,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
                     layout)
 
 
-def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None
-                    ) -> RobotsLayout | None:
+def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None,
+                    worlds: WorldReader | None = None) -> RobotsLayout | None:
     """The layout with each robot an event brings in (``events: - robot:``), entering and
     leaving at its events' times: its ``for_each: robot`` nodes are planned like the
     others' (plan/robots.py). A robot event needs a robots: section (its description)."""
@@ -145,9 +146,26 @@ def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | Non
             continue  # a name taken: said by the event checks
         r = event.robot
         enter, leave = entering[r.name]
+        own = {}
+        if r.description is not None and worlds is not None:  # its own description
+            i = model.events.index(event)
+            description, settings, base = worlds.entering_robot(
+                path, r, f"events[{i}] ({r.name}).robot", layout.base_body)
+            own = {"description": description, "settings": settings, "base_body": base}
         added.append(RobotPlacement(r.name, (r.start.x, r.start.y, r.start.yaw),
-                                    (r.goal.x, r.goal.y, r.goal.yaw), enter, leave))
+                                    (r.goal.x, r.goal.y, r.goal.yaw), enter, leave, **own))
     return dataclasses.replace(layout, robots=layout.robots + tuple(added))
+
+
+def read_settings_out(model: ScenarioModel) -> ScenarioModel:
+    """The model with each robot event's reader settings (urdf:, usd:) left out: the layout
+    holds them, read (``RobotPlacement.settings``), and an event must be hashable (nodes
+    key their cached worlds by the events)."""
+    if not any(e.robot is not None and (e.robot.urdf or e.robot.usd) for e in model.events):
+        return model
+    events = [e if e.robot is None else e.model_copy(update={"robot": e.robot.model_copy(
+        update={"urdf": None, "usd": None})}) for e in model.events]
+    return model.model_copy(update={"events": events})
 
 
 def robot_windows_of(layout: RobotsLayout | None, nodes: dict[str, NodePlan], tick_ns

@@ -50,6 +50,9 @@ class RobotPlacement:
     goal: tuple[float, float, float]
     enter_ns: int = 0  # when it enters the world (a scenario event's robot: later)
     leave_ns: int | None = None  # when an event deletes it; None: it stays to the end
+    description: Path | None = None  # its own description (an event's robot); None: the
+    settings: str = ""  # layout's, read with these settings (descriptions.readers)
+    base_body: str | None = None  # its own description's root body
     namespace: str | None = None  # its ROS namespace ('' the root); None: its name
 
 
@@ -89,6 +92,16 @@ class RobotsLayout:
     def placement(self, name: str) -> RobotPlacement:
         """The robot named ``name``."""
         return next(r for r in self.robots if r.name == name)
+
+    def source_of(self, name: str) -> tuple[Path, str]:
+        """(description, reader settings) of robot ``name``: its own, or the layout's."""
+        r = self.placement(name)
+        return (self.description, self.settings) if r.description is None else (
+            r.description, r.settings)
+
+    def base_of(self, name: str) -> str:
+        """The root body of robot ``name``'s description (unprefixed)."""
+        return self.placement(name).base_body or self.base_body
 
     def namespace_of(self, name: str) -> str:
         """Robot ``name``'s ROS namespace ('' for the root); a robot the section does not

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Protocol
 
-from plan.events import ObjectSpec, WorldObjects
+from plan.events import ObjectSpec, RobotEntry, WorldObjects
 from plan.model import ScenarioModel
 from plan.robots import RobotsLayout
 
@@ -27,6 +27,12 @@ class WorldReader(Protocol):
     def robots_layout(self, path: Path, model: ScenarioModel) -> RobotsLayout | None:
         """The ``robots:`` section checked against the world and placed (None without one);
         ``ScenarioError`` naming the key."""
+
+    def entering_robot(self, path: Path, entry: RobotEntry, key: str, base_body: str
+                       ) -> tuple[Path, str, str]:
+        """A robot an event brings in with its own description: (the description, its
+        reader's settings, its root body); ``ScenarioError`` naming ``key`` when it does not
+        load."""
 
     def swarm_model(self, world: Path, layout: RobotsLayout) -> Any:
         """The compiled swarm world: the arena with every robot of ``layout``."""

@@ -6,8 +6,9 @@ started at launch like every other node and are dormant until the tick their rob
 (``plan.schedule``'s windows): physics attaches the robot's description at that tick
 boundary (MjSpec attach and recompile, every other body's state kept bit for bit), its
 topics carry samples from then on, and at its delete they go quiet and its nodes stop
-being scheduled. tests/scenarios/swarm_enter.yaml: robot_0 and robot_1 from the start,
-``gone`` in at 0.4 s and out at 1.2 s, ``late`` in at 1 s, driven to its goal.
+being scheduled. tests/scenarios/swarm_enter.yaml: robot_0 and robot_1 (MJCF) from the
+start, ``gone`` (USD) in at 0.4 s and out at 1.2 s, ``late`` (URDF, xacro) in at 1 s,
+driven to its goal.
 """
 
 from __future__ import annotations
@@ -104,6 +105,10 @@ def test_attaching_and_removing_a_robot_keeps_every_other_body_bit_for_bit():
      "events[1] (a).robot.name", "still in the world"),
     ("- {at: 15ms, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
      "events[0] (a).at", "not on a tick"),
+    ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}, "
+     "description: nowhere.urdf}}", "events[0] (a).robot.description", "does not exist"),
+    ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}, "
+     "description: nowhere.urdf, usd: {}}}", "events[0] (a).robot", "does not exist"),
 ])
 def test_bad_robot_events_are_refused_naming_the_key(tmp_path, events, key, says):
     text = SCENARIO.read_text()
@@ -136,8 +141,15 @@ def test_events_from_python_are_those_of_the_file(counted, tmp_path):
     text = SCENARIO.read_text().replace("../../scenarios/", str(ROOT / "scenarios") + "/")
     head, _, rest = text.partition("events:\n")
     bare.write_text(head + "success:" + rest.partition("success:")[2])
-    events = [spawn_robot("late", at="1s", start=(-2.5, 0.0, 0.0), goal=(-1.2, 0.0)),
-              spawn_robot("gone", at="400ms", start=(0.0, 2.5, -1.5708), goal=(0.0, -2.5)),
+    robots = ROOT / "scenarios" / "robots"
+    wheels = ["wheel_left_joint", "wheel_right_joint"]
+    events = [spawn_robot("late", at="1s", start=(-2.5, 0.0, 0.0), goal=(-1.2, 0.0),
+                          description=robots / "mybot_description/urdf/mybot.urdf.xacro",
+                          urdf={"packages": {"mybot_description": robots / "mybot_description"},
+                                "wheels": wheels}),
+              spawn_robot("gone", at="400ms", start=(0.0, 2.5, -1.5708), goal=(0.0, -2.5),
+                          description=robots / "usd/mybot_isaac.usda",
+                          usd={"wheels": wheels, "sensors": {"lidar": "base_scan"}}),
               delete("gone", at="1200ms")]
     result = run(bare, in_process=True, out=tmp_path, duration="2s", events=events)
     assert result.digest == counted[3]

@@ -314,9 +314,7 @@ class SwarmPhysics:
         self.names = [rig.name for rig in self.rigs]
         self.entered: list[Rig] = []  # the robots that entered at this tick
         self.rebound = False  # whether a robot entered or left (the rigs were made again)
-        self.urdf_text = ""
-        if params.robot_description:  # the layout's robot as URDF (read once per process)
-            self.urdf_text = robot_description_text(layout.description, layout.settings)
+        self._urdf_texts: dict[tuple, str] = {}  # each description's URDF, read once
         self.needed = layout.needed if layout is not None else 1
         self.goals = config.goal is not None or config.joint_goal is not None
         start = params.start
@@ -331,6 +329,13 @@ class SwarmPhysics:
             rig.hits_obstacles = rig.hits_robots = 0
         self._bind()
         self.started = False
+
+    def urdf_text(self, rig: Rig) -> str:
+        """The robot's description as URDF (/robot_description), read once per file."""
+        source = self.layout.source_of(rig.name)
+        if source not in self._urdf_texts:
+            self._urdf_texts[source] = robot_description_text(*source)
+        return self._urdf_texts[source]
 
     def _bind(self) -> None:
         """The per-tick bookkeeping over the rigs (made again when a robot enters or
@@ -436,11 +441,11 @@ class SwarmPhysics:
                                                       for t in rig.frames.static])
         if first and self.params.robot_description:
             for rig in self.rigs:
-                out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
+                out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text(rig))
         if self.entered:  # a robot that entered at this tick: its latched description
             if self.params.robot_description and not first:
                 for rig in self.entered:
-                    out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text)
+                    out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text(rig))
             self.entered = []
         return out
 

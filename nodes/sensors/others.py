@@ -32,7 +32,7 @@ class OtherRobots:
     """The other robots' bases and their footprint radius, for ray casting as cylinders."""
 
     def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: RobotModel):
-        self.names = [prefixed(r, layout.base_body) for r in layout.names if r != robot.name]
+        self.names = [prefixed(r, layout.base_of(r)) for r in layout.names if r != robot.name]
         self.radius = robot.footprint_radius
         self._bind(model)
 
