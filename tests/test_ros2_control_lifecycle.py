@@ -157,9 +157,9 @@ def test_requests_of_one_tick_merge_and_each_is_handled_once_by_its_id(tmp_path)
     from std_msgs.msg import String
 
     from nodes.ros2_control.config import read_controllers_file
+    from nodes.ros2_control.hosted import RobotManager
     from nodes.ros2_control.interface import Fresh
     from nodes.ros2_control.manager import ControllerManager
-    from nodes.ros2_control.node import ControllerManagerNode
     from runtime.arrivals import Arrivals
     from tests.test_ros2_control_controllers import controllers_file
 
@@ -173,9 +173,9 @@ def test_requests_of_one_tick_merge_and_each_is_handled_once_by_its_id(tmp_path)
     file = read_controllers_file(controllers_file(
         tmp_path, {"arm": "position_controllers/JointGroupPositionController"},
         {"arm": {"joints": ["a"]}}))
-    node = ControllerManagerNode.__new__(ControllerManagerNode)  # its switch logic only
+    node = RobotManager.__new__(RobotManager)  # its switch logic only
     node.manager, node.fresh, node.request, node.refused = ControllerManager(file), Fresh(), 0, []
-    node.hardware = type("Hardware", (), {"state": {"a": JointReading(0.0)}})()
+    node.system = type("Hardware", (), {"state": {"a": JointReading(0.0)}})()
     notes: list[str] = []
     node.note = notes.append
     held = String(data="#1 configure:arm\n#2 configure:arm\n#3 +arm bogus")
