@@ -116,6 +116,13 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         where.check_twin(nodes)
     found.raise_any()  # a schedule has no cycle
     windows, topic_windows = robot_windows_of(layout, nodes, tick_ns)
+    for name in windows:
+        if nodes[name].role.is_foreign:
+            raise where.fail(f"nodes[{origins.get(name, 0)}] ({name.partition('@')[0]})"
+                             ".for_each", f"{name} is a foreign program of a robot that "
+                             "enters or leaves the run; foreign programs cannot be dormant "
+                             "yet.", "a cosim node kind for robots that enter, or "
+                             "robots: [the robots there from the start] on this template.")
     if topic_windows:
         nodes = {name: _with_windows(plan, topic_windows, windows) for name, plan in
                  nodes.items()}
@@ -197,7 +204,11 @@ def _with_windows(plan: NodePlan, topic_windows: dict[str, Window],
         return plan
     own = {own: topic_windows[graph] for own, graph in plan.output_names.items()
            if graph in topic_windows}
-    return dataclasses.replace(plan, windows=own) if own else plan
+    if not own:
+        return plan
+    relatch = frozenset(w[0] for w in topic_windows.values() if w[0] > 0) if plan.latched \
+        else frozenset()  # its fixed frames (/tf_static) again with each robot that enters
+    return dataclasses.replace(plan, windows=own, relatch=relatch)
 
 
 def with_event_files(path: Path, model: ScenarioModel, found: Problems, worlds: WorldReader

@@ -53,30 +53,32 @@ class NodePlan:
     latched: frozenset[str] = frozenset()  # own names of the outputs published once, latched
     windows: dict[str, tuple[int, int | None]] = field(default_factory=dict)  # own output
     # name -> [start, end) ticks it is published in (a robot that enters or leaves the run)
+    relatch: frozenset[int] = frozenset()  # ticks its latched outputs are due again
 
     def windowed(self, tick: int, first: bool) -> tuple[dict[str, str], frozenset[str], bool]:
-        """(own -> graph names, latched own names, first) of the outputs due at ``tick``:
-        a windowed output only inside its window, a windowed latched one at the node's
-        first activation inside it (``runtime.activation``)."""
+        """(own -> graph names, latched own names, first) of the outputs due at ``tick``
+        (``runtime.activation``): a windowed output only inside its window, a windowed
+        latched one at the node's first activation inside it; a latched one without a
+        window at the first activation and again at each ``relatch`` tick (a robot entered:
+        /tf_static with its fixed frames too)."""
         p = self.period_ticks
-        names, latched = {}, set(self.latched)
+        names, due_latched = {}, set()
         for own, graph in self.output_names.items():
             window = self.windows.get(own)
-            if window is None:
-                names[own] = graph
-                continue
-            start, end = window
-            if tick < start or (end is not None and tick >= end):
-                latched.discard(own)
+            if window is not None and (tick < window[0] or (window[1] is not None
+                                                            and tick >= window[1])):
                 continue
             names[own] = graph
-            if own in latched and tick == -(-start // p) * p and start > 0:
-                latched.discard(own)  # due now: its first activation in the window
-        if not first:
-            names = {own: g for own, g in names.items()
-                     if own not in self.latched or own not in latched}
-            return names, frozenset(), False
-        return names, frozenset(latched), True
+            if own not in self.latched:
+                continue
+            if window is not None and window[0] > 0:
+                if tick == -(-window[0] // p) * p:
+                    due_latched.add(own)
+            elif first or tick in self.relatch:
+                due_latched.add(own)
+        names = {own: g for own, g in names.items() if own not in self.latched
+                 or own in due_latched}
+        return names, frozenset(), False
     @property
     def latched_topics(self) -> frozenset[str]:
         """Graph names of the outputs published once, at the first activation, latched."""

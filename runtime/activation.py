@@ -43,7 +43,7 @@ class Activation:
                 if self.on_note is not None:
                     self.on_note(Note(self.plan.name, tick.index, tick.time_ns, text))
         names, latched, first = self.plan.output_names, self.plan.latched, self.first
-        if self.plan.windows:  # a robot's topics only while it is in the run
+        if self.plan.windows or self.plan.relatch:  # a robot's topics while it is there
             names, latched, first = self.plan.windowed(tick.index, first)
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs, names, tick,
                                 outputs, latched, first)

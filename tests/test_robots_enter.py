@@ -60,6 +60,8 @@ def test_a_robots_nodes_act_only_while_it_is_in_the_world(counted):
     assert ticks["/gone/odom"] == [20, 59] and count["/gone/odom"] == 40
     assert ticks["/late/odom"][0] == 50 and count["/late/odom"] == 51
     assert count["/robot_0/odom"] == count["physics"] == 101
+    # the fixed frames again, whole, at each tick a robot enters (latched: the newest stays)
+    assert count["/tf_static"] == 3 and ticks["/tf_static"] == [0, 50]
 
 
 def test_one_digest_in_process_multi_process_and_packed_by_kind(counted, tmp_path):

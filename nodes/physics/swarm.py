@@ -436,7 +436,7 @@ class SwarmPhysics:
             self._apply_events(tick, edits)
         self.book.account(self.data, tick)
         out = self._publish()
-        if first and self.params.tf is not None:
+        if (first or self.entered) and self.params.tf is not None:  # again with a robot in
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
                                                       for t in rig.frames.static])
         if first and self.params.robot_description:
