@@ -96,9 +96,9 @@ class StepNode:
     one robot; the plan publishes and feeds each robot's under the robot's namespace
     (``plan.robots.per_robot``), the shared ones (``/tf``, ``/cosim/...``) once."""
     hardware_role: ClassVar[bool] = False
-    """The robot's controller manager: it reads and writes the robot's hardware on
-    ``/cosim/hardware_states``, ``/cosim/hardware_commands`` and ``/cosim/base_command``,
-    and the plan connects those to the physics node (``plan.hardware_wiring``)."""
+    """The robot's controller manager: checked as a node of its own, then folded by the plan
+    into the world node, which runs it in its step over MjData (``plan.hardware_wiring``,
+    ``nodes.ros2_control.hosted``)."""
 
     @classmethod
     def description_names(cls, params: BaseModel) -> dict[str, Any]:

@@ -51,8 +51,8 @@ class ControllerManagerParams(BaseModel):
                              "(controller_manager: ros__parameters: ...), relative to the "
                              "scenario file")
     command_joints: list[str] | None = Field(
-        None, description="the physics node's position_joints, in its order (what "
-        "/joint_commands carries); default: the robot's commanded joints, in its order")
+        None, description="the joints whose actuators the controllers may command, in "
+        "order; default: the robot's commanded joints, in its order")
     inactive: list[str] = Field([], description="controllers loaded but not active at the "
                                 "start (as --inactive of the spawner)")
 
