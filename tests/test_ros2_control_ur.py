@@ -54,6 +54,8 @@ def ur_session(sim: SimClient, checks: bool) -> int:
     stop = sim.set_state(SimulationState.STATE_STOPPED)
     if checks:
         assert {(c.name, c.type, c.state) for c in listed} == {
+            ("joint_state_broadcaster", "joint_state_broadcaster/JointStateBroadcaster",
+             "active"),
             ("joint_trajectory_controller",
              "joint_trajectory_controller/JointTrajectoryController", "active")}
         claimed = next(c for c in listed if c.name == "joint_trajectory_controller")
