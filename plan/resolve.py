@@ -17,7 +17,7 @@ from plan.events import (
     timing_problems,
 )
 from plan.external_node import complete_model
-from plan.hardware_wiring import hand_wiring_notices, wire_hardware, with_robot_managers
+from plan.hardware_wiring import fold_managers, hand_wiring_notices, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
 from plan.robots import RobotPlacement, RobotsLayout, namespaced, robot_of
@@ -54,7 +54,6 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     model = read_settings_out(model)
     hand_wired = hand_wiring_notices(path, model)
     model = with_robot_managers(path, model)  # robots.controllers
-    model = wire_hardware(path, model, layout is not None)  # physics to its controller manager
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
     model = with_event_files(path, model, found, worlds)
@@ -87,6 +86,14 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         last_tick = where.last_tick(tick_ns)
     if len(params) < len(model.nodes):
         found.raise_any()  # the topics of a node whose class or params are wrong are unknown
+    found.raise_any()  # a controller manager is folded into physics only when all is right
+    model, folded = fold_managers(path, model, params, origins)
+    if folded is not None:  # the node list changed: its classes and parameters again
+        hand_wired += folded
+        where = ScenarioChecks(path, model, origins, worlds, found)
+        classes = {i: where.node_class(i, spec) for i, spec in enumerate(model.nodes)}
+        params = {i: where.node_params(i, spec, classes[i][1])
+                  for i, spec in enumerate(model.nodes)}
     outputs = {}
     for i, spec in enumerate(model.nodes):
         with found.collecting():

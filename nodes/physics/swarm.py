@@ -327,6 +327,16 @@ class SwarmPhysics:
         self.contacts.obstacle_events = self.contacts.robot_events = 0
         for rig in self.rigs:
             rig.hits_obstacles = rig.hits_robots = 0
+        self.hosted = None  # the robots' controller managers, run in this step
+        if params.controller_manager is not None:
+            from nodes.ros2_control.hosted import HostedManagers
+
+            models = {robot.name: robot for robot in config.robots}
+            self.hosted = HostedManagers(params.controller_manager, model, self.rigs,
+                                         [models[rig.name] for rig in self.rigs],
+                                         config.held_inputs, note)
+        self.period_ns = config.period_ns
+        self.joint_commands = self.hosted is None or not self.hosted.commands_joints
         self._bind()
         self.started = False
 
@@ -340,7 +350,9 @@ class SwarmPhysics:
     def _bind(self) -> None:
         """The per-tick bookkeeping over the rigs (made again when a robot enters or
         leaves)."""
-        self.driven = [rig for rig in self.rigs if rig.drive is not None]
+        # a base whose wheels a diff drive controller commands is driven by it, not here
+        hosted_base = self.hosted is not None and self.hosted.drives_base
+        self.driven = [rig for rig in self.rigs if rig.drive is not None and not hosted_base]
         self.drives = SwarmDrives(self.driven, self.dt)
         self.book = SwarmBook(self.model, self.rigs)
         self.any_imu = any(rig.imu is not None for rig in self.rigs)
@@ -401,7 +413,7 @@ class SwarmPhysics:
         """Integrate one period for every robot (except at the first activation; not while a
         twin's real robot places it), publish."""
         model, data = self.model, self.data
-        for rig in self.rigs:
+        for rig in self.rigs if self.joint_commands else ():
             rig.position_command(data, inputs.get(rig.topics[JOINT_COMMANDS]), self.note)
         first = not self.started
         mirrored = False
@@ -436,6 +448,8 @@ class SwarmPhysics:
             self._apply_events(tick, edits)
         self.book.account(self.data, tick)
         out = self._publish()
+        if self.hosted is not None:  # read, update, write: the commands act from now on
+            self.hosted.step(tick.time_ns, self.period_ns, self.data, inputs, out)
         if (first or self.entered) and self.params.tf is not None:  # again with a robot in
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
                                                       for t in rig.frames.static])
@@ -448,6 +462,9 @@ class SwarmPhysics:
                     out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text(rig))
             self.entered = []
         return out
+
+    def _hosted_metrics(self) -> dict[str, float]:
+        return self.hosted.metrics() if self.hosted is not None else {}
 
     def _go_live(self) -> None:
         """A client's first edit of a world that had no events: from now on the world is
@@ -499,7 +516,7 @@ class SwarmPhysics:
                    "y": float(q[1]), "yaw": m.yaw_of(q[3:7])}
             if self.goals:
                 out["arrived"] = float(rig.goal_time_ns is not None)  # ground truth, sticky
-            return out
+            return {**out, **self._hosted_metrics()}
         out: dict[str, float] = {}
         arrived = 0
         for rig, robot in zip(self.rigs, self.names, strict=True):
@@ -514,6 +531,7 @@ class SwarmPhysics:
             out[f"{robot}/collisions_robots"] = float(rig.hits_robots)
             out[f"{robot}/x"], out[f"{robot}/y"] = float(q[0]), float(q[1])
         c = self.contacts
+        out.update(self._hosted_metrics())
         out.update({"robots": float(len(self.rigs)), "robots_arrived": float(arrived),
                     "collisions_obstacles": float(c.obstacle_events),
                     "collisions_robots": float(c.robot_events),
