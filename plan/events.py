@@ -21,7 +21,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
 from plan.description_spec import UrdfSpec, UsdSpec
-from plan.obstacles import Obstacle
+from plan.obstacles import Obstacle, place_problem
 from plan.timeutil import Ns, format_ns, parse_duration_ns
 
 SHAPES = ("box", "cylinder", "sphere", "mesh")
@@ -237,6 +237,9 @@ def object_problems(events: list[EventSpec], world: WorldObjects) -> list[Proble
                 out.append((f"{key}.robot.name", f"{name!r} is still in the world "
                             f"(events[{live[name][0]}] spawned it).",
                             "another name, or delete the first one before."))
+            elif problem := _robot_place_problem(event, world, events[:i], live):
+                out.append((f"{key}.robot.start", problem, "a start clear of the world's "
+                            "obstacles and of the robots entering with it."))
             live.setdefault(name, (i, None))
             continue
         if event.delete is not None:
@@ -292,6 +295,25 @@ def _place_problem(obj: ObjectSpec, at_ns: int, world: WorldObjects,
             if mover.distance(x, y) < radius:
                 return (f"({x:g}, {y:g}) overlaps {mover.name!r} where it starts "
                         f"({mover.centre[0]:g}, {mover.centre[1]:g}).")
+    return None
+
+
+def _robot_place_problem(event: EventSpec, world: WorldObjects, before: list[EventSpec],
+                         live: dict) -> str | None:
+    """Why a robot cannot enter at its start, or None: inside or too near an obstacle, or
+    overlapping a robot that enters at the same time (or, at time 0, one already there).
+    A robot's size is taken as the largest of the robots the world starts with."""
+    radius = max((m.radius for m in world.movers if m.radius), default=0.2)
+    x, y = event.robot.start.x, event.robot.start.y
+    if problem := place_problem(list(world.obstacles), x, y, radius):
+        return problem + "."
+    others = [(e.robot.name, e.robot.start.x, e.robot.start.y) for e in before
+              if e.robot is not None and e.at == event.at and e.robot.name in live]
+    if event.at == 0:
+        others += [(m.name, *m.centre) for m in world.movers]
+    for name, ox, oy in others:
+        if math.hypot(x - ox, y - oy) < 2 * radius:
+            return f"({x:g}, {y:g}) overlaps {name!r} ({ox:g}, {oy:g}) as it enters."
     return None
 
 

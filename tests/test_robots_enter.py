@@ -109,6 +109,11 @@ def test_attaching_and_removing_a_robot_keeps_every_other_body_bit_for_bit():
      "events[0] (a).at", "not on a tick"),
     ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}, "
      "description: nowhere.urdf}}", "events[0] (a).robot.description", "does not exist"),
+    ("- {at: 1s, robot: {name: a, start: {x: 1.3, y: 1.3}, goal: {x: 0, y: -2}}}",
+     "events[0] (a).robot.start", "pillar_a"),
+    ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}\n"
+     "  - {at: 1s, robot: {name: b, start: {x: 0.1, y: 2}, goal: {x: 0, y: -2}}}",
+     "events[1] (b).robot.start", "overlaps 'a'"),
     ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}, "
      "description: nowhere.urdf, usd: {}}}", "events[0] (a).robot", "does not exist"),
 ])

@@ -96,7 +96,8 @@ class ObjectSpawner:
         put into the run."""
         if request.entity_namespace.strip("/"):
             return (R.NAMESPACE_INVALID, f"entity_namespace {request.entity_namespace!r}: "
-                    "objects have no topics (robots cannot be spawned yet); leave it empty.", "")
+                    "objects have no topics (a robot enters through the scenario's "
+                    "events:); leave it empty.", "")
         try:
             given, obj = requested_object(request)
         except Refused as exc:

@@ -74,8 +74,11 @@ def _resource(request: SpawnEntity.Request) -> tuple[str, Path | None, Path | No
     if suffix in MESHES:
         return "", None, path.resolve()
     if suffix not in (".sdf", ".urdf", ".xml"):
+        robot = (" (a robot enters through the scenario's events: robot: {name, start, "
+                 "goal, description}; docs/how-to/world-events.md)"
+                 if suffix in (".xacro", ".usd", ".usda", ".usdc") else "")
         raise Refused(R.UNSUPPORTED_FORMAT, f"uri {uri!r}: cosim spawns SDFormat or URDF "
-                      f"models of one link, or mesh files ({', '.join(MESHES)}).")
+                      f"models of one link, or mesh files ({', '.join(MESHES)}){robot}.")
     try:
         return path.read_text(), path.resolve().parent, None
     except (OSError, UnicodeDecodeError) as exc:
@@ -124,8 +127,10 @@ def _model(text: str, base: Path | None) -> dict:
     links = model.findall("link")
     if len(links) != 1 or model.findall("joint") or model.findall("include"):
         raise Refused(R.UNSUPPORTED_FORMAT, f"the {fmt} model has {len(links)} links and "
-                      f"{len(model.findall('joint'))} joints: cosim spawns objects of one link "
-                      "(robots cannot be spawned yet).")
+                      f"{len(model.findall('joint'))} joints: SpawnEntity takes objects of one "
+                      "link; a robot enters through the scenario's events: (robot: {name, "
+                      "start, goal, description}), planned so that its nodes run with it "
+                      "(docs/how-to/world-events.md).")
     link = links[0]
     geometry = link.find("collision/geometry")
     if geometry is None:
