@@ -23,6 +23,7 @@ from descriptions.urdf import UrdfOptions
 from descriptions.usd_robot import load_usd
 from orchestrator.api import run
 from plan.errors import ScenarioError
+from plan.options import RunOptions
 from tests.helpers import ROOT
 
 USD = ROOT / "scenarios" / "robots" / "usd"
@@ -196,35 +197,61 @@ def test_the_same_arm_from_urdf_and_usd_follows_the_same_position_commands(tmp_p
     assert np.abs(mujoco_layout - urdf).max() < 1e-6
 
 
-def test_a_usd_robot_reaches_the_nav_goal_and_an_arm_its_targets(tmp_path):
-    nav = run(ROOT / "scenarios" / "nav_usd_robot.yaml", in_process=True, out=tmp_path)
+LAYOUTS = ("isaac", "urdf_usd_converter", "mujoco_usd_converter")
+# urdf-usd-converter's arm has no drives; its kept <ros2_control> commands wrist_2 by velocity
+# and wrist_3 by effort, so the scenario makes them position servos with arm_urdf.yaml's gains
+# (as arm_urdf.yaml does for the xacro), and one position vector commands all six.
+ARM_COMMANDS = {"urdf_usd_converter": {"robots.usd": {
+    "interfaces": {"wrist_2": "position", "wrist_3": "position"}, "gains": ARM_GAINS}}}
+ARMS = [{"name": f"arm_{i}", "start": {"x": 0.0, "y": y}, "goal": {"x": 0.0, "y": y}}
+        for i, y in enumerate((1.5, -1.5))]
+LAST_TARGET = [-0.6, 0.4, 1.1, 0.5, -0.8, 0.3]
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_usd_robots_of_each_layout_reach_their_goals_alone_and_in_a_swarm(tmp_path, layout):
+    """nav_usd_robot.yaml and arm_usd.yaml with their robot in each layout (the ``--set
+    robots.description=robots/usd/..._LAYOUT.usda`` a user would give), in-process: the diff
+    drive reaches nav's goal, the arm (alone, at the root, and two copies) its third target."""
+    nav = run(ROOT / "scenarios" / "nav_usd_robot.yaml", in_process=True, out=tmp_path,
+              overrides={"robots.description": f"robots/usd/mybot_{layout}.usda"})
     assert nav.success and nav.metrics["mybot/arrived"] == 1.0
     assert nav.last("/joint_states").name == list(WHEELS)  # a lone robot: at the root
     description = nav.last("/robot_description").data
     assert "<robot name=\"mybot\">" in description and ".stl\"" in description
     assert "usd-robots" not in description  # no machine's path: one digest everywhere
-    arm = run(ROOT / "scenarios" / "arm_usd.yaml", in_process=True, out=tmp_path)
-    assert arm.metrics["target"] == 2.0  # the third of three reached
-    states = arm.last("/joint_states")
+    arm_usd = ROOT / "scenarios" / "arm_usd.yaml"
+    arm = {"robots.description": f"robots/usd/myarm_{layout}.usda",
+           **ARM_COMMANDS.get(layout, {})}
+    alone = run(arm_usd, in_process=True, out=tmp_path, overrides=arm)
+    assert alone.metrics["target"] == 2.0  # the third of three reached
+    states = alone.last("/joint_states")
     assert states.name == ARM
-    assert list(states.position) == pytest.approx([-0.6, 0.4, 1.1, 0.5, -0.8, 0.3], abs=0.05)
+    assert list(states.position) == pytest.approx(LAST_TARGET, abs=0.05)
+    swarm = run(arm_usd, in_process=True, out=tmp_path, overrides={**arm, "robots.named": ARMS})
+    for name in ("arm_0", "arm_1"):
+        assert swarm.metrics_by_node[f"arm@{name}"]["target"] == 2.0, name
+        assert list(swarm.last(f"/{name}/joint_states").position) == pytest.approx(
+            LAST_TARGET, abs=0.05)
 
 
-def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp_path):
-    doc = yaml.safe_load((ROOT / "scenarios" / "nav_usd_robot.yaml").read_text())
-    doc["robots"].pop("named")
-    doc["robots"].update(count=3, region={"x": [-3, 3], "y": [-3, 3]}, name_prefix="bot")
-    doc["robots"]["description"] = str(USD / "mybot_urdf_usd_converter.usda")
-    doc["robots"]["usd"] = {"wheels": list(WHEELS)}  # lidar, imu: its kept Gazebo tags
-    doc.update(duration="1s", world=str(ROOT / "scenarios" / "worlds" / "arena.xml"))
-    path = tmp_path / "swarm_usd_robot.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    one = run(path, in_process=True, out=tmp_path)
-    many = run(path, out=tmp_path)
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp_path, layout):
+    """Two copies of the diff drive in each layout, placed by the seed (count:), for 1 s:
+    one digest in-process and multi-process (packed by kind: the digest does not depend on
+    the packing, and three processes start faster than five on two cores)."""
+    overrides = {"robots.description": f"robots/usd/mybot_{layout}.usda",
+                 "robots.named": None, "robots.count": 2, "robots.name_prefix": "bot",
+                 "robots.region": {"x": [-3, 3], "y": [-3, 3]}}
+    nav_usd = ROOT / "scenarios" / "nav_usd_robot.yaml"
+    one = run(nav_usd, in_process=True, out=tmp_path, duration="1s", overrides=overrides)
+    many = run(nav_usd, out=tmp_path, duration="1s", overrides=overrides,
+               options=RunOptions(pack="kind"))
     assert one.digest == many.digest and one.ticks == 51
     static = {(t.header.frame_id, t.child_frame_id)
               for t in one.last("/tf_static").transforms}
-    assert ("bot_2/base_link", "bot_2/imu_link") in static
+    assert {("bot_1/base_link", "bot_1/imu_link"), ("bot_0/base_link", "bot_0/base_scan")} \
+        <= static
 
 
 def _broken(tmp_path, source: str, edit) -> str:
