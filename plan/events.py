@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
@@ -30,10 +31,13 @@ SIZE_HELP = {"box": "[x, y, z]: the full lengths in metres", "cylinder": "[radiu
              "sphere": "[radius]"}
 
 
+_ZERO = re.compile(r"\s*0+(\.0*)?\s*(s|ms|us|ns)?\s*")
+
+
 def parse_time_ns(value: object) -> int:
     """A point in simulated time: 0, or a duration ('5s', '200ms') from the start, in ns."""
-    if value == 0 or value == "0":
-        return 0
+    if value == 0 or (isinstance(value, str) and _ZERO.fullmatch(value)):
+        return 0  # '0', '0s', '0ms': the first tick
     return parse_duration_ns(value)
 
 
