@@ -35,13 +35,6 @@ HARDWARE_TOPICS = frozenset({HARDWARE_STATES, HARDWARE_COMMANDS, BASE_COMMAND})
 """The topics a separate controller manager and physics were once wired by (dropped)."""
 
 
-def hand_wired(model: ScenarioModel) -> bool:
-    """Whether a remap or input of the scenario names a hardware topic."""
-    return any(topic in HARDWARE_TOPICS for spec in model.nodes
-               for topic in [*spec.remap, *spec.remap.values(),
-                             *(inp.topic for inp in spec.inputs)])
-
-
 def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice]:
     """A notice for each remap or input that names a hardware topic in a scenario with a
     controller manager: the manager runs in the physics step, so they are dropped;
