@@ -16,7 +16,6 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
@@ -334,49 +333,6 @@ def physics_period(topics_by_node: dict[str, dict[str, type]], periods: dict[str
         if "/cosim/world_state" in topics:
             return periods[name]
     return None
-
-
-SPAWNABLE_SUFFIXES = (".urdf", ".xacro", ".usd", ".usda", ".usdc", ".xml", ".sdf", ".stl",
-                      ".obj", ".dae")  # what a folder of spawnables lists
-
-
-def _spawnable(value: object) -> object:
-    return {"path": value} if isinstance(value, str) else value
-
-
-class SpawnableSpec(_Strict):
-    """A file (or a folder of files) a client may spawn from: a robot description (URDF,
-    xacro, MJCF, USD), an SDFormat model or a mesh; GetSpawnables lists them."""
-
-    path: str = Field(description="a file or folder, relative to the scenario file; a folder "
-                      "lists its files ending " + ", ".join(SPAWNABLE_SUFFIXES))
-    description: str = Field("", description="what it is, for people, e.g. 'a box 30 cm wide'")
-
-
-Spawnable = Annotated[SpawnableSpec, BeforeValidator(_spawnable)]
-
-
-def spawnable_problems(folder: Path, spawnables: list[SpawnableSpec]) -> list[Problem]:
-    """Each spawnable's path exists (relative to the scenario's ``folder``)."""
-    return [(f"spawnables[{i}].path", f"{entry.path!r} does not exist (looked for "
-             f"{(folder / entry.path).resolve()}).", "a file or folder relative to the "
-             "scenario file.")
-            for i, entry in enumerate(spawnables) if not (folder / entry.path).exists()]
-
-
-def spawnable_files(folder: Path, spawnables: list[SpawnableSpec]
-                    ) -> list[tuple[Path, str]]:
-    """(absolute file, description) of every spawnable: a file as given, a folder's files
-    with a known suffix (``SPAWNABLE_SUFFIXES``) in name order."""
-    out: list[tuple[Path, str]] = []
-    for entry in spawnables:
-        where = (folder / entry.path).resolve()
-        if where.is_dir():
-            out += [(f, entry.description) for f in sorted(where.iterdir())
-                    if f.is_file() and f.name.lower().endswith(SPAWNABLE_SUFFIXES)]
-        elif where.is_file():
-            out.append((where, entry.description))
-    return out
 
 
 def robot_windows(events: list[EventSpec]) -> dict[str, tuple[int, int | None]]:

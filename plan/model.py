@@ -8,7 +8,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
 from plan.description_spec import UrdfSpec, UsdSpec
-from plan.events import EventSpec, Spawnable
+from plan.events import EventSpec
+from plan.spawnables import Spawnable
 from plan.timeutil import parse_duration_ns, rate_to_period_ns
 
 DurationNs = Annotated[int, BeforeValidator(parse_duration_ns)]

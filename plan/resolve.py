@@ -9,13 +9,7 @@ from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
-from plan.events import (
-    object_problems,
-    physics_period,
-    robot_windows,
-    spawnable_problems,
-    timing_problems,
-)
+from plan.events import object_problems, physics_period, robot_windows, timing_problems
 from plan.external_node import complete_model
 from plan.hardware_wiring import fold_managers, hand_wiring_notices, with_robot_managers
 from plan.kinds import catalogue
@@ -24,6 +18,7 @@ from plan.robots import RobotPlacement, RobotsLayout, namespaced, robot_of
 from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import Edge, Schedule, Window
+from plan.spawnables import spawnable_problems
 from plan.templates import expand_nodes
 from plan.timeutil import tick_at_ns
 from plan.topics import node_inputs, node_outputs, producers

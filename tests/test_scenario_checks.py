@@ -128,7 +128,8 @@ def test_non_text_key_refused(tmp_path, key, as_type):
 @pytest.mark.parametrize(("text", "key", "accepted"), [
     (VALID + "colour: red\n", "colour",
      "name, seed, duration, tick, transport, zenoh, world, goal, joint_goal, robots, "
-     "success, deadlines, external, interactive, twin, simulation_interfaces, nodes, events"),
+     "success, deadlines, external, interactive, twin, simulation_interfaces, nodes, events, "
+     "spawnables"),
     (VALID.replace("rate: 50", "rate: 50\n    speed: 3"), "nodes[1] (b).speed",
      "name, kind, module, rate, params, inputs, remap, debug, command, external, process, "
      "prefix, for_each, robots"),

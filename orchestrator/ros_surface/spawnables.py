@@ -1,26 +1,50 @@
 """GetSpawnables: what a client may spawn in this run, as the scenario's ``spawnables:``
-list names it (``plan.events.SpawnableSpec``: files, and folders of files), each as a
+list names it (``plan.spawnables.SpawnableSpec``: files, and folders of files), each as a
 ``file://`` URI SpawnEntity takes; sources a request adds that are local files or folders
-are listed the same way, others are named as unrecognised."""
+are listed the same way, others are named as unrecognised. A folder lists the files the
+description readers recognise (``descriptions.readers``) and the objects SpawnEntity reads
+(``spawn_resources``: SDFormat, meshes) and MJCF files."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from plan.events import SpawnableSpec, spawnable_files
+from descriptions.readers import reader_for
+from orchestrator.ros_surface.spawn_resources import MESHES
 from plan.scenario import Scenario
+from plan.spawnables import SpawnableSpec
 
-KINDS = {".urdf": "URDF", ".xacro": "xacro (URDF)", ".usd": "USD", ".usda": "USD",
-         ".usdc": "USD", ".xml": "MJCF", ".sdf": "SDFormat", ".stl": "mesh (STL)",
-         ".obj": "mesh (OBJ)", ".dae": "mesh (COLLADA)"}
+OTHERS = {"sdf": "SDFormat model", "xml": "MJCF",
+          **{m.lstrip("."): f"mesh ({m.lstrip('.').upper()})" for m in MESHES}}
+
+
+def _kind(file: Path) -> str | None:
+    """What a file is for GetSpawnables, or None: not something cosim spawns from."""
+    reader = reader_for(file)
+    if reader.suffixes:
+        return f"{reader.title} robot description"
+    return OTHERS.get(file.suffix.lower().lstrip("."))
+
+
+def spawnable_files(folder: Path, spawnables: list[SpawnableSpec]) -> list[tuple[Path, str]]:
+    """(absolute file, description) of every spawnable: a file as given, a folder's files
+    that cosim spawns from in name order; a description given by the entry wins."""
+    out: list[tuple[Path, str]] = []
+    for entry in spawnables:
+        where = (folder / entry.path).resolve()
+        if where.is_dir():
+            out += [(f, entry.description or _kind(f)) for f in sorted(where.iterdir())
+                    if f.is_file() and _kind(f) is not None]
+        elif where.is_file():
+            out.append((where, entry.description or _kind(where) or "a file"))
+    return out
 
 
 def list_spawnables(scenario: Scenario, sources: list[str] = ()
                     ) -> tuple[list[tuple[str, str]], list[str]]:
     """([(uri, description)], the sources not recognised): the scenario's spawnables, then
     each request source that is a local file or folder (a ``file://`` URI or a path)."""
-    folder = scenario.file.parent
-    found = spawnable_files(folder, list(scenario.model.spawnables))
+    found = spawnable_files(scenario.file.parent, list(scenario.model.spawnables))
     unknown = []
     for source in sources:
         where = Path(source.removeprefix("file://"))
@@ -33,5 +57,6 @@ def list_spawnables(scenario: Scenario, sources: list[str] = ()
         uri = f"file://{file}"
         if uri not in seen:
             seen.add(uri)
-            out.append((uri, text or KINDS.get(file.suffix.lower(), "a file")))
+            out.append((uri, text))
     return out, unknown
+
