@@ -225,8 +225,8 @@ class SwarmBook:
 
     def _frames(self, data: mujoco.MjData, poses: list) -> list:
         """``dynamic`` of every robot's frames: map -> odom, odom -> base (where its frames
-        publish it), its moving bodies (batched) and moving links (a described robot's, as
-        nodes.physics.described_rig gives them), every robot through the same path."""
+        publish it), its moving bodies (batched) and moving links (a described robot's:
+        RobotFrames.links), every robot through the same path."""
         moved: list[list] = [[] for _ in self.rigs]
         if self.moving:
             body, parent = self.moving_body, self.moving_parent

@@ -15,7 +15,7 @@ from std_msgs.msg import String
 from descriptions.robot_model import RobotModel
 from descriptions.robot_state import RobotStateFrames
 from nodes.physics import messages as m
-from nodes.physics.frames import TfParams, transform
+from nodes.physics.frames import RobotFrames, TfParams, transform
 
 ROBOT_DESCRIPTION = "/robot_description"
 
@@ -46,56 +46,36 @@ def _msg(t) -> TransformStamped:
     return transform(t.parent, t.child, t.pos, t.quat)
 
 
-class DescribedRobotFrames:
-    """``nodes.physics.frames.RobotFrames``' interface ``static`` (every
-    fixed joint, once), ``dynamic`` (map -> odom, odom -> root link, every moving joint), for
-    a described robot."""
+class DescribedRobot:
+    """A described robot as robot_state_publisher and joint_state_broadcaster read it from
+    its robot model: its movable joints' states under the description's names, and its
+    frames (``frames``: the one nodes.physics.frames.RobotFrames every robot has, its links
+    for frames)."""
 
-    def __init__(self, model: mujoco.MjModel, params: TfParams, robot: RobotModel,
-                 odom_frame: str):
-        self.frames = RobotStateFrames(model, robot, odom_frame)
-        self.odom_frame, self.base_frame = robot.frame_prefix + odom_frame, robot.base_link
-        self.mobile = self.publishes_base = robot.mobile  # odom -> base: a mobile robot's
-        self.moving: list = []  # no body pairs: its moving links are ``links``
-        data = mujoco.MjData(model)
-        mujoco.mj_kinematics(model, data)  # fixed joints: the same in every state
-        self.static = [_msg(t) for t in self.frames.static(data)]
-        mo = params.map_to_odom
-        self.map_to_odom = (None if params.map_frame is None else
-                            (params.map_frame, (mo.x, mo.y, 0.0),
-                             (np.cos(mo.yaw / 2), 0.0, 0.0, np.sin(mo.yaw / 2))))
+    def __init__(self, model: mujoco.MjModel, robot: RobotModel, odom_frame: str):
+        self.model, self.robot = model, robot
+        self.state = RobotStateFrames(model, robot, odom_frame)
+        self.odom_frame = robot.frame_prefix + odom_frame
 
-    @property
-    def needs_kinematics(self) -> bool:
-        """Whether any transform depends on body positions (a moving joint)."""
-        return self.frames.has_moving
-
-    def dynamic(self, data: mujoco.MjData, base_qpos: np.ndarray) -> list[TransformStamped]:
-        """map -> odom, odom -> the root link (a mobile robot's free joint) and the moving
-        joints (from ``data``'s current kinematics)."""
-        out = []
-        if self.map_to_odom is not None:
-            frame, pos, quat = self.map_to_odom
-            out.append(transform(frame, self.odom_frame, pos, quat))
-        if self.mobile:
-            out.append(transform(self.odom_frame, self.base_frame, base_qpos[:3],
-                                 base_qpos[3:7]))
-        return out + self.links(data)
-
-    def links(self, data: mujoco.MjData) -> list[TransformStamped]:
-        """The moving joints' transforms, parent link -> child link."""
-        return [_msg(t) for t in self.frames.moving(data)]
+    def frames(self, params: TfParams) -> RobotFrames:
+        """Its TF: every fixed joint once (/tf_static), map -> odom, odom -> the root link
+        (a mobile robot's free joint) and every moving joint per state (/tf)."""
+        data = mujoco.MjData(self.model)
+        mujoco.mj_kinematics(self.model, data)  # fixed joints: the same in every state
+        return RobotFrames(params, self.odom_frame, self.robot.base_link,
+                           [_msg(t) for t in self.state.static(data)],
+                           link_frames=self.state, publishes_base=self.robot.mobile)
 
     @property
     def state_joints(self) -> tuple[list[str], list[int], list[int]]:
         """The joints /joint_states carries: names (the description's), qpos and dof
         addresses."""
-        joints = self.frames.joints
+        joints = self.state.joints
         return [n for n, _, _ in joints], [q for _, q, _ in joints], [d for _, _, d in joints]
 
     def joint_state(self, data: mujoco.MjData):
         """sensor_msgs/JointState of every movable joint, under the description's names."""
-        s = self.frames.joint_states(data)
+        s = self.state.joint_states(data)
         return m.joint_state(list(s.names), np.array(s.position), np.array(s.velocity),
                              np.array(s.effort))
 

@@ -1,4 +1,8 @@
-"""The robot's TF tree, read from the MJCF: the transforms of /tf and /tf_static (REP-105).
+"""A robot's TF tree, the transforms of /tf and /tf_static (REP-105): one ``RobotFrames``
+for every robot, made by ``mjcf_frames`` for an MJCF robot (read from its bodies, as below)
+or by ``nodes.physics.described_rig.DescribedRobot.frames`` for a described one (URDF, xacro,
+USD: a transform per joint of its robot model, under its link names, as
+robot_state_publisher sends them). An MJCF robot's:
 
 - ``map -> odom``: a fixed offset (``tf.map_to_odom``, identity by default), sent on /tf at
   every tick like the transform a localization node (AMCL, slam_toolbox) publishes, so that
@@ -134,58 +138,109 @@ def on_robot(model: mujoco.MjModel, body: int, base: int) -> bool:
 
 
 class RobotFrames:
-    """The static transforms of a robot, computed once, and its moving ones, per state."""
+    """Every robot's TF, whatever describes it: the static transforms (computed once, for
+    /tf_static) and, per state, ``map -> odom``, ``odom -> base`` (where ``publishes_base``),
+    the moving bodies (pairs of bodies, batched by nodes.physics.batch) and the moving links
+    (a described robot's, read from its robot model by ``link_frames``: an object with
+    ``has_moving`` and ``moving(data)``, descriptions.robot_state.RobotStateFrames).
 
-    def __init__(self, model: mujoco.MjModel, params: TfParams, base_body: str,
-                 base_frame: str, odom_frame: str, extra_sites: dict[str, str],
-                 joints: list[str] | tuple[str, ...] = (), frame_of_body=None):
-        """``frame_of_body``: a body's MuJoCo name -> its TF frame (a robot whose frames
-        are in a namespace other than its MuJoCo prefix); default: the name."""
-        self.model = model
-        self.body_frame = frame_of_body or str
-        self.params = params
-        self.odom_frame = odom_frame
-        self.base_frame = base_frame
-        self.base = mujoco.mj_name2id(model, BODY, base_body)
-        self.static: list[TransformStamped] = []
-        self.moving: list[MovingBody] = []
-        self._bodies_done: set[int] = set()
-        for site, frame in {**params.sites, **extra_sites}.items():
-            sid = mujoco.mj_name2id(model, SITE, site)
-            body = int(model.site_bodyid[sid])
-            self._chain(body)
-            self.static.append(transform(self._frame_of(body), frame, model.site_pos[sid],
-                                         model.site_quat[sid]))
-        for cam in params.cameras:
-            self._camera(cam)
-        for joint in joints:  # the links the robot's servos move (an arm's whole chain)
-            self._chain(int(model.jnt_bodyid[mujoco.mj_name2id(model, JOINT, joint)]))
+    ``mjcf_frames`` makes one for an MJCF robot (frames named after its bodies, sites and
+    cameras), ``nodes.physics.described_rig.described_frames`` for a described one (URDF,
+    xacro, USD: frames named after its links)."""
+
+    def __init__(self, params: TfParams, odom_frame: str, base_frame: str,
+                 static: list[TransformStamped], moving: list[MovingBody] | None = None,
+                 link_frames=None, publishes_base: bool = True):
+        self.odom_frame, self.base_frame = odom_frame, base_frame
+        self.static = static
+        self.moving = moving or []
+        self.link_frames = link_frames
+        self.publishes_base = publishes_base
         m = params.map_to_odom
         self.map_to_odom = (None if params.map_frame is None else
                             (params.map_frame, (m.x, m.y, 0.0),
                              (np.cos(m.yaw / 2), 0.0, 0.0, np.sin(m.yaw / 2))))
 
-    publishes_base = True  # odom -> base, for a base fixed to the world too
-
     @property
     def needs_kinematics(self) -> bool:
-        """Whether any transform depends on body positions (a moving body)."""
-        return bool(self.moving)
+        """Whether any transform depends on body positions (a moving body or link)."""
+        return bool(self.moving) or (self.link_frames is not None and
+                                     self.link_frames.has_moving)
 
     def links(self, data: mujoco.MjData) -> list[TransformStamped]:
-        """Transforms beyond the moving bodies' (a described robot's moving links): none."""
-        return []
+        """The moving links' transforms, parent link -> child link (none without
+        ``link_frames``)."""
+        if self.link_frames is None:
+            return []
+        return [transform(t.parent, t.child, t.pos, t.quat)
+                for t in self.link_frames.moving(data)]
 
-    def _frame_of(self, body: int) -> str:
+    def dynamic(self, data: mujoco.MjData, base_qpos: np.ndarray) -> list[TransformStamped]:
+        """map -> odom, odom -> base (from the free joint's ``base_qpos``), the moving
+        bodies and the moving links (from ``data``'s current kinematics); what
+        nodes.physics.batch sends for every robot at once."""
+        out = []
+        if self.map_to_odom is not None:
+            frame, pos, quat = self.map_to_odom
+            out.append(transform(frame, self.odom_frame, pos, quat))
+        if self.publishes_base:
+            out.append(transform(self.odom_frame, self.base_frame, base_qpos[:3],
+                                 base_qpos[3:7]))
+        conj = np.empty(4)
+        quat = np.empty(4)
+        for m in self.moving:
+            pos = mat_t_vec(data.xmat[m.parent], data.xpos[m.body] - data.xpos[m.parent])
+            mujoco.mju_negQuat(conj, data.xquat[m.parent])
+            mujoco.mju_mulQuat(quat, conj, data.xquat[m.body])
+            out.append(transform(m.parent_frame, m.frame, pos, quat))
+        return out + self.links(data)
+
+
+def mjcf_frames(model: mujoco.MjModel, params: TfParams, base_body: str, base_frame: str,
+                odom_frame: str, extra_sites: dict[str, str],
+                joints: list[str] | tuple[str, ...] = (), frame_of_body=None) -> RobotFrames:
+    """The frames of an MJCF robot: under ``base_frame`` every body on the way to a sensor
+    site, a camera or a servoed joint (``joints``), named after it; ``frame_of_body``: a
+    body's MuJoCo name -> its TF frame (a robot whose frames are in a namespace other than
+    its MuJoCo prefix); default: the name. ``odom -> base`` is sent for a base fixed to the
+    world too."""
+    chain = _BodyChain(model, mujoco.mj_name2id(model, BODY, base_body), base_frame,
+                       frame_of_body or str)
+    for site, frame in {**params.sites, **extra_sites}.items():
+        sid = mujoco.mj_name2id(model, SITE, site)
+        body = int(model.site_bodyid[sid])
+        chain.add(body)
+        chain.static.append(transform(chain.frame_of(body), frame, model.site_pos[sid],
+                                      model.site_quat[sid]))
+    for cam in params.cameras:
+        chain.camera(cam)
+    for joint in joints:  # the links the robot's servos move (an arm's whole chain)
+        chain.add(int(model.jnt_bodyid[mujoco.mj_name2id(model, JOINT, joint)]))
+    return RobotFrames(params, odom_frame, base_frame, chain.static, chain.moving)
+
+
+class _BodyChain:
+    """The transforms from an MJCF robot's base body down to the bodies added: rigid ones
+    static, those on a joint moving; each body once, parents first."""
+
+    def __init__(self, model: mujoco.MjModel, base: int, base_frame: str, body_frame):
+        self.model, self.base, self.base_frame, self.body_frame = (model, base, base_frame,
+                                                                   body_frame)
+        self.static: list[TransformStamped] = []
+        self.moving: list[MovingBody] = []
+        self._done: set[int] = set()
+
+    def frame_of(self, body: int) -> str:
+        """The TF frame of ``body``: the base frame, or the body's (renamed) name."""
         return (self.base_frame if body == self.base
                 else self.body_frame(self.model.body(body).name))
 
-    def _chain(self, body: int) -> None:
-        """Add the transforms from the base body down to ``body`` (each once, parents first)."""
+    def add(self, body: int) -> None:
+        """Add the transforms from the base body down to ``body``."""
         model = self.model
         path = []
-        while body != self.base and body not in self._bodies_done:
-            self._bodies_done.add(body)
+        while body != self.base and body not in self._done:
+            self._done.add(body)
             path.append(body)
             body = int(model.body_parentid[body])
         for body in reversed(path):
@@ -197,39 +252,23 @@ class RobotFrames:
                 raise ValueError(f"body {body} on the way to a sensor frame has no name; "
                                  "name it in the MJCF (it becomes a TF frame)")
             if model.body_jntnum[body]:
-                self.moving.append(MovingBody(body, parent, self._frame_of(parent), name))
+                self.moving.append(MovingBody(body, parent, self.frame_of(parent), name))
             else:
-                self.static.append(transform(self._frame_of(parent), name,
+                self.static.append(transform(self.frame_of(parent), name,
                                              model.body_pos[body], model.body_quat[body]))
 
-    def _camera(self, cam: CameraFrames) -> None:
+    def camera(self, cam: CameraFrames) -> None:
+        """Add a camera's link and optical frames (and the bodies down to it)."""
         model = self.model
         cid = mujoco.mj_name2id(model, CAMERA, cam.camera)
         body = int(model.cam_bodyid[cid])
-        self._chain(body)
+        self.add(body)
         cam_in_body = np.empty(9)
         mujoco.mju_quat2Mat(cam_in_body, model.cam_quat[cid])
         link = mat_mul(cam_in_body, LINK_IN_CAMERA)
         optical = mat_t_mul(LINK_IN_CAMERA, OPTICAL_IN_CAMERA)  # the optical frame in camera_link
-        self.static.append(transform(self._frame_of(body), cam.link_frame,
+        self.static.append(transform(self.frame_of(body), cam.link_frame,
                                      model.cam_pos[cid], quat_of(link)))
         for frame in (cam.color_optical_frame, cam.depth_optical_frame):
             self.static.append(transform(cam.link_frame, frame, (0.0, 0.0, 0.0),
                                          quat_of(optical)))
-
-    def dynamic(self, data: mujoco.MjData, base_qpos: np.ndarray) -> list[TransformStamped]:
-        """map -> odom, odom -> base (from the free joint's ``base_qpos``) and the moving
-        bodies (from ``data``'s current kinematics)."""
-        out = []
-        if self.map_to_odom is not None:
-            frame, pos, quat = self.map_to_odom
-            out.append(transform(frame, self.odom_frame, pos, quat))
-        out.append(transform(self.odom_frame, self.base_frame, base_qpos[:3], base_qpos[3:7]))
-        conj = np.empty(4)
-        quat = np.empty(4)
-        for m in self.moving:
-            pos = mat_t_vec(data.xmat[m.parent], data.xpos[m.body] - data.xpos[m.parent])
-            mujoco.mju_negQuat(conj, data.xquat[m.parent])
-            mujoco.mju_mulQuat(quat, conj, data.xquat[m.body])
-            out.append(transform(m.parent_frame, m.frame, pos, quat))
-        return out

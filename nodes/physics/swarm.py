@@ -32,12 +32,12 @@ from nodes.physics import messages as m
 from nodes.physics.batch import IMU, SwarmBook, SwarmDrives
 from nodes.physics.described_rig import (
     ROBOT_DESCRIPTION,
-    DescribedRobotFrames,
+    DescribedRobot,
     described_params,
     robot_description,
 )
 from nodes.physics.drive import DiffDrive
-from nodes.physics.frames import CameraFrames, RobotFrames, TfParams
+from nodes.physics.frames import CameraFrames, mjcf_frames
 from nodes.physics.imu import SimulatedImu
 from nodes.physics.world import named_id
 from nodes.physics.world_events import LiveWorld, geom_map
@@ -92,11 +92,11 @@ class Rig:
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, params, rng: np.random.Generator,
                  goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
         self.name = robot.name
-        self.described = None  # a described robot's frames and joint states (its model's)
+        self.described = None  # a described robot's joint states and links (its model's)
         if robot.described:
-            tf, odom = params.tf, params.odom_frame
+            odom = params.odom_frame
             self.params = params = described_params(params, robot)
-            self.described = DescribedRobotFrames(model, tf or TfParams(), robot, odom)
+            self.described = DescribedRobot(model, robot, odom)
         else:
             self.params = params = robot_params(params, robot.name, robot.namespace)
         self.base = named_id(model, BODY, robot.base)
@@ -133,12 +133,12 @@ class Rig:
                        (CMD_VEL, JOINT_COMMANDS, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC, ODOM,
                         JOINT_STATES, IMU, ROBOT_DESCRIPTION)}
         self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
-        self.frames = None
+        self.frames = None  # nodes.physics.frames.RobotFrames, whatever describes the robot
         if params.tf is not None and self.described is not None:
-            self.frames = self.described
+            self.frames = self.described.frames(params.tf)
         elif params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
-            self.frames = RobotFrames(model, params.tf, robot.base, self.base_frame,
+            self.frames = mjcf_frames(model, params.tf, robot.base, self.base_frame,
                                       self.odom_frame, imu_site, self.position_joints,
                                       robot.frame)
         self.goal = goal
