@@ -20,7 +20,7 @@ from nodes.contract import Tick
 from nodes.physics import fast_messages as fm
 from nodes.physics import messages as m
 from nodes.physics.batch import COVARIANCE, IMU
-from nodes.physics.frames import transform
+from nodes.physics.frames import RobotFrames, transform
 from orchestrator.lockstep.inprocess import make_node
 from plan.topic_names import JOINT_STATES, ODOM
 from runtime.cdr.encode import encode
@@ -137,6 +137,7 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(path, params):
                     same(out[rig.topics[IMU]], rig.imu.measure(data))
                 finally:
                     rig.imu.rng = kept
+            assert type(rig.frames) is RobotFrames  # one frame publisher, any format
             transforms += rig.frames.dynamic(data, q)
         assert len(out["/tf"].transforms) == len(transforms)
         if not rigs[0].described:
