@@ -117,8 +117,10 @@ class RobotsLayout:
 
     @property
     def needed(self) -> int:
-        """How many robots must reach their goals for the run to succeed."""
-        return max(1, math.ceil(self.success_fraction * len(self.robots) - 1e-9))
+        """How many robots must reach their goals for the run to succeed (of those an
+        event does not take out of the run)."""
+        staying = sum(r.leave_ns is None for r in self.robots)
+        return max(1, math.ceil(self.success_fraction * staying - 1e-9))
 
 
 def robot_namespace(section, robot: str) -> str:
