@@ -50,3 +50,21 @@ def test_the_trajectory_controller_state(moving):
         parts = (fast.point(), fast.point(POS, VEL), fast.point(), fast.point())
     usual.speed_scaling_factor = 1.0
     same(fast.controller_state(NAMES, *parts), usual)
+
+
+def test_the_diff_drive_odometry():
+    import math
+
+    import numpy as np
+    from nav_msgs.msg import Odometry
+
+    pose_cov, twist_cov = np.zeros(36), np.zeros(36)
+    pose_cov[0], twist_cov[35] = 0.001, 0.03
+    usual = Odometry()
+    usual.header.frame_id, usual.child_frame_id = "odom", "base_link"
+    usual.pose.pose.position.x, usual.pose.pose.position.y = 1.5, -0.25
+    usual.pose.pose.orientation.z, usual.pose.pose.orientation.w = math.sin(0.3), math.cos(0.3)
+    usual.twist.twist.linear.x, usual.twist.twist.angular.z = 0.4, -0.2
+    usual.pose.covariance[0], usual.twist.covariance[35] = 0.001, 0.03
+    same(fast.odometry(1.5, -0.25, math.sin(0.3), math.cos(0.3), 0.4, -0.2, pose_cov,
+                       twist_cov, "odom", "base_link"), usual)
