@@ -68,3 +68,12 @@ def test_the_diff_drive_odometry():
     usual.pose.covariance[0], usual.twist.covariance[35] = 0.001, 0.03
     same(fast.odometry(1.5, -0.25, math.sin(0.3), math.cos(0.3), 0.4, -0.2, pose_cov,
                        twist_cov, "odom", "base_link"), usual)
+
+
+def test_an_inactive_trajectory_controllers_state_is_the_empty_message():
+    from nodes.ros2_control.controllers.joint_trajectory_controller import STATE
+    from nodes.ros2_control.registry import controller_class
+
+    cls = controller_class("joint_trajectory_controller/JointTrajectoryController")
+    ctrl = cls("jtc", cls.Params(joints=NAMES, command_interfaces=["position"]))
+    same(ctrl.empty_message(STATE), JointTrajectoryControllerState())

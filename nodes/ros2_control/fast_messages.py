@@ -60,8 +60,10 @@ def _multi_dof_point() -> MultiDOFJointTrajectoryPoint:
 
 def controller_state(joints: list[str], reference: JointTrajectoryPoint,
                      feedback: JointTrajectoryPoint, error: JointTrajectoryPoint,
-                     output: JointTrajectoryPoint) -> JointTrajectoryControllerState:
-    """~/controller_state of a trajectory controller (no multi-DOF joints, speed scaling 1)."""
+                     output: JointTrajectoryPoint, speed_scaling_factor: float = 1.0
+                     ) -> JointTrajectoryControllerState:
+    """~/controller_state of a trajectory controller (no multi-DOF joints; speed scaling 1,
+    0 in the empty message an inactive controller's topic carries)."""
     msg = JointTrajectoryControllerState.__new__(JointTrajectoryControllerState)
     msg._check_fields = CHECK
     msg._header = header("")
@@ -75,7 +77,7 @@ def controller_state(joints: list[str], reference: JointTrajectoryPoint,
     msg._multi_dof_feedback = _multi_dof_point()
     msg._multi_dof_error = _multi_dof_point()
     msg._multi_dof_output = _multi_dof_point()
-    msg._speed_scaling_factor = 1.0
+    msg._speed_scaling_factor = speed_scaling_factor
     return msg
 
 

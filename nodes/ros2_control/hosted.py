@@ -134,6 +134,10 @@ class RobotManager:
         self.manager = ControllerManager(self.file)
         self.manager.unservable = unservable(self.manager.controllers, system.info)
         self.declared = publications(params)
+        # topic -> (its controller, the controller's own name for it)
+        self.owner = {resolve(name, t): (name, t) for name, ctrl in
+                      self.manager.controllers.items() if ctrl is not None
+                      for t in ctrl.publications()}
         self.inputs = list(subscriptions(params))
         self.graph = {t: namespaced(namespace, t) for t in [*self.inputs, *self.declared]}
         self.held = frozenset(t for t in self.inputs if self.graph[t] in held)
@@ -166,7 +170,11 @@ class RobotManager:
         # controller's topics carry an empty message of their type, nothing of the controller
         for topic, cls in self.declared.items():
             msg = done.published.get(topic)
-            out[self.graph[topic]] = cls() if msg is None else msg
+            if msg is None:
+                name, own = self.owner[topic]
+                ctrl = self.manager.controllers.get(name)
+                msg = cls() if ctrl is None else ctrl.empty_message(own)
+            out[self.graph[topic]] = msg
 
     def _switch(self, msg) -> dict[str, float]:
         """The requests of the switch topic (``nodes.ros2_control.requests``) not handled

@@ -118,6 +118,12 @@ class ControllerInterface:
         """topic -> message type of what it takes (``on_message``)."""
         return {}
 
+    def empty_message(self, topic: str) -> Any:
+        """What ``topic`` of its publications carries while it is inactive (lockstep wants
+        a message on every declared topic at every activation): an empty message of its
+        type."""
+        return self.publications()[topic]()
+
     def actions(self) -> dict[str, type]:
         """action name (``~/x``) -> action type of the servers it offers."""
         return {}

@@ -143,6 +143,12 @@ class JointTrajectoryController(ControllerInterface):
         """``~/controller_state``."""
         return {STATE: JointTrajectoryControllerState}
 
+    def empty_message(self, topic: str) -> JointTrajectoryControllerState:
+        """An empty ~/controller_state (as the message's constructor makes it), built slot
+        by slot: it is published at every tick the controller is inactive."""
+        return fast.controller_state([], fast.point(), fast.point(), fast.point(),
+                                     fast.point(), speed_scaling_factor=0.0)
+
     def subscriptions(self) -> dict[str, type]:
         """``~/joint_trajectory`` and the action's goals and cancels."""
         return {TRAJECTORY: JointTrajectory, GOAL: FollowJointTrajectory.Goal}
