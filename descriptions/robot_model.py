@@ -65,6 +65,19 @@ class ActuatedJoint:
 
 
 @dataclass(frozen=True)
+class ControlInterfaces:
+    """A joint of the robot's ``<ros2_control>`` block: its MuJoCo joint, the command and
+    state interfaces the block declares, and the ``initial_value`` of its state interfaces
+    (``(interface, value)``: where a position or velocity starts, as mock_components and
+    gz_ros2_control start it)."""
+
+    joint: str
+    commands: tuple[str, ...] = ()
+    states: tuple[str, ...] = ()
+    initial: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class Drive:
     """A differential drive: the two wheel joints and actuators, wheel radius and separation
     in metres."""
@@ -113,6 +126,7 @@ class RobotModel:
     reader: str = ""  # the description reader that made it (descriptions.readers: 'urdf',
     # 'usd'); '' for a robot read from a compiled MJCF or USD world by its names
     namespace: str = ""  # its ROS namespace: topics /NS/..., frames NS/...; '' the root
+    control: tuple[ControlInterfaces, ...] = ()  # its <ros2_control> block's joints; () none
 
     @property
     def frame_prefix(self) -> str:
@@ -160,6 +174,7 @@ class RobotModel:
                 right_actuator=p + self.drive.right_actuator),
             actuated=tuple(replace(a, joint=p + a.joint, actuator=p + a.actuator)
                            for a in self.actuated),
+            control=tuple(replace(c, joint=p + c.joint) for c in self.control),
             sensors=tuple(replace(s, link=p + s.link, mujoco_name=p + s.mujoco_name)
                           for s in self.sensors),
             links=tuple(replace(k, name=p + k.name, body=p + k.body,

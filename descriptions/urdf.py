@@ -13,7 +13,10 @@ name or by ``wheel``, ``position``, ``velocity``, ``effort``):
   scenario's ``interfaces``): ``position`` a position servo ``JOINT_position`` (kp, kv)
   over the joint's ``<limit lower upper>``, ``velocity`` a velocity actuator
   ``JOINT_velocity`` (kv) within ``<limit velocity>``, ``effort`` a motor ``JOINT_effort``
-  within ``<limit effort>`` (a ros2_control ``min``/``max`` param narrows the range).
+  within ``<limit effort>`` (the ``min``/``max`` params of the block's command interface
+  narrow the range: the hardware clamps a command to it, ``MujocoSystem.write``);
+- the ``initial_value`` params of a joint's position and velocity state interfaces, where
+  the joint starts (``RobotModel.control``; physics sets them at reset).
 
 The robot carries the mark of a described robot (``descriptions.robot_marker``), so a
 compiled world says which of its robots a description reader made.
@@ -41,6 +44,7 @@ from descriptions.packages import PackageResolver
 from descriptions.robot_marker import mark
 from descriptions.robot_model import (
     ActuatedJoint,
+    ControlInterfaces,
     Drive,
     Joint,
     JointLimits,
@@ -53,6 +57,7 @@ from descriptions.urdf_to_mjcf import COLLISION_GROUP, convert
 from descriptions.xacro_expand import expand
 
 INTERFACES = ("position", "velocity", "effort")
+INITIAL = ("position", "velocity")  # the state interfaces whose initial_value cosim sets
 DEFAULT_GAINS = {"wheel": {"kv": 2.0}, "position": {"kp": 60.0, "kv": 6.0},
                  "velocity": {"kv": 10.0}, "effort": {}}
 SENSOR_KINDS = ("lidar", "camera", "imu")
@@ -118,7 +123,9 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
     actuated = _arm_actuators(spec, urdf, description, options, wheels, notes)
     if wheels is not None:
         for joint in wheels:
-            _add_wheel(spec, urdf, joint, options.gains)
+            cj = urdf.control.get(joint)
+            _add_wheel(spec, urdf, joint, options.gains,
+                       cj.limits.get("velocity", (None, None)) if cj else (None, None))
     sensors = _sensors(spec, urdf, description, options.sensors, notes)
     imu = next((x.link for x in sensors if x.kind == "imu"), "")
     mark(spec, urdf.root, imu)
@@ -142,7 +149,11 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         joints=tuple(Joint(j.name, j.kind, j.parent, j.child,
                            JointLimits(j.lower, j.upper, j.effort, j.velocity))
                      for j in urdf.joints.values()),
-        source=description, notes=tuple(notes), reader="urdf")
+        source=description, notes=tuple(notes), reader="urdf",
+        control=tuple(ControlInterfaces(name, cj.commands, cj.states,
+                                        tuple((k, v) for k, v in cj.initial.items()
+                                              if k in INITIAL))
+                      for name, cj in urdf.control.items()))
     return LoadedUrdf(expanded.urdf, spec, urdf, robot, notes)
 
 
@@ -203,10 +214,14 @@ def _range(lo: float | None, hi: float | None) -> tuple[float, float] | None:
 
 
 def _add_wheel(spec: mujoco.MjSpec, urdf: Urdf, joint: str,
-               gains: Mapping[str, Mapping[str, float]]) -> None:
+               gains: Mapping[str, Mapping[str, float]],
+               limits: tuple[float | None, float | None]) -> None:
     act = spec.add_actuator(name=f"{joint}_velocity", target=joint,
                             trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.set_to_velocity(kv=_gain(gains, joint, "wheel", "kv"))
+    narrowed = _range(*limits)
+    if narrowed is not None:  # the block's velocity min/max: the speeds the wheel takes
+        act.ctrllimited, act.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, list(narrowed)
     effort = urdf.joints[joint].effort
     if effort:
         act.forcelimited, act.forcerange = mujoco.mjtLimited.mjLIMITED_TRUE, [-effort, effort]
@@ -233,7 +248,7 @@ def _arm_actuators(spec: mujoco.MjSpec, urdf: Urdf, description: str, options: U
             notes.append(f"joint {name!r}: <ros2_control> offers {list(cj.commands)}; cosim "
                          f"commands the first, {usable[0]}")
         wanted[name] = (usable[0], cj.states or ("position", "velocity"),
-                        cj.command_min, cj.command_max)
+                        *cj.limits.get(usable[0], (None, None)))
     for name, interface in options.interfaces.items():
         if name not in urdf.joints or urdf.joints[name].kind == "fixed":
             raise DescriptionError(description, "the joint given an interface is not a "

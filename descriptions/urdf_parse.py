@@ -45,14 +45,15 @@ class UrdfJoint:
 
 @dataclass
 class ControlJoint:
-    """A joint of the ``<ros2_control>`` block: command and state interfaces, and the
-    ``min``/``max`` params of its first command interface (None when absent)."""
+    """A joint of the ``<ros2_control>`` block: command and state interfaces, each command
+    interface's ``min``/``max`` params (None when absent) and each state interface's
+    ``initial_value`` param (where given)."""
 
     name: str
     commands: tuple[str, ...]
     states: tuple[str, ...]
-    command_min: float | None = None
-    command_max: float | None = None
+    limits: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    initial: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -206,12 +207,13 @@ def _ros2_control(root: ET.Element) -> dict[str, ControlJoint]:
     for block in root.findall("ros2_control"):
         for j in block.findall("joint"):
             commands = j.findall("command_interface")
-            first = commands[0] if commands else None
+            states = j.findall("state_interface")
+            initial = {s.get("name", ""): _param(s, "initial_value") for s in states}
             joints[j.get("name", "")] = ControlJoint(
                 j.get("name", ""), tuple(c.get("name", "") for c in commands),
-                tuple(s.get("name", "") for s in j.findall("state_interface")),
-                None if first is None else _param(first, "min"),
-                None if first is None else _param(first, "max"))
+                tuple(s.get("name", "") for s in states),
+                {c.get("name", ""): (_param(c, "min"), _param(c, "max")) for c in commands},
+                {k: v for k, v in initial.items() if v is not None})
     return joints
 
 

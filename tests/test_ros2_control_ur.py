@@ -26,6 +26,7 @@ NS = ""  # a lone robot lives at the root: /controller_manager, as UR users run 
 JTC = f"{NS}/joint_trajectory_controller/follow_joint_trajectory"
 JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
           "wrist_2_joint", "wrist_3_joint"]
+START = [0.0, -1.57, 0.0, -1.57, 0.0, 0.0]  # config/initial_positions.yaml
 TARGET = [0.4, -0.9, 0.7, -0.8, 0.3, 0.5]
 GOAL_TOLERANCE = 0.1  # UR's constraints: goal: 0.1 for every joint
 FAR = [-0.6, -1.4, 1.2, -1.5, -0.7, -0.9]
@@ -42,8 +43,9 @@ def ur_session(sim: SimClient, checks: bool) -> int:
     assert sim.step(5).result == OK
     refused = sim.result(unknown)
     reached = sim.send_goal(FollowJointTrajectory, JTC, goal(
-        [(0.5, [v / 2 for v in TARGET]), (1.0, TARGET)], joints=JOINTS))
-    assert sim.step(150).result == OK
+        [(1.5, [(v + s) / 2 for v, s in zip(TARGET, START, strict=True)]), (2.5, TARGET)],
+        joints=JOINTS))  # from where the arm starts (its initial_positions), within 0.2 rad
+    assert sim.step(300).result == OK
     success = sim.result(reached)
     slow = sim.send_goal(FollowJointTrajectory, JTC, goal([(3.0, FAR)], joints=JOINTS))
     assert sim.step(80).result == OK
@@ -83,8 +85,8 @@ def test_a_moveit_users_client_drives_the_ur_shaped_arm(tmp_path, ros_node):
     goals = sorted(k for n, k in entered.items() if n.startswith("cosim-goal-"))
     (cancel,) = [k for n, k in entered.items() if n.startswith("cosim-cancel-")]
     assert len(goals) == 3  # the unknown joint's goal entered and was refused there
-    # the successful goal: every joint within UR's goal tolerance after its 1 s
-    at = states[goals[1] + 110]
+    # the successful goal: every joint within UR's goal tolerance after its 2.5 s
+    at = states[goals[1] + 260]
     assert all(abs(at[j] - t) <= GOAL_TOLERANCE for j, t in zip(JOINTS, TARGET, strict=True)), at
     # cancelled mid-motion: the arm holds where it was when the cancel entered, short of FAR
     held, later = states[cancel], states[live.stopped_at - 1]

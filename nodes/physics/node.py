@@ -53,7 +53,14 @@ from nodes.physics.described_rig import ROBOT_DESCRIPTION
 from nodes.physics.frames import TfParams, frame_problems, on_robot
 from nodes.physics.imu import ImuParams, imu_problems
 from nodes.physics.swarm import SwarmPhysics, robot_params
-from nodes.physics.world import NS_PER_S, load_model, robots_of, substeps, timestep_ns
+from nodes.physics.world import (
+    NS_PER_S,
+    load_model,
+    robots_of,
+    start_joints,
+    substeps,
+    timestep_ns,
+)
 from nodes.physics.world_events import LiveWorld
 from nodes.ros2_control import hosted
 from nodes.ros2_control.hosted import HostedManagerParams
@@ -305,6 +312,7 @@ class PhysicsNode(StepNode):
         self.substeps = substeps(self.model, world, self.config.period_ns)
         self.dt = timestep_ns(self.model, world) / 1e9
         robots = robots_of(self.config, self.description_names(self.params))
+        start_joints(self.model, self.data, robots)  # the <ros2_control> initial_values
         self.swarm = SwarmPhysics(self.model, self.data, self.params,
                                   replace(self.config, robots=robots), self.rng, self.substeps,
                                   self.dt, self.note, live)

@@ -72,3 +72,28 @@ def named_id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
     if i < 0:
         raise ValueError(f"the world has no {kind.name[6:].lower()} named {name!r}")
     return i
+
+
+def start_joints(model: mujoco.MjModel, data: mujoco.MjData,
+                 robots: tuple[RobotModel, ...]) -> None:
+    """Each robot's joints where its ``<ros2_control>`` block starts them: the
+    ``initial_value`` of a position state interface into qpos (and the target of the
+    joint's position servo, which holds it there), of a velocity one into qvel, as
+    mock_components and gz_ros2_control start their joints. Called at every reset (a
+    ResetSimulation sets them again); a robot not in the world now is skipped."""
+    for robot in robots:
+        for joint in robot.control:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.joint)
+            if j < 0 or not joint.initial:
+                continue
+            for interface, value in joint.initial:
+                if interface == "position":
+                    data.qpos[model.jnt_qposadr[j]] = value
+                    for a in range(model.nu):
+                        if (int(model.actuator_trnid[a, 0]) == j
+                                and model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                                and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+                                and model.actuator_biasprm[a, 1] != 0.0):
+                            data.ctrl[a] = value
+                elif interface == "velocity":
+                    data.qvel[model.jnt_dofadr[j]] = value

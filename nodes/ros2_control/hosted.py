@@ -91,6 +91,13 @@ class MujocoSystem:
         if info.drive is not None and wheels is not None:
             self.actuator[f"{info.drive.left}/velocity"] = int(wheels[0])
             self.actuator[f"{info.drive.right}/velocity"] = int(wheels[1])
+        # 'joint/interface' -> (min, max) the command is clamped to: the actuator's control
+        # range, which the <ros2_control> block's min/max params narrow (descriptions.urdf)
+        self.limits: dict[str, tuple[float, float]] = {
+            interface: (float(model.actuator_ctrlrange[a, 0]),
+                        float(model.actuator_ctrlrange[a, 1]))
+            for interface, a in self.actuator.items()
+            if a >= 0 and model.actuator_ctrllimited[a]}
 
     def read(self, data) -> None:
         """The joints' positions, velocities and actuator efforts, now (new readings: a
@@ -102,7 +109,8 @@ class MujocoSystem:
                            zip(self.joints, q, v, e, strict=True)})
 
     def start(self, data) -> None:
-        """Before the first update: every position servo holds where its joint is, every
+        """Before the first update: every position servo holds where its joint is (where
+        the block's ``initial_value`` put it, ``nodes.physics.world.start_joints``), every
         other command is zero."""
         for interface, a in self.actuator.items():
             joint, _, kind = interface.rpartition("/")
@@ -111,12 +119,18 @@ class MujocoSystem:
 
     def write(self, data, commands: dict[str, float]) -> None:
         """The controllers' commands into the actuators (an interface no controller
-        commands keeps its last value)."""
+        commands keeps its last value), each clamped to its command limits (the
+        ``<ros2_control>`` block's ``min``/``max`` within the joint's ``<limit>``), as
+        Jazzy's controller manager saturates a command with ``enforce_command_limits: true``
+        (the value range only; it also bounds a position step by the velocity limit, which
+        cosim does not)."""
         ctrl = data.ctrl
+        limits = self.limits
         for interface, value in commands.items():
             a = self.actuator.get(interface)
             if a is not None:
-                ctrl[a] = value
+                bounds = limits.get(interface)
+                ctrl[a] = value if bounds is None else min(max(value, bounds[0]), bounds[1])
 
 
 class RobotManager:

@@ -1,0 +1,97 @@
+"""The `<ros2_control>` block's params and interfaces as cosim's hardware takes them: a state
+interface's ``initial_value`` is where the joint starts (at the first tick and after every
+reset, as mock_components and gz_ros2_control start it), a command interface's ``min``/
+``max`` clamps what the hardware writes, and list_hardware_interfaces lists what the block
+declares. In-process, a few ticks: no ROS traffic."""
+
+from __future__ import annotations
+
+import mujoco
+import pytest
+
+from descriptions.load import load_scenario
+from descriptions.urdf import UrdfOptions, load_urdf
+from nodes.contract import Tick
+from nodes.physics.world import start_joints
+from nodes.ros2_control.hardware import hardware_info
+from nodes.ros2_control.hosted import MujocoSystem
+from orchestrator.ros_surface.controller_hardware import interfaces, manager_hardware
+from runtime.activation import Activation
+from runtime.build import make_node
+from tests.helpers import ROOT
+
+UR = ROOT / "tests" / "scenarios" / "ur5e_control.yaml"
+ARM = ROOT / "scenarios" / "robots" / "myarm_description" / "urdf" / "myarm.urdf.xacro"
+UR_XACRO = ROOT / "tests" / "robots" / "ur5e_description" / "urdf" / "ur_mocked.urdf.xacro"
+UR_PACKAGES = {"ur5e_description": str(ROOT / "tests" / "robots" / "ur5e_description")}
+PACKAGES = {"myarm_description": str(ROOT / "scenarios" / "robots" / "myarm_description")}
+# tests/robots/ur5e_description/config/initial_positions.yaml, as UR's mock hardware starts
+INITIAL = {"shoulder_pan_joint": 0.0, "shoulder_lift_joint": -1.57, "elbow_joint": 0.0,
+           "wrist_1_joint": -1.57, "wrist_2_joint": 0.0, "wrist_3_joint": 0.0}
+TICK_NS = 10_000_000
+
+
+@pytest.fixture(scope="module")
+def ur():
+    return load_scenario(UR, {"duration": "100ms"})
+
+
+def joint_states(out) -> dict[str, float]:
+    msg = out["/joint_states"]
+    return dict(zip(msg.name, msg.position, strict=True))
+
+
+def test_the_ur_arm_starts_at_its_initial_positions_and_a_reset_puts_it_back(ur):
+    node = make_node(ur, "physics")
+    run = Activation(ur.nodes["physics"], node)
+    first = joint_states(node.step(Tick(0, 0), {}))
+    assert first == pytest.approx(INITIAL, abs=1e-12)  # set, not reached
+    for k in range(1, 6):  # held there by the trajectory controller's hold at activation
+        held = joint_states(node.step(Tick(k, k * TICK_NS), {}))
+    assert held == pytest.approx(INITIAL, abs=0.02)
+    node.data.qpos[:] += 0.3  # somewhere else, as a run that moved the arm
+    moved = joint_states(node.step(Tick(6, 6 * TICK_NS), {}))
+    assert moved != pytest.approx(INITIAL, abs=0.1)
+    run.restart(ur.model.seed)  # what ResetSimulation does to every node
+    again = joint_states(run.node.step(Tick(0, 0), {}))
+    assert again == first
+
+
+def test_the_initial_values_are_in_the_robot_model_and_set_with_the_servos_target():
+    loaded = load_urdf(UR_XACRO, UrdfOptions(args={"ur_type": "ur5e", "name": "ur"},
+                                             packages=UR_PACKAGES, env={}))
+    robot = loaded.model
+    assert {c.joint: c.initial for c in robot.control} == {
+        j: (("position", v), ("velocity", 0.0)) for j, v in INITIAL.items()}
+    assert robot.scoped("ur").control[0].joint == "ur/shoulder_pan_joint"
+    model = loaded.spec.compile()
+    data = mujoco.MjData(model)
+    start_joints(model, data, (robot,))  # no controller manager: /joint_commands' servos
+    for joint, value in INITIAL.items():
+        assert data.qpos[model.joint(joint).qposadr[0]] == value
+        assert data.ctrl[model.actuator(f"{joint}_position").id] == value
+
+
+def test_the_hardware_clamps_a_command_to_the_blocks_min_and_max():
+    loaded = load_urdf(ARM, UrdfOptions(packages=PACKAGES, env={}))
+    model = loaded.spec.compile()
+    data = mujoco.MjData(model)
+    info = hardware_info(model, loaded.model)
+    joints = [model.joint(j).name for j in range(model.njnt)]
+    system = MujocoSystem(model, info, joints, model.jnt_qposadr, model.jnt_dofadr, None)
+    system.write(data, {"wrist_3/effort": 5.0, "elbow/position": -9.0,
+                        "shoulder_pan/position": 0.25})
+    act = lambda name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)  # noqa: E731
+    assert data.ctrl[act("wrist_3_effort")] == 2.0  # <param name="max">2</param>
+    assert data.ctrl[act("elbow_position")] == pytest.approx(-2.6)  # the joint's <limit>
+    assert data.ctrl[act("shoulder_pan_position")] == 0.25
+
+
+def test_list_hardware_interfaces_lists_what_the_block_declares(ur):
+    hardware = manager_hardware(ur, "physics", "ur")
+    command, state = interfaces(hardware, ["shoulder_pan_joint/position"])
+    assert [(i.name, i.is_claimed) for i in command] == [
+        (f"{j}/position", j == "shoulder_pan_joint") for j in sorted(INITIAL)]
+    # the block declares position and velocity state interfaces: no effort
+    assert [i.name for i in state] == [f"{j}/{i}" for j in sorted(INITIAL)
+                                       for i in ("position", "velocity")]
