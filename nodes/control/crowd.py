@@ -38,9 +38,18 @@ STATIC_REACH = 1.0  # m: scan points nearer than this bound the velocity
 NEAR = 2.5  # m: a robot nearer than this (or due within the horizon) engages ORCA
 DOOR_AHEAD = 3.0  # m along the plan: doors farther than this are not looked at yet
 DOOR_EXT = 0.7  # m: the door's zone reaches this far beyond the narrow stretch each way
-DOOR_HOLD = 0.6  # m before the zone: where a robot that must wait stops ...
-DOOR_SIDE = 0.7  # m: ... this far to the right of the plan, where the static map allows
-DOOR_APPROACH = 1.8  # m from the zone's far end: a robot there facing in claims the door
+DOOR_HOLD = 0.8  # m before the zone: where the places to wait begin ...
+HOLD_SIDE = (1.0, 2.2, 3.4)  # m: ... this far to the right (then the left) of the plan ...
+HOLD_BACK = (0.0, 1.2, 2.4)  # m: ... and this much farther back
+HOLD_TAKEN = 0.7  # m: a place with a robot this near (nearer it than we are) is taken
+QUEUE = 0.9  # m: a robot this near going into the same door nearer its entry goes first
+CLAIM_PATIENCE = 20.0  # s: a robot that claims a door this long and does not come is passed
+REPLAN_AFTER = 6.0  # s stalled near a robot parked at its goal before planning round it
+YIELD_AFTER = 2.0  # s stalled beside a robot of higher priority before giving way ...
+YIELD_FOR = 4.0  # s: ... for this long, backing off from it
+SHARE = 0.2  # of the avoiding between two robots, more for the later name, less for the earlier
+PASSING = 0.3  # m of room beyond two robots side by side for a passage to be two-way
+DOOR_APPROACH = 3.5  # m from the zone's far end: a robot there facing in claims the door
 DOOR_SEEN = 0.45  # m from the zone's centre line: a robot this near is in it
 FACING = 0.5  # cos of the angle within which a robot faces along (or against) the door
 
@@ -236,6 +245,11 @@ class Crowd:
         self.reported: str | None = None
         self.waits = 0  # times this robot held for a door
         self.waiting = False
+        self.stalled_since: int | None = None  # ns: engaged and not moving since
+        self.yielding: tuple[int, int] | None = None  # (to robot, until ns)
+        self.yields = 0
+        self.claims: dict[int, int] = {}  # robot -> since when (ns) it claims the next door
+        self.replan = False  # stalled by robots parked at their goals: plan round them
 
     @classmethod
     def of(cls, config, params, planner) -> Crowd:
@@ -264,10 +278,12 @@ class Crowd:
         return out
 
     def metrics(self) -> dict[str, float]:
-        """door_waits (times it held for a door), blocked_s (how long the same robot has
+        """door_waits (times it held for a door), yields (times it gave way to a robot
+        that it blocked and that blocked it), blocked_s (how long the same robot has
         held it up now, 0 when none)."""
         held = 0.0 if self.blocked_since is None else (self.now_ns - self.blocked_since) / 1e9
-        return {"door_waits": float(self.waits), "blocked_s": held}
+        return {"door_waits": float(self.waits), "yields": float(self.yields),
+                "blocked_s": held}
 
     # -- what the robot sees --------------------------------------------------------------
 
@@ -309,7 +325,7 @@ class Crowd:
 
     def set_path(self, path: np.ndarray | None) -> None:
         """Find the plan's narrow stretches: where the free width across the plan is less
-        than two robots side by side (with crowd_margin each)."""
+        than two robots side by side (with crowd_margin each) and PASSING."""
         self.path, self.doors = path, []
         if path is None or len(path) < 3:
             return
@@ -317,7 +333,7 @@ class Crowd:
         tangent = np.gradient(path, axis=0)
         tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), EPS)[:, None]
         normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-        reach = 4 * (self.p.robot_radius + self.p.crowd_margin)
+        reach = 4 * (self.p.robot_radius + self.p.crowd_margin) + PASSING
         steps = np.arange(g.res, reach + g.res, g.res)
         width = np.zeros(len(path))
         for side in (1.0, -1.0):
@@ -359,9 +375,11 @@ class Crowd:
 
     def door_rule(self, pose: tuple[float, float, float], index: int, seen: np.ndarray
                   ) -> tuple[str, int | None]:
-        """('go' | 'hold' | 'back', the robot that decides it): the one-way rule at the
-        next door, among the robots within crowd_range (``seen``: a door is looked through,
-        not at)."""
+        """('go' | 'hold' | 'back' | 'queue', the robot that decides it): the one-way rule
+        at the next door (hold: wait aside for the other way; back: out of it; queue: let
+        the one nearer its entry go first), among the robots within crowd_range
+        (``seen``: a door is looked through, not at); robots parked at their goals are no
+        rivals."""
         door = self.door_ahead(index)
         if door is None or seen.size == 0:
             return "go", None
@@ -379,12 +397,30 @@ class Crowd:
         beyond = (xy - far_end) @ d > -0.2
         faces_in = (heading * to_end).sum(axis=1) > FACING * np.maximum(gap, EPS)
         claims = ~inside & beyond & (gap < DOOR_APPROACH) & faces_in
-        opposing = facing < -FACING
+        opposing = (facing < -FACING) & ~o.parked[seen]  # one at its goal is no rival
         me_inside = index >= lo
         mine = o.own
+        claiming = {int(k) for n, k in enumerate(seen.tolist()) if opposing[n] and claims[n]}
+        self.claims = {k: self.claims.get(k, self.now_ns) for k in claiming}
+        patience = round(CLAIM_PATIENCE * 1e9)
+        stale = {k for k, since in self.claims.items() if self.now_ns - since > patience}
         rivals = [(int(k), bool(inside[n])) for n, k in enumerate(seen.tolist())
-                  if opposing[n] and (inside[n] or claims[n])]
+                  if opposing[n] and (inside[n] or (claims[n] and int(k) not in stale))]
         if not rivals:
+            if me_inside:
+                return "go", None
+            # one at a time into the door: a robot going the same way that is nearer its
+            # entry (the earlier name among equals) and near this one goes first
+            entry = zone[0]
+            mine_gap = math.hypot(pose[0] - entry[0], pose[1] - entry[1])
+            gaps = np.hypot(xy[:, 0] - entry[0], xy[:, 1] - entry[1])
+            close = np.hypot(xy[:, 0] - pose[0], xy[:, 1] - pose[1]) < QUEUE
+            first = (gaps < mine_gap - 0.05) | ((np.abs(gaps - mine_gap) <= 0.05)
+                                                 & (seen < mine))
+            ahead = np.flatnonzero((facing > FACING) & ~inside & close & first
+                                   & ~o.parked[seen])
+            if ahead.size:
+                return "queue", int(seen[ahead[0]])
             return "go", None
         first = min(k for k, _ in rivals)
         if me_inside:
@@ -395,24 +431,41 @@ class Crowd:
             return "hold", min(in_door)
         return ("go", None) if mine < first else ("hold", first)
 
-    def hold_point(self, index: int) -> np.ndarray | None:
-        """Where to wait for the next door: DOOR_HOLD before its zone on the plan and
-        DOOR_SIDE to the right of it (less where the static map has no room), so that the
-        way out of the door stays free (a right-hand rule: both sides wait on their right)."""
+    def hold_point(self, pose: tuple[float, float, float], index: int) -> np.ndarray | None:
+        """Where to wait for the next door, out of the way out of it: the first free place
+        no robot nearer to it has taken, of a grid that begins DOOR_HOLD before the door's
+        zone HOLD_SIDE to the right of the plan (then to its left) and goes back by
+        HOLD_BACK (a right-hand rule: both sides wait on their right where there is room)."""
         door = self.door_ahead(index)
         if door is None:
             return None
         lo, _, d = door
         path = self.path
         back = np.hypot(np.diff(path[:lo + 1, 0]), np.diff(path[:lo + 1, 1]))[::-1].cumsum()
-        k = lo - int(np.searchsorted(back, DOOR_HOLD))
-        base = path[max(k, 0)]
+        base = path[max(lo - int(np.searchsorted(back, DOOR_HOLD)), 0)]
         right = np.array([d[1], -d[0]])
         g, dist = self.planner.grid, self.planner.static_dist
-        for side in (DOOR_SIDE, 0.5 * DOOR_SIDE, 0.0):
-            spot = base + side * right
-            if dist[g.cell(float(spot[0]), float(spot[1]))] > self.p.robot_radius + 0.15:
-                return spot
+        o = self.others
+        others = np.delete(o.xy, o.own, axis=0)
+        here = np.asarray(pose[:2])
+        for side in (1.0, -1.0):
+            for b in HOLD_BACK:
+                for lateral in HOLD_SIDE:
+                    spot = base - b * d + side * lateral * right
+                    t = np.linspace(0.0, 1.0, 12)[:, None]
+                    line = base + t * (spot - base)
+                    i = np.clip(np.floor((line[:, 0] - g.origin[0]) / g.res).astype(np.int64),
+                                0, dist.shape[0] - 1)
+                    j = np.clip(np.floor((line[:, 1] - g.origin[1]) / g.res).astype(np.int64),
+                                0, dist.shape[1] - 1)
+                    if dist[i[-1], j[-1]] <= self.p.robot_radius + 0.15 or \
+                            (dist[i, j] <= 0.0).any():
+                        continue
+                    mine = math.hypot(*(spot - here))
+                    near = np.hypot(others[:, 0] - spot[0], others[:, 1] - spot[1])
+                    if ((near < HOLD_TAKEN) & (near < mine)).any():
+                        continue
+                    return spot
         return base
 
     # -- reports ----------------------------------------------------------------------------
@@ -455,19 +508,26 @@ class Crowd:
         direction = np.array([dx, dy]) / max(math.hypot(dx, dy), EPS)
         speed = min(p.max_speed, max(p.min_speed, p.approach_gain * dist))
         if rule == "hold":
-            spot = self.hold_point(index)
+            spot = self.hold_point(pose, index)
             gap = math.hypot(spot[0] - pose[0], spot[1] - pose[1])
             direction = (spot - np.asarray(pose[:2])) / max(gap, EPS)
             speed = min(speed, gap / p.stop_time) if gap > 0.1 else 0.0
         elif rule == "back":
             direction, speed = -direction, p.backup_speed
+        elif rule == "queue":
+            speed = 0.0
+        giving = self.giving_way(pose, seen, rule)
+        if giving is not None:
+            away = np.asarray(pose[:2]) - self.others.xy[giving]
+            direction, speed = away / max(math.hypot(*away), EPS), p.backup_speed
+            rule, by = "yield", giving
         if rule == "hold" and not self.waiting:
             self.waits += 1
         self.waiting = rule == "hold"
         preferred = speed * direction
         u = self.velocity(pose, preferred, static, seen, step_s)
         heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
-        reverse = rule == "back" or (float(u @ heading) < 0.0
+        reverse = rule in ("back", "yield") or (float(u @ heading) < 0.0
                                      and math.hypot(*(u - preferred)) > 0.05)
         v, w = differential(u, pose, p, reverse)
         if v == 0.0 and w == 0.0 and speed < 0.02:  # held: face the way on, to show it
@@ -483,6 +543,15 @@ class Crowd:
             v = math.copysign(min(abs(v), free / p.stop_time), v)
             if abs(v) < 0.01:
                 v = 0.0
+        stalled = abs(v) < 0.03 and rule in ("go", "queue")
+        if not stalled:
+            self.stalled_since = None
+        elif self.stalled_since is None:
+            self.stalled_since = self.now_ns
+        if self.stalled_since is not None and \
+                self.now_ns - self.stalled_since > REPLAN_AFTER * 1e9 and \
+                self.parked_near(pose, seen).size:
+            self.replan, self.stalled_since = True, None
         if rule == "go":
             by = self.nearest(pose, seen) if abs(v) < 0.03 else None
         where = f"at ({_place(pose[0])}, {_place(pose[1])})"
@@ -494,6 +563,49 @@ class Crowd:
         if note:
             self._notes.append(note)
         return v, w
+
+    def parked_near(self, pose: tuple[float, float, float], seen: np.ndarray) -> np.ndarray:
+        """Robots seen within 1.5 m that are parked at their goals."""
+        o = self.others
+        d = np.hypot(o.xy[seen, 0] - pose[0], o.xy[seen, 1] - pose[1])
+        return seen[(d < 1.5) & o.parked[seen]]
+
+    def parked_points(self) -> np.ndarray:
+        """Points round every robot parked at its goal, for the map: far enough out that a
+        plan past them keeps the distance ORCA keeps from them."""
+        o = self.others
+        k = np.flatnonzero(o.parked)
+        a = np.linspace(0.0, 2 * math.pi, 24, endpoint=False)
+        out = 2 * self.p.robot_radius + self.p.crowd_margin - self.p.lethal_distance
+        ring = np.stack([np.cos(a), np.sin(a)], axis=1) * max(out, self.p.robot_radius)
+        pts = (o.xy[k][:, None, :] + np.concatenate([ring, [[0.0, 0.0]]])[None, :, :])
+        return pts.reshape(-1, 2)
+
+    def giving_way(self, pose: tuple[float, float, float], seen: np.ndarray, rule: str
+                   ) -> int | None:
+        """The robot this one gives way to (backs off from) now, if any: after YIELD_AFTER
+        stalled with a robot of higher priority (an earlier name) within reach, for
+        YIELD_FOR; two robots that block each other so stop blocking (ORCA alone can)."""
+        if self.yielding is not None:
+            k, until = self.yielding
+            if self.now_ns < until:
+                return k
+            self.yielding = None
+            self.stalled_since = None
+        if rule not in ("go", "queue") or self.stalled_since is None:
+            return None
+        if self.now_ns - self.stalled_since < YIELD_AFTER * 1e9:
+            return None
+        o = self.others
+        reach = 2 * (self.p.robot_radius + self.p.crowd_margin) + 0.4
+        d = np.hypot(o.xy[seen, 0] - pose[0], o.xy[seen, 1] - pose[1])
+        first = [int(k) for k, dk in zip(seen.tolist(), d.tolist(), strict=True)
+                 if dk < reach and k < o.own and not o.parked[k]]
+        if not first:
+            return None
+        self.yielding = (min(first), self.now_ns + round(YIELD_FOR * 1e9))
+        self.yields += 1
+        return min(first)
 
     # -- driving ----------------------------------------------------------------------------
 
@@ -523,7 +635,11 @@ class Crowd:
             rel = o.xy[k] - me
             if math.hypot(*rel) > NEAR + radius:
                 continue
-            share = 1.0 if o.parked[k] else 0.5
+            if o.parked[k]:  # it stands still: all the avoiding and its margin are ours
+                lines.append(orca_line(rel, vel - o.vel[k], vel, radius - p.crowd_margin,
+                                       p.crowd_horizon, step_s, 1.0))
+                continue
+            share = 0.5 + (SHARE if k < o.own else -SHARE)
             lines.append(orca_line(rel, vel - o.vel[k], vel, radius, p.crowd_horizon,
                                    step_s, share))
         return orca_velocity(lines, n_static, preferred, p.max_speed)

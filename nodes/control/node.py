@@ -362,6 +362,11 @@ class ControlNode(StepNode):
                 self.checkpoint = None  # robots hold it up: no recovery from them
                 for text in self.crowd.notes():
                     self.note(text)
+                if self.crowd.replan:  # robots parked at their goals in the way: round them
+                    self.crowd.replan = False
+                    self.planner.mark(self.crowd.parked_points())
+                    self._replan(pose, self.crowd.now_ns)
+                    return 0.0, 0.0
                 return steered
         dx, dy = target[0] - pose[0], target[1] - pose[1]
         c, s = math.cos(pose[2]), math.sin(pose[2])
