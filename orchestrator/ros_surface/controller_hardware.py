@@ -4,10 +4,12 @@ compiled world as the node builds it), each command interface claimed or not by 
 controllers.
 
 cosim simulates whatever hardware plugin the robot names with one MuJoCo system: one
-component, active from the start, read and written at the manager's update rate; every
-joint of the robot (its hinges and slides) has position, velocity and effort state
-interfaces (what its ``HardwareState`` carries), every command interface is one a MuJoCo
-actuator realises.
+component, active from the start, read and written at the manager's update rate. The
+state interfaces are those the robot's ``<ros2_control>`` block declares
+(``RobotModel.control``); a robot without one (an MJCF robot) has cosim's defaults: every
+joint (its hinges and slides) has position, velocity and effort state interfaces (what its
+``HardwareState`` carries). Every command interface is one a MuJoCo actuator realises (for
+a URDF robot, the block's first position, velocity or effort command interface).
 """
 
 from __future__ import annotations
@@ -27,11 +29,12 @@ PLUGIN = "cosim/MujocoSystem"
 
 @dataclass(frozen=True)
 class ManagerHardware:
-    """A manager's hardware and the joints with state interfaces (hinges and slides: a
-    floating base's free joint is no joint of a ``<ros2_control>`` block)."""
+    """A manager's hardware and its state interfaces: joint -> its interfaces (the block's,
+    else position, velocity and effort of every hinge and slide: a floating base's free
+    joint is no joint of a ``<ros2_control>`` block)."""
 
     info: HardwareInfo
-    state_joints: tuple[str, ...]
+    states: dict[str, tuple[str, ...]]
 
 
 def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware:
@@ -48,10 +51,14 @@ def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware
     info = hardware_info(model, found[0] if found else None,
                          config.params.controller_manager.command_joints)
     prefix = found[0].prefix if found else ""
+    declared = found[0].control if found else ()
+    if declared:
+        return ManagerHardware(info, {c.joint.removeprefix(prefix): c.states
+                                      for c in declared if c.states})
     kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     moving = {model.joint(j).name[len(prefix):] for j in range(model.njnt)
               if int(model.jnt_type[j]) in kinds and model.joint(j).name.startswith(prefix)}
-    return ManagerHardware(info, tuple(j for j in info.joints if j in moving))
+    return ManagerHardware(info, {j: INTERFACES for j in info.joints if j in moving})
 
 
 def interfaces(hardware: ManagerHardware, claimed: Iterable[str]
@@ -62,7 +69,7 @@ def interfaces(hardware: ManagerHardware, claimed: Iterable[str]
                                  is_claimed=n in taken)
                for n in sorted(hardware.info.command_interfaces())]
     state = [HardwareInterface(name=f"{j}/{i}", data_type="double", is_available=True)
-             for j in sorted(hardware.state_joints) for i in INTERFACES]
+             for j in sorted(hardware.states) for i in sorted(hardware.states[j])]
     return command, state
 
 
