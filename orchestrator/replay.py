@@ -79,7 +79,34 @@ def load_recorded(run_dir: Path, extra_overrides: dict | None = None) -> Recorde
         raise ScenarioError(file, "(file)", "the scenario file changed since the run was "
                             "recorded (its sha256 differs from the manifest's)",
                             "the scenario as it was, e.g. from version control")
-    return Recorded(scenario, read_arrivals(paths.bag, scenario), manifest.get("digest"))
+    arrivals = read_arrivals(paths.bag, scenario)
+    admit_recorded_robots(scenario, arrivals)
+    return Recorded(scenario, arrivals, manifest.get("digest"))
+
+
+def admit_recorded_robots(scenario: Scenario, arrivals: dict[int, dict[str, Any]]) -> None:
+    """Open and close the windows of the robots clients brought in and took out, at the
+    ticks their edits entered (``LockstepMaster._admit_robots`` did so in the recorded run),
+    before any node is made: the replay's nodes run the same windows."""
+    from plan.events import parse_edits
+    from plan.interactive import WORLD_EDITS_TOPIC
+    from plan.robots import BY_CLIENT
+
+    layout = scenario.robots
+    planned = set() if layout is None else {r.name for r in layout.robots
+                                            if r.enter_ns == BY_CLIENT}
+    seen = 0
+    for tick in sorted(arrivals):
+        message = arrivals[tick].get(WORLD_EDITS_TOPIC)
+        if message is None:
+            continue
+        edits = parse_edits(message.data)
+        for edit in edits[seen:]:
+            if edit.robot is not None and edit.robot.name in planned:
+                scenario.open_robot(edit.robot.name, tick)
+            elif edit.delete in planned:
+                scenario.close_robot(edit.delete, tick)
+        seen = max(seen, len(edits))
 
 
 def read_arrivals(bag: Path, scenario: Scenario) -> dict[int, dict[str, Any]]:

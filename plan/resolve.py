@@ -9,15 +9,22 @@ from pathlib import Path
 
 from plan.checks import ScenarioChecks
 from plan.errors import Problems, ScenarioNotice
-from plan.events import object_problems, physics_period, robot_windows, timing_problems
+from plan.events import (
+    RobotEntry,
+    RobotPose,
+    object_problems,
+    physics_period,
+    robot_windows,
+    timing_problems,
+)
 from plan.external_node import complete_model
 from plan.hardware_wiring import fold_managers, hand_wiring_notices, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
-from plan.robots import RobotPlacement, RobotsLayout, namespaced, robot_of
+from plan.robots import BY_CLIENT, RobotPlacement, RobotsLayout, namespaced, robot_of
 from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
-from plan.schedule import Edge, Schedule, Window
+from plan.schedule import NEVER, Edge, Schedule, Window
 from plan.spawnables import spawnable_problems
 from plan.templates import expand_nodes
 from plan.timeutil import tick_at_ns
@@ -46,6 +53,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     layout = worlds.robots_layout(path, model)  # many robots: placed, and templates expanded
     section_robots = frozenset(layout.names) if layout is not None else frozenset()
     layout = entering_robots(path, model, layout, worlds)  # events' robots: planned now
+    layout = client_robots(path, model, layout, worlds)  # and those clients may bring in
     model = read_settings_out(model)
     hand_wired = hand_wiring_notices(path, model)
     model = with_robot_managers(path, model)  # robots.controllers
@@ -173,6 +181,37 @@ def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | Non
     return dataclasses.replace(layout, robots=layout.robots + tuple(added))
 
 
+def client_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None,
+                  worlds: WorldReader) -> RobotsLayout | None:
+    """The layout with each robot a client may bring in (``spawnables[].robots``): planned
+    like an event's robot, its window not opened until a SpawnEntity takes it."""
+    slots = [(i, j, entry, slot) for i, entry in enumerate(model.spawnables)
+             for j, slot in enumerate(entry.robots)]
+    if not slots:
+        return layout
+    where = ScenarioChecks(path, model)
+    if layout is None:
+        raise where.fail("spawnables[0].robots", "a robot that enters needs the robots: "
+                         "section, and the scenario has none.", "a robots: section.")
+    if not model.interactive:
+        raise where.fail("interactive", "clients bring robots in (spawnables[].robots) only "
+                         "in an interactive scenario.", "interactive: true.")
+    added = []
+    for i, j, entry, slot in slots:
+        key = f"spawnables[{i}].robots[{j}]"
+        if slot.name in layout.names + [a.name for a in added]:
+            raise where.fail(f"{key}.name", f"{slot.name!r} is already a robot's name.",
+                             "a name of its own.")
+        robot = RobotEntry(name=slot.name, start=RobotPose(x=0.0, y=0.0), goal=slot.goal,
+                           description=entry.path, urdf=entry.urdf, usd=entry.usd)
+        description, settings, base = worlds.entering_robot(path, robot, f"spawnables[{i}]",
+                                                            layout.base_body)
+        added.append(RobotPlacement(slot.name, (0.0, 0.0, 0.0), (slot.goal.x, slot.goal.y,
+                                    slot.goal.yaw), BY_CLIENT, None, description, settings,
+                                    base))
+    return dataclasses.replace(layout, robots=layout.robots + tuple(added))
+
+
 def read_settings_out(model: ScenarioModel) -> ScenarioModel:
     """The model with each robot event's reader settings (urdf:, usd:) left out: the layout
     holds them, read (``RobotPlacement.settings``), and an event must be hashable (nodes
@@ -190,7 +229,7 @@ def robot_windows_of(layout: RobotsLayout | None, nodes: dict[str, NodePlan], ti
     (NAME@ROBOT) and its topics' (every output under /ROBOT/), ``plan.schedule``."""
     if layout is None:
         return {}, {}
-    robots = {r.name: (tick_at_ns(r.enter_ns, tick_ns),
+    robots = {r.name: (NEVER if r.enter_ns == BY_CLIENT else tick_at_ns(r.enter_ns, tick_ns),
                        None if r.leave_ns is None else tick_at_ns(r.leave_ns, tick_ns))
               for r in layout.robots if r.enter_ns or r.leave_ns is not None}
     if not robots:
@@ -215,8 +254,8 @@ def _with_windows(plan: NodePlan, topic_windows: dict[str, Window],
            if graph in topic_windows}
     if not own:
         return plan
-    relatch = frozenset(w[0] for w in topic_windows.values() if w[0] > 0) if plan.latched \
-        else frozenset()  # its fixed frames (/tf_static) again with each robot that enters
+    relatch = {w[0] for w in topic_windows.values() if 0 < w[0] < NEVER} if plan.latched \
+        else set()  # its fixed frames (/tf_static) again with each robot that enters
     return dataclasses.replace(plan, windows=own, relatch=relatch)
 
 

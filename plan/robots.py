@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 SHARED_TOPICS = ("/tf", "/tf_static", "/clock")
+BY_CLIENT = -1  # the enter_ns of a robot a client brings in (SpawnEntity): not known ahead
 
 
 @dataclass(frozen=True)
@@ -118,8 +119,8 @@ class RobotsLayout:
     @property
     def needed(self) -> int:
         """How many robots must reach their goals for the run to succeed (of those an
-        event does not take out of the run)."""
-        staying = sum(r.leave_ns is None for r in self.robots)
+        event does not take out of the run; a robot a client may bring in is extra)."""
+        staying = sum(r.leave_ns is None and r.enter_ns != BY_CLIENT for r in self.robots)
         return max(1, math.ceil(self.success_fraction * staying - 1e-9))
 
 

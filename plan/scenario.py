@@ -53,7 +53,7 @@ class NodePlan:
     latched: frozenset[str] = frozenset()  # own names of the outputs published once, latched
     windows: dict[str, tuple[int, int | None]] = field(default_factory=dict)  # own output
     # name -> [start, end) ticks it is published in (a robot that enters or leaves the run)
-    relatch: frozenset[int] = frozenset()  # ticks its latched outputs are due again
+    relatch: set[int] = field(default_factory=set)  # ticks its latched outputs are due again
 
     def windowed(self, tick: int, first: bool) -> tuple[dict[str, str], frozenset[str], bool]:
         """(own -> graph names, latched own names, first) of the outputs due at ``tick``
@@ -150,6 +150,33 @@ class Scenario:
         never decide an early stop, on any driver."""
         return frozenset(n for n in self.schedule.leaves() if not self.nodes[n].role.is_foreign
                          and getattr(self.nodes[n].params, "controller_manager", None) is None)
+
+    def open_robot(self, robot: str, tick: int) -> None:
+        """A robot a client brings in enters at ``tick``: its nodes' and topics' windows
+        start there (``plan.schedule``), and the world node's latched outputs are due again
+        then. Every driver and node process applies the same opening at the same tick
+        boundary (the orchestrator's handshake), before any node reaches it."""
+        self._change_window(robot, lambda w: (tick, w[1]))
+        for plan in self.nodes.values():
+            if plan.windows and plan.latched:
+                plan.relatch.add(tick)
+
+    def close_robot(self, robot: str, tick: int) -> None:
+        """A robot a client takes out leaves at ``tick``: its windows end there."""
+        self._change_window(robot, lambda w: (w[0], tick))
+
+    def _change_window(self, robot: str, change) -> None:
+        sched, prefix = self.schedule, f"/{robot}/"
+        for node, window in sched.windows.items():
+            if node.partition("@")[2] == robot:
+                sched.windows[node] = change(window)
+        for topic, window in sched.topic_windows.items():
+            if topic.startswith(prefix):
+                sched.topic_windows[topic] = change(window)
+        for plan in self.nodes.values():
+            for own, window in plan.windows.items():
+                if plan.output_names[own].startswith(prefix):
+                    plan.windows[own] = change(window)
 
     def producer_of(self, topic: str) -> str:
         """The node that publishes a graph topic."""

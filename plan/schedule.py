@@ -87,6 +87,7 @@ PIPELINE_WINDOW = 16
 
 
 Window = tuple[int, int | None]  # [start, end) in ticks; end None: to the run's end
+NEVER = 1 << 62  # the start of a window not opened yet (a robot a client may bring in)
 
 
 class Schedule:

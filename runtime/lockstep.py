@@ -37,6 +37,7 @@ from runtime.protocol import (
     RESETTING,
     STATUS_TOPIC,
     WAITING,
+    WINDOWED,
     Command,
     CommandMessage,
     Done,
@@ -287,6 +288,13 @@ class LockstepRuntime:
             self.report_done()
             values = {"epoch": epoch, **{f"sent:{t}": str(n) for t, n in self.sent.items()}}
             self.report(Status(self.name, RESETTING, values=values))
+        elif message.command in (Command.OPEN, Command.CLOSE):
+            change = (self.scenario.open_robot if message.command is Command.OPEN
+                      else self.scenario.close_robot)
+            for robot, tick in message.sent.items():
+                change(robot, tick)
+            self.rewindow()
+            self.report(Status(self.name, WINDOWED, values={"epoch": epoch}))
         elif message.command is Command.RESTART:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
@@ -297,6 +305,14 @@ class LockstepRuntime:
             if self.notes:
                 self.notes.truncate()
             self.report(Status(self.name, READY, values={"epoch": epoch}))
+
+    def rewindow(self) -> None:
+        """After a robot's window opened: each input on its topics counts its samples from
+        the producer's first activation in the window (none has come before)."""
+        for inp in self.plan.inputs:
+            channel = self.inputs[inp.graph_topic]
+            if isinstance(channel, InputChannel) and not channel.received:
+                channel.first = self.sched.sample_ticks(inp.producer, inp.graph_topic)[0]
 
     def upstream_gone(self) -> bool:
         """Whether every publisher this node listens to has disappeared (checked twice a second)."""

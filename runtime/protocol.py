@@ -34,9 +34,10 @@ STATUS_TOPIC = "/cosim/status"
 COMMAND_TOPIC = "/cosim/command"
 
 WAITING, READY, DONE, ERROR, RESETTING = "waiting", "ready", "done", "error", "resetting"
+WINDOWED = "windowed"  # a node took an OPEN or CLOSE command (its values' epoch: which)
 _LEVEL = {WAITING: DiagnosticStatus.STALE, READY: DiagnosticStatus.OK,
           DONE: DiagnosticStatus.OK, ERROR: DiagnosticStatus.ERROR,
-          RESETTING: DiagnosticStatus.STALE}  # bytes of length 1
+          RESETTING: DiagnosticStatus.STALE, WINDOWED: DiagnosticStatus.OK}  # 1 byte each
 _U32 = struct.Struct("<I")
 _PAD = (b"", b"\0", b"\0\0", b"\0\0\0")
 
@@ -46,11 +47,14 @@ class Command(Enum):
 
     RESET = "reset"  # stop serving ticks; report 'resetting' with the messages sent per output
     RESTART = "restart"  # start over from tick 0, ignoring messages sent before the reset
+    OPEN = "open"  # robots a client brings in: {robot: the tick its window opens}
+    CLOSE = "close"  # robots a client takes out: {robot: the tick its window closes}
 
 
 @dataclass(frozen=True)
 class CommandMessage:
-    """One command with its reset epoch and, for RESTART, every producer's sent counts."""
+    """One command with its reset epoch and, for RESTART, every producer's sent counts (for
+    OPEN and CLOSE: its own number, and each robot's tick)."""
 
     command: Command
     epoch: int
@@ -60,7 +64,7 @@ class CommandMessage:
 def encode_command(message: CommandMessage) -> bytes:
     """std_msgs/String CDR bytes of a command: 'reset E' or 'restart E {topic: sent}'."""
     text = f"{message.command.value} {message.epoch}"
-    if message.command is Command.RESTART:
+    if message.command in (Command.RESTART, Command.OPEN, Command.CLOSE):
         text += " " + json.dumps(message.sent, sort_keys=True)
     return serialize_message(String(data=text))
 

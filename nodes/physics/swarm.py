@@ -306,7 +306,8 @@ class SwarmPhysics:
         self.substeps, self.dt, self.note = substeps, dt, note
         layout = config.layout
         self.rng, self.all_robots = rng, tuple(config.robots)
-        present = None if live is None or layout is None else live.robots
+        present = None if layout is None else (  # the robots in the world now
+            live.robots if live is not None else set(layout.at_start.names))
         self.rigs = [Rig(model, robot, params, rng,
                          layout.goal_of(robot.name) if robot.name else config.goal,
                          None if robot.name else config.joint_goal)

@@ -23,7 +23,7 @@ from descriptions.world_edits import apply_event, object_problem, world_spec
 from descriptions.worldfile import compile_world
 from nodes.physics.world import load_model
 from plan.events import EventSpec, edit_event
-from plan.robots import RobotsLayout
+from plan.robots import BY_CLIENT, RobotsLayout
 
 
 class LiveWorld:
@@ -105,7 +105,8 @@ class LiveWorld:
             self.robots.add(name)
             return True
         if event.delete is not None and name in self.robots:
-            if name not in {e.robot.name for e in self.events if e.robot is not None}:
+            if name not in {e.robot.name for e in self.events if e.robot is not None} | {
+                    r.name for r in self.layout.robots if r.enter_ns == BY_CLIENT}:
                 self.note(f"{what}: delete {name!r} changes nothing: only a robot an event "
                           "brought in can be taken out")
                 return False

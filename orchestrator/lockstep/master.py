@@ -37,6 +37,7 @@ from runtime.protocol import (
     READY,
     RESETTING,
     STATUS_TOPIC,
+    WINDOWED,
     Command,
     CommandMessage,
     Done,
@@ -87,6 +88,7 @@ class LockstepMaster:
         self.clock_pub = transport.publisher(CLOCK_TOPIC, Clock, 1000)
         self.command_pub = transport.publisher(COMMAND_TOPIC, String, 10)
         self.epoch = 0
+        self.windowings = 0  # OPEN and CLOSE handshakes so far (robots clients bring in)
         self.status_sub = transport.subscription(STATUS_TOPIC, DiagnosticStatus, 10_000)
         self.stats = {name: NodeStats() for name in scenario.nodes}
         self.last_status: dict[str, Status] = {}
@@ -197,6 +199,7 @@ class LockstepMaster:
                         book.close(k)
                     if self.end is not None:
                         continue
+                    self._admit_robots(book, k)
                     cleared = k
                     if self.pace is not None and not (playing and control.state == PLAYING):
                         self.pace.restart()  # paused: a step goes at once, play from here
@@ -276,8 +279,42 @@ class LockstepMaster:
         self.stats = {name: NodeStats(ready_s=s.ready_s) for name, s in self.stats.items()}
         self.tick = -1
 
-    def _handshake(self, command: CommandMessage, answer: str) -> dict[str, dict[str, str]]:
-        """Publish a command and wait until every node answered it with ``answer``."""
+    def _admit_robots(self, book: AckBook, k: int) -> None:
+        """Robots a client brings in or takes out (SpawnEntity, DeleteEntity of a planned
+        robot, ``control.take_robot_requests``) at tick ``k``, where the external node and
+        the world node both act: every tick before it finished, every node process told
+        the robots' windows (an OPEN or CLOSE handshake, before any node can reach ``k``),
+        then the request enters through the external node at ``k``, recorded."""
+        take = getattr(self.control, "take_robot_requests", None)
+        world = next((n for n, p in self.scenario.nodes.items() if p.windows), None)
+        external = next((n for n, p in self.scenario.nodes.items()
+                         if p.role is NodeRole.ORCHESTRATOR), None)
+        if take is None or world is None or external is None or not (
+                self.sched.is_due(world, k) and self.sched.is_due(external, k)):
+            return
+        requests = take()
+        if not requests:
+            return
+        self._drain(book)
+        for command in (Command.OPEN, Command.CLOSE):
+            robots = {r.robot: k for r in requests if r.opens == (command is Command.OPEN)}
+            if not robots:
+                continue
+            change = (self.scenario.open_robot if command is Command.OPEN
+                      else self.scenario.close_robot)
+            for robot in robots:
+                change(robot, k)
+            self.windowings += 1
+            self._handshake(CommandMessage(command, self.windowings, robots), WINDOWED,
+                            self.windowings)
+        for request in requests:
+            request.commit(k)
+
+    def _handshake(self, command: CommandMessage, answer: str, epoch: int | None = None
+                   ) -> dict[str, dict[str, str]]:
+        """Publish a command and wait until every node answered it with ``answer`` (and
+        ``epoch``, the reset epoch by default)."""
+        epoch = self.epoch if epoch is None else epoch
         self.command_pub.publish(encode_command(command))
         pending = {n for n in self.participants
                    if self.scenario.nodes[n].role is not NodeRole.ORCHESTRATOR}
@@ -285,7 +322,7 @@ class LockstepMaster:
         deadline = time.monotonic() + self.scenario.model.deadlines.start / 1e9
         while pending:
             for status in self._statuses():
-                if status.state == answer and status.values.get("epoch") == str(self.epoch):
+                if status.state == answer and status.values.get("epoch") == str(epoch):
                     pending.discard(status.node)
                     replies[status.node] = status.values
                 elif status.state == ERROR:

@@ -253,8 +253,8 @@ class SimServices:
             "cosim: a deterministic lockstep co-simulation; one tick per step; services "
             f"under {self.prefix}; a reset covers time and state together; entities: the "
             f"robot and spawned objects{objects}; robots enter and leave through the "
-            "scenario's events: (docs/how-to/world-events.md), a SpawnEntity of a robot is "
-            "refused; get_spawnables lists the scenario's spawnables:; see "
+            "scenario's events:, or a SpawnEntity of a robot its spawnables: plan "
+            "(docs/how-to/world-events.md); get_spawnables lists the spawnables; see "
             "docs/how-to/ros-interfaces.md")
         return response
 

@@ -42,6 +42,15 @@ class ObjectSpawner:
         self._world = None
         self._lock = threading.Lock()
         control.reset_listeners.append(self.forget)
+        from orchestrator.ros_surface.robot_spawn import RobotSlots
+
+        self.robots = RobotSlots(scenario, control, self._put_robot, self.world)
+
+    def _put_robot(self, edit: EventSpec) -> None:
+        """A robot's edit, admitted by the lockstep at a tick boundary: it enters now."""
+        with self._lock:
+            self.edits.append(edit)
+            self.arrivals.put(self.topic, String(data=edits_text(self.edits)))
 
     def forget(self) -> None:
         """The run was reset: the world is the scenario's again."""
@@ -94,6 +103,8 @@ class ObjectSpawner:
     def spawn(self, request: SpawnEntity.Request) -> tuple[int, str, str]:
         """(result code, message, entity name) of a SpawnEntity request; an accepted one is
         put into the run."""
+        if (answer := self.robots.spawn(request)) is not None:  # a planned robot's file
+            return answer
         if request.entity_namespace.strip("/"):
             return (R.NAMESPACE_INVALID, f"entity_namespace {request.entity_namespace!r}: "
                     "objects have no topics (a robot enters through the scenario's "
@@ -130,6 +141,8 @@ class ObjectSpawner:
 
     def delete(self, entity: str) -> tuple[int, str]:
         """(result code, message) of a DeleteEntity request."""
+        if (answer := self.robots.delete(entity)) is not None:  # a robot a client brought
+            return answer
         with self._lock:
             if entity not in self.live():
                 if entity == "world" or entity in self.world().names:

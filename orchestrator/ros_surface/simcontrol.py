@@ -46,6 +46,7 @@ class RunControl:
         self.steps = 0  # ticks still to hand to the master while paused
         self.observers: list[Observer] = []
         self.reset_listeners: list[Callable[[], None]] = []  # master thread, after a reset
+        self.robot_requests: list = []  # robots clients bring in or take out, not admitted
         self._cond = threading.Condition()
         self._stepping = False
         self._reset_wanted = False
@@ -61,6 +62,20 @@ class RunControl:
         return f"tick {self.boundary} (sim time {ns // NS_PER_S}.{ns % NS_PER_S:09d} s)"
 
     # -- the master's side ------------------------------------------------------------------
+
+    def request_robot(self, request) -> None:
+        """A robot a client brings in or takes out: the lockstep admits it at the next tick
+        boundary where it can (``LockstepMaster._admit_robots``); ``request`` has ``robot``,
+        ``opens`` and ``commit(tick)``."""
+        with self._cond:
+            self.robot_requests.append(request)
+            self._cond.notify_all()
+
+    def take_robot_requests(self) -> list:
+        """The robot requests waiting, taken."""
+        with self._cond:
+            taken, self.robot_requests = self.robot_requests, []
+        return taken
 
     def next_action(self, tick: int, idle: Callable[[], None],
                     settle: Callable[[], None] = lambda: None) -> str:

@@ -40,7 +40,7 @@ def requested_object(request: SpawnEntity.Request) -> tuple[str, ObjectSpec]:
     """(the name the resource gives, the object at the request's pose, named after the
     request or else that) of a SpawnEntity request; ``Refused`` naming the problem."""
     text, base, mesh = _resource(request)
-    pose = _pose(request.initial_pose)
+    pose = pose_of(request.initial_pose)
     if mesh is not None:
         found = {"name": "", "shape": "mesh", "mesh": str(mesh), "static": True}
     else:
@@ -85,7 +85,7 @@ def _resource(request: SpawnEntity.Request) -> tuple[str, Path | None, Path | No
         raise Refused(R.RESOURCE_PARSE_ERROR, f"uri {uri!r} cannot be read: {exc}") from None
 
 
-def _pose(stamped) -> dict:
+def pose_of(stamped) -> dict:
     """The object's pose from a PoseStamped: x, y, heading; z 0 means on the floor."""
     if stamped.header.frame_id not in FRAMES:
         raise Refused(R.INVALID_POSE, f"unknown frame {stamped.header.frame_id!r}: use world "
