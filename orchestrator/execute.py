@@ -1,35 +1,36 @@
 """One run of a scenario, multi-process or in-process, from spawn to manifest.
 
-Process management (``supervisor``) and the tick loop (``master``) are separate; this
-module wires them together, keeps what was recorded whatever happens, and writes the
-manifest. Node processes are forked from this one once the scenario is loaded and before
-any transport library is (``Supervisor.fork``), so the modules imported here at the top
-must not load rclpy or zenoh: what needs them is imported after the nodes are started.
+What every run does is here: apply the run's rules, claim the ROS domain, make the run
+directory, pick the driver (``orchestrator.drivers``: in-process or multi-process, one face)
+and attach what the run carries beside its ticks (the live view) once through it, judge the
+result, keep what was recorded whatever happens, and write the manifest. Node processes are
+forked from this one once the scenario is loaded and before any transport library is
+(``Supervisor.fork``), so the modules imported here at the top must not load rclpy or zenoh:
+what needs them is imported after the nodes are started.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import re
 import shutil
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from orchestrator import run_domain
+from orchestrator.drivers import driver_for
+from orchestrator.drivers.face import OnTick, RunContext
+from orchestrator.live.attachment import LiveView
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
-from orchestrator.lockstep.supervisor import Supervisor, signals_ignored
+from orchestrator.lockstep.supervisor import signals_ignored
 from orchestrator.outputs.manifest import write_manifest
 from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
 from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
-from orchestrator.starters import Site, join_all, start_all
 from plan.errors import ScenarioError, SimulationError
-from plan.options import RunOptions, TransportSettings
-from plan.packing import layout_of
+from plan.options import RunOptions
 from plan.roles import NodeRole
 from plan.run_paths import RunPaths, make_run_dir
 from plan.scenario import Scenario
@@ -37,8 +38,6 @@ from runtime import disk
 from runtime.arrivals import Arrivals, Replay
 from runtime.disk import WriteFailed
 from runtime.notes import Note, read_notes
-from runtime.recording import PartWriter
-from runtime.transport.factory import create_transport
 
 log = logging.getLogger("cosim")
 WRITE_FAILED = "WriteFailed: "  # in a node's error: its recording could not be written
@@ -82,10 +81,6 @@ class RunOutcome:
         return RunPaths(self.run_dir)
 
 
-OnTick = Callable[[int], None]
-"""Called with each tick index once the tick is decided (progress bars)."""
-
-
 def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = None,
             external: Arrivals | Replay | None = None) -> RunOutcome:
     """Run a checked scenario, write its run directory and manifest, return the outcome.
@@ -116,14 +111,9 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
     if outcome.rendered_topics:
         outcome.renderer = RendererProbe()
     try:
-        if options.in_process:
-            outcome.start_s = time.monotonic() - started
-            outcome.command_to_first_tick_s = _since_process_start()
-            outcome.result = _in_process(scenario, paths, options, outcome, on_tick, external)
-            outcome.loop_s = time.monotonic() - started - outcome.start_s
-        else:
-            outcome.result = _multi_process(scenario, paths, options, outcome, started, on_tick,
-                                            external)
+        context = RunContext(scenario, paths, options, outcome, started, external,
+                             on_tick=[on_tick] if on_tick else [], attachments=[LiveView()])
+        outcome.result = driver_for(options).drive(context)
         _judge(scenario, outcome)
         if unreached := never_reached(external):  # exit 3: a failure of the run, named
             outcome.status, outcome.success, outcome.error = "failed", False, unreached
@@ -318,209 +308,6 @@ def _arrivals_for(scenario: Scenario) -> Arrivals | None:
     """Live arrivals for the scenario's external node, when it has one."""
     plan = next((p for p in scenario.nodes.values() if p.role is NodeRole.ORCHESTRATOR), None)
     return Arrivals(plan.outputs) if plan is not None else None
-
-
-def _external_name(scenario: Scenario) -> str | None:
-    return next((n for n, p in scenario.nodes.items() if p.role is NodeRole.ORCHESTRATOR), None)
-
-
-def _in_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
-                outcome: RunOutcome, on_tick: OnTick | None,
-                external: Arrivals | Replay | None) -> LoopResult:
-    from orchestrator.lockstep.inprocess import run_in_process
-    from orchestrator.lockstep.pace import pace_of
-    from orchestrator.proxies.arrivals_record import recording
-
-    with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
-        writers = {name: PartWriter(paths.part(name)) for name in scenario.nodes}
-        for writer in writers.values():
-            run.callback(writer.close)
-        arrivals = recording(external.take if isinstance(external, Arrivals) else external,
-                             writers.get(_external_name(scenario)))
-
-        def observe(k: int, name: str, items: list[tuple[str, bytes]]) -> None:
-            writers[name].write(k, items)
-
-        endpoints = _start_live(scenario, options, external)
-        if endpoints is not None:
-            from orchestrator.live.view import in_process_observer
-
-            run.callback(_close_endpoints, outcome, endpoints)
-            live_observe, live_tick = in_process_observer(endpoints, scenario)
-            observe = _both(observe, live_observe)
-            on_tick = _both(on_tick, live_tick) if on_tick else live_tick
-        return run_in_process(scenario, observe, on_tick, arrivals, pace_of(options))
-
-
-def _both(first: Callable, second: Callable) -> Callable:
-    def both(*args):
-        first(*args)
-        second(*args)
-    return both
-
-
-def _start_live(scenario: Scenario, options: RunOptions, external,
-                control_later: bool = False):
-    """The live endpoints the options ask for, started; a failure to listen fails the run."""
-    from orchestrator.live.view import start_endpoints
-    from runtime.live.session import LiveError
-
-    try:
-        return start_endpoints(scenario, options, external, control_later)
-    except LiveError as exc:
-        raise SimulationError(str(exc), node="orchestrator") from exc
-
-
-def _multi_process(scenario: Scenario, paths: RunPaths, options: RunOptions,
-                   outcome: RunOutcome, started: float, on_tick: OnTick | None,
-                   external: Arrivals | Replay | None) -> LoopResult:
-    supervisor = Supervisor(paths.logs)
-    layout = layout_of(scenario, options.pack, options.spread)  # the one place a run decides
-    # its processes
-    site = Site(scenario, paths, options, supervisor, layout, external)
-    settings = TransportSettings.of(scenario, options)
-    if settings.kind == "ros2":  # every process a DDS participant, the orchestrator two
-        widened = run_domain.widen_discovery(len(layout.processes) + 2)
-        if widened:
-            log.info("%s", widened)
-    # zenoh nodes connect to the orchestrator's session, so it opens first (and the nodes
-    # then start as fresh interpreters: a process with a session open must not fork).
-    opens_first = settings.kind == "zenoh"
-    with contextlib.ExitStack() as run:  # the run's resources, released in reverse order
-        # the transport (and its DDS mirror) go last, whenever they were opened
-        network = run.enter_context(contextlib.ExitStack())
-        transport = _open_transport(settings) if opens_first else None
-        if transport is not None:
-            network.callback(transport.close)
-            if settings.mirror_to_dds:  # its publishers are discovered while nodes start
-                from orchestrator.live.dds_mirror import DdsMirror
-
-                network.callback(DdsMirror(transport.session, transport.domain,
-                                           list(settings.mirror_to_dds), scenario.topics,
-                                           scenario.latched_topics).close)
-        run.callback(supervisor.shutdown)
-        starting = start_all(site)
-        if options.live:
-            from orchestrator.live.view import prepare_schemas
-
-            prepare_schemas(scenario, options)
-        if not any(p.started == "fork" for p in supervisor.processes()):
-            # Fresh interpreters take seconds to start: load what the end of the run needs
-            # meanwhile, so that a failed run exits promptly.
-            import orchestrator.outputs.picture  # noqa: F401
-        from orchestrator.lockstep.master import LockstepMaster
-
-        if transport is None:
-            transport = _open_transport(settings)
-            network.callback(transport.close)
-        participants = join_all(site, starting, transport)
-        for name, participant in participants.items():
-            if scenario.nodes[name].role.stood_in:
-                run.callback(participant.recorder.close)
-        master = LockstepMaster(scenario, transport, supervisor, participants, options,
-                                layout, on_tick, paths)
-        run.callback(_keep_node_stats, outcome, master, supervisor)
-        # the arrivals that ROS 2 servers put into (None: a replay, or no external node)
-        live = next((p.arrivals for n, p in participants.items()
-                     if scenario.nodes[n].role is NodeRole.ORCHESTRATOR
-                     and isinstance(p.arrivals, Arrivals)), None)
-        control, services = _ros_interfaces(scenario, options, paths, live)
-        if services:
-            run.callback(services.close)
-        # Clients may connect while the nodes start; they see the run once it is ready.
-        endpoints = _start_live(scenario, options, external,
-                                control_later=settings.kind == "ros2")
-        if endpoints is not None:
-            run.callback(_close_endpoints, outcome, endpoints)
-            from orchestrator.live.view import prepare_control
-
-            prepare_control(endpoints, services)
-        try:
-            master.wait_ready(started)
-        except SimulationError as exc:  # a stray publisher can drive a node before tick 0
-            _refuse_strangers(scenario, transport, cause=exc)
-            raise
-        _refuse_strangers(scenario, transport)
-        outcome.start_s = time.monotonic() - started
-        outcome.command_to_first_tick_s = _since_process_start()
-        log.info("all nodes ready after %.3f s", outcome.start_s)
-        if endpoints is not None:
-            from orchestrator.live.view import attach_control, follow_parts
-
-            attach_control(endpoints, services)
-            run.callback(follow_parts(endpoints, scenario, paths).stop)
-        result = master.run(control)
-        outcome.loop_s = time.monotonic() - master.loop_started
-        return result
-
-
-def _refuse_strangers(scenario: Scenario, transport, cause: Exception | None = None) -> None:
-    """Fail the run before its first tick when a topic it reads (or /clock) has a
-    publisher that is not the scenario's (runtime.intruders): its messages would be taken
-    for the scenario's (``cause``: the start's own failure, which they explain). Topics of
-    foreign programs are left out (their nodes are named by the programs)."""
-    from runtime.intruders import REMEDY, graph_strangers
-    from runtime.protocol import CLOCK_TOPIC
-
-    topics = [CLOCK_TOPIC] + sorted({inp.graph_topic for plan in scenario.nodes.values()
-                                     for inp in plan.inputs
-                                     if not scenario.nodes[inp.producer].role.is_foreign})
-    found = graph_strangers(transport, topics)
-    if found:
-        why = f" ({cause})" if cause is not None else ""
-        raise SimulationError(f"{'; '.join(found)}. Nothing was lost: the run stopped before "
-                              f"its first tick{why}. Remedy: {REMEDY}", node="orchestrator"
-                              ) from cause
-
-
-def _keep_node_stats(outcome: RunOutcome, master, supervisor: Supervisor) -> None:
-    """What the tick loop and the supervisor saw of each node, for the manifest."""
-    outcome.ticks_done = max(master.tick, 0)
-    outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
-                          for name in master.scenario.nodes}
-
-
-def _close_endpoints(outcome: RunOutcome, endpoints) -> None:
-    """Stop the live endpoints and keep what they did."""
-    outcome.live = endpoints.close()
-
-
-def _open_transport(settings: TransportSettings):
-    """The orchestrator's own participant; a failure to open it fails the run, named."""
-    try:
-        return create_transport(settings, "cosim_orchestrator")
-    except Exception as exc:  # noqa: BLE001 - zenoh and rclpy raise their own types
-        where = (f" (zenoh.listen {list(settings.zenoh_listen)}, zenoh.connect "
-                 f"{list(settings.zenoh_connect)})" if settings.kind == "zenoh" else "")
-        raise SimulationError(f"the orchestrator could not open its {settings.kind} "
-                              f"transport{where}: {exc}", node="orchestrator") from exc
-
-
-def _ros_interfaces(scenario: Scenario, options: RunOptions, paths: RunPaths,
-                    live: Arrivals | None):
-    """The run's control and its ROS 2 interfaces (orchestrator.ros_surface.sim_services): ros2 runs
-    only, where ROS 2 tools can reach them; (None, None) otherwise."""
-    if scenario.model.transport != "ros2":
-        return None, None
-    from orchestrator.ros_surface.sim_services import start_services
-    from orchestrator.ros_surface.simcontrol import RunControl
-
-    foreign = [n for n, p in scenario.nodes.items() if p.role.is_foreign]
-    why = f"foreign program(s) {', '.join(foreign)} cannot be restarted" if foreign else None
-    control = RunControl(scenario.tick_ns, paused=options.paused, cannot_reset=why)
-    return control, start_services(scenario, control, live, paths)
-
-
-def _since_process_start() -> float | None:
-    """Seconds since this process was created (the command, when run from the CLI), from
-    the kernel's start time of the process and the boot-time clock (Linux; else None)."""
-    try:
-        with open("/proc/self/stat") as stat:
-            after_name = stat.read().rpartition(")")[2].split()
-        started = int(after_name[19]) / os.sysconf("SC_CLK_TCK")  # field 22: starttime
-        return time.clock_gettime(time.CLOCK_BOOTTIME) - started
-    except (OSError, ValueError, IndexError, AttributeError):
-        return None
 
 
 def _judge(scenario: Scenario, outcome: RunOutcome) -> None:

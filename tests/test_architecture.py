@@ -267,7 +267,7 @@ def _spec_key(node: ast.AST, key: str) -> bool:
             and isinstance(node.value, ast.Attribute) and node.value.attr == "spec")
 
 
-LAYOUT_CALLERS = {"orchestrator/execute.py", "runtime/cosim_node.py"}
+LAYOUT_CALLERS = {"orchestrator/drivers/multi_process.py", "runtime/cosim_node.py"}
 """Where a run's process layout is decided: the orchestrator, once per run, and a node process
 started from a command line (it has only the file and the options, and lays out the same)."""
 
