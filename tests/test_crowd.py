@@ -88,3 +88,28 @@ def test_orca_lets_two_robots_head_on_pass_each_on_its_right():
     assert math.hypot(*u) <= 0.5 + 1e-9
     alone = orca_velocity([], 0, np.array([0.3, 0.1]), 0.5)
     assert alone == pytest.approx([0.3, 0.1])
+
+
+def test_crowd_worlds_follow_the_seed_and_keep_their_robots_apart(tmp_path):
+    from bench.crowd_worlds import FAMILIES, MOUTH, SPACING, generate
+
+    worlds = [generate(seed) for seed in range(9)]
+    assert [w.family for w in worlds] == list(FAMILIES) * 3
+    assert generate(4) == worlds[4] and generate(5) != worlds[4]
+    for w in worlds:
+        assert 8 <= w.robots <= 32
+        for spots in ([s[:2] for s in w.starts], list(w.goals)):
+            xy = np.array(spots)
+            d = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+            assert d[~np.eye(len(xy), dtype=bool)].min() >= SPACING
+        if w.family != "plaza":  # every start and goal away from the passage's mouths
+            doors = [s for s in w.shapes if s.name.startswith("divide")]
+            y = (doors[0].y + doors[0].hy + doors[1].y - doors[1].hy) / 2
+            for x0, y0 in [s[:2] for s in w.starts] + list(w.goals):
+                assert min(math.hypot(x0 - x, y0 - y)
+                           for x in (-doors[0].hx, doors[0].hx)) >= MOUTH - 0.06  # jitter
+    scenario = worlds[0].write(tmp_path)
+    from descriptions.load import load_scenario
+
+    loaded = load_scenario(scenario)
+    assert len(loaded.robots.robots) == worlds[0].robots
