@@ -1,10 +1,12 @@
 """The run's live endpoints (``--live``, ``--rosbridge``), wired to the orchestrator.
 
-- What clients see: every topic of the run and /clock. In a multi-process run a thread
-  reads what the nodes record as they record it (``orchestrator.live.live_tail``): nothing is
-  added to the transport or to the master's loop; an in-process run offers what its
-  observer sees. ``offer`` never blocks: the endpoints keep bounded queues and serve from
-  their own threads.
+- What clients see: every topic of the run and /clock, as the run's driver feeds them
+  (``orchestrator.drivers``, ``Driver.feed``: in a multi-process run a thread reads what the
+  nodes record as they record it, ``orchestrator.live.live_tail``, nothing added to the
+  transport or to the master's loop; an in-process run offers what its observers see). The
+  endpoints are attached to the run once, for every driver (``orchestrator.live.attachment``).
+  ``offer`` never blocks: the endpoints keep bounded queues and serve from their own
+  threads.
 - What clients drive: messages enter through the run's ``Arrivals`` (the scenario's
   ``external:`` topics), at the external node's next tick, recorded and hashed; services
   reach the run's simulation services (``orchestrator.ros_surface.sim_services``: ``/cosim/pause``,
@@ -26,7 +28,7 @@ from plan.options import RunOptions
 from plan.scenario import Scenario
 from runtime.live.endpoints import Catalog, ServiceUnavailable
 from runtime.live.session import LiveEndpoints
-from runtime.protocol import CLOCK_TOPIC, encode_clock
+from runtime.protocol import CLOCK_TOPIC
 
 POLL_S = 0.005
 
@@ -174,28 +176,3 @@ def attach_control(endpoints: LiveEndpoints, services) -> None:
     clients."""
     if services is not None and services.wait_built():
         endpoints.attach_services(SimControlServices(services), SimControlActions(services))
-
-
-def follow_parts(endpoints: LiveEndpoints, scenario: Scenario, paths):
-    """Start offering what the run's nodes record (a multi-process run); the follower."""
-    from orchestrator.live.live_tail import PartsTail
-
-    tail = PartsTail({name: paths.part(name) for name in scenario.nodes},
-                     set(scenario.topics), scenario.tick_ns, endpoints.offer)
-    tail.start()
-    return tail
-
-
-def in_process_observer(endpoints: LiveEndpoints, scenario: Scenario):
-    """(observer, on_tick) for ``run_in_process``: offer each activation's outputs, and
-    /clock once a tick is done (an in-process run has no /clock of its own)."""
-    sched = scenario.schedule
-
-    def observe(_tick: int, _name: str, items: list[tuple[str, bytes]]) -> None:
-        for topic, data in items:
-            endpoints.offer(topic, data)
-
-    def on_tick(tick: int) -> None:
-        endpoints.offer(CLOCK_TOPIC, encode_clock(sched.time_ns(tick)))
-
-    return observe, on_tick
