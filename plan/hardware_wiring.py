@@ -42,7 +42,7 @@ def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice
     if not any(getattr(class_of(spec), "hardware_role", False) for spec in model.nodes):
         return []
     said = ("the controller manager runs in the physics node's step (it reads and writes "
-            "MjData, docs/concepts/topics.md, ros2_control): this is dropped.")
+            "MjData; docs/how-to/ros2-control.md, How cosim runs it): this is dropped.")
     fix = "delete the remaps and inputs naming /cosim/hardware_* and /cosim/base_command."
     out = [ScenarioNotice(path, f"nodes[{i}] ({spec.name}).remap.{own}", f"{own} -> {graph}: "
                           + said, fix)
