@@ -37,7 +37,6 @@ from typing import Any
 
 import yaml
 from pydantic import ValidationError
-from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
 
 from nodes.ros2_control.interface import ControllerParams
 from nodes.ros2_control.registry import controller_class, served_types
@@ -157,6 +156,10 @@ def _parameters(path: Path, keys: dict[str, list[str]], node: str) -> dict[str, 
     own = keys.get(node)
     if not own:
         return None
+    # rclpy only here: importing it loads its native library, and an orchestrator that has
+    # it loaded may no longer fork its node processes (supervisor.fork_is_safe)
+    from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
+
     try:
         flat = parameter_dict_from_yaml_file(str(path), use_wildcard=True, target_nodes=own)
     except (RuntimeError, TypeError, ValueError) as exc:
