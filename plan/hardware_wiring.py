@@ -26,6 +26,7 @@ from plan.kinds import catalogue, class_of
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.robots import robot_of
 from plan.scenario import EXTERNAL_NAME
+from plan.timeutil import NS_PER_S
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS
 
 HARDWARE_STATES = "/cosim/hardware_states"
@@ -92,10 +93,10 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
                             + " only.", "for_each: robot without robots: (every robot).")
     spec = nodes[first]
     if spec.period_ns != physics.period_ns:
-        raise ScenarioError(path, f"{key}.rate", "the controller manager runs in the physics "
-                            "node's step, at its rate; physics runs at another.",
-                            "the same rate for both (physics' rate, and update_rate in the "
-                            "controllers file).")
+        one_line = model.robots is not None and model.robots.controllers is not None
+        raise _rate_error(path, "robots.controllers" if one_line else f"{key}.rate",
+                          _key(nodes, origins, w), spec.period_ns,
+                          physics.period_ns, getattr(params[first], "controllers", None))
     cls = classes[first]
     hosted = cls.hosted_params(params[first], spec.name.partition("@")[0])
     joints, base = cls.takes_hardware(params[first])
@@ -164,6 +165,25 @@ def _external_topics(nodes: list[NodeSpec]) -> dict[str, str]:
         if spec.name == EXTERNAL_NAME:
             return dict(spec.params.get("topics", {}))
     return {}
+
+
+def _rate_error(path: Path, key: str, physics_key: str, period_ns, physics_ns,
+                controllers: str | None) -> ScenarioError:
+    """The manager's update_rate is not physics' rate: which file and key, the rates
+    accepted, and why a lower update_rate (physics' rate / n) is not one of them."""
+    hz = lambda ns: f"{float(NS_PER_S / ns):g}"  # noqa: E731 - one short format
+    rate, physics_rate = hz(period_ns), hz(physics_ns)
+    where = (f"{controllers}: controller_manager.ros__parameters.update_rate"
+             if controllers else "update_rate in the controllers file")
+    return ScenarioError(
+        path, key, f"the controller manager runs in the physics node's step, so "
+        f"its update_rate ({rate} Hz, {where}) must be physics' rate ({physics_rate} Hz, "
+        f"{physics_key}.rate). A lower update_rate (physics' rate / n, an update every n-th "
+        "physics step) cannot be served yet: a lockstep node publishes each of its topics "
+        "at every activation (no topic of one node at a lower rate than its others), and the "
+        "controllers' topics are physics'.",
+        f"update_rate: {physics_rate} in {controllers or 'the controllers file'}, or "
+        f"physics' rate: {rate} (where the world's timestep divides its period).")
 
 
 def _key(nodes: list[NodeSpec], origins: dict[str, int], i: int) -> str:

@@ -138,3 +138,14 @@ def test_robots_controllers_refused_naming_the_key(tmp_path, change, problem):
         load_scenario(_copy(tmp_path, "bad.yaml", text))
     assert err.value.key == "robots.controllers"
     assert problem in err.value.problem
+
+
+def test_an_update_rate_other_than_physics_rate_names_the_file_key_and_rates():
+    ur = SCENARIOS.parent / "tests" / "scenarios" / "ur5e_control.yaml"
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(ur, {"nodes.physics.rate": 500})  # update_rate 100: 500 / 5
+    text = str(err.value)
+    assert "robots.controllers" in text
+    assert "ur_controllers.yaml: controller_manager.ros__parameters.update_rate" in text
+    assert "(100 Hz," in text and "(500 Hz, nodes[0] (physics).rate)" in text
+    assert "update_rate: 500 in" in text and "physics' rate: 100" in text
