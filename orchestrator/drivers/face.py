@@ -41,9 +41,13 @@ class RunContext:
     """What a driver is given: the run, its hooks and the resources it holds.
 
     ``outcome`` is the run's ``orchestrator.execute.RunOutcome`` (start and loop times, node
-    statistics, what the live endpoints did). ``on_tick`` and ``observers`` are lists that
-    attachments add to before the loop starts. ``control`` and ``services`` are the run's
-    RunControl and simulation services, where the driver serves them (None otherwise).
+    statistics, what the live endpoints did). ``on_tick`` (every driver calls it once a tick
+    is decided) and ``observers`` (each activation's outputs, where the driver steps the
+    nodes itself: in-process; a multi-process run's traffic reaches attachments through
+    ``Driver.feed``) are lists that attachments add to before the loop starts; pacing is
+    the loop's own (``orchestrator.lockstep.pace.pace_of``, from the options, in both
+    loops). ``control`` and ``services`` are the run's RunControl and simulation services,
+    where the driver serves them (None otherwise).
     ``resources`` holds what the run opened, released in reverse order when the drive ends.
     """
 
