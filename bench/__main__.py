@@ -7,6 +7,7 @@ import sys
 import traceback
 
 from bench import (
+    crowd_worlds,
     foreign_nav,
     live,
     lockstep,
@@ -53,6 +54,8 @@ SECTIONS = [
     ("sensor cost", sensors.main),
     ("navigation over 50 generated worlds (in-process, 2 at a time)",
      lambda: nav_worlds.main(["--count", "50"])),
+    ("crowds: 30 generated door swaps, plazas and corridors of 8-32 robots (in-process, 2 at "
+     "a time)", lambda: crowd_worlds.main(["--count", "30"])),
     ("sweeps: 100 nav seeds in-process on every core, and on Ray", lambda: sweep.main([])),
 ]
 

@@ -19,7 +19,8 @@ sight on the static map, as its lidar would). Near others it drives by:
   meets one of higher priority inside facing it backs out. Every robot decides from the
   same poses by the same rule, so both sides of a door agree on who goes.
 
-A robot held longer than ``crowd_report_s`` says by whom and where (``Crowd.blocked_note``).
+A robot among others that comes no nearer its goal (along its plan) for ``crowd_report_s``
+says by whom and where (``Crowd.blocked``).
 Nothing here reads the wall clock or draws random numbers: the same poses give the same
 velocity in any process.
 """
@@ -44,6 +45,7 @@ HOLD_BACK = (0.0, 1.2, 2.4)  # m: ... and this much farther back
 HOLD_TAKEN = 0.7  # m: a place with a robot this near (nearer it than we are) is taken
 QUEUE = 0.9  # m: a robot this near going into the same door nearer its entry goes first
 CLAIM_PATIENCE = 20.0  # s: a robot that claims a door this long and does not come is passed
+PROGRESS = 0.3  # m nearer the goal that count as getting on
 REPLAN_AFTER = 6.0  # s stalled near a robot parked at its goal before planning round it
 YIELD_AFTER = 2.0  # s stalled beside a robot of higher priority before giving way ...
 YIELD_FOR = 4.0  # s: ... for this long, backing off from it
@@ -239,10 +241,11 @@ class Crowd:
         self.now_ns = 0
         self._notes: list[str] = []
         self.doors: list[tuple[int, int]] = []  # narrow stretches of the plan: index ranges
+        self.along = np.zeros(1)  # m along the plan to each of its points
         self.path: np.ndarray | None = None
-        self.blocker: str | None = None  # who holds this robot up now
-        self.blocked_since: int | None = None  # ns
-        self.reported: str | None = None
+        self.best: float | None = None  # m: the nearest to its goal it has come lately ...
+        self.blocked_since: int | None = None  # ns: ... since when
+        self.reported: str | None = None  # the robot named in the last note
         self.waits = 0  # times this robot held for a door
         self.waiting = False
         self.stalled_since: int | None = None  # ns: engaged and not moving since
@@ -279,8 +282,8 @@ class Crowd:
 
     def metrics(self) -> dict[str, float]:
         """door_waits (times it held for a door), yields (times it gave way to a robot
-        that it blocked and that blocked it), blocked_s (how long the same robot has
-        held it up now, 0 when none)."""
+        that it blocked and that blocked it), blocked_s (how long, among robots, since it
+        last came PROGRESS nearer its goal along its plan)."""
         held = 0.0 if self.blocked_since is None else (self.now_ns - self.blocked_since) / 1e9
         return {"door_waits": float(self.waits), "yields": float(self.yields),
                 "blocked_s": held}
@@ -327,6 +330,10 @@ class Crowd:
         """Find the plan's narrow stretches: where the free width across the plan is less
         than two robots side by side (with crowd_margin each) and PASSING."""
         self.path, self.doors = path, []
+        self.best = None  # a new plan: its own way to the goal
+        if path is not None and len(path):
+            seg = np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1]))
+            self.along = np.concatenate([[0.0], np.cumsum(seg)])
         if path is None or len(path) < 3:
             return
         g, dist = self.planner.grid, self.planner.static_dist
@@ -470,21 +477,19 @@ class Crowd:
 
     # -- reports ----------------------------------------------------------------------------
 
-    def blocked(self, now_ns: int, by: int | None, where: str) -> str | None:
-        """Count how long the robot has been held by robot ``by`` (None: not held); the
-        note to make once it passes crowd_report_s, naming the robot and the place."""
-        if by is None:
-            self.blocker, self.blocked_since = None, None
+    def blocked(self, now_ns: int, dist: float, by: int | None, where: str) -> str | None:
+        """Count how long the robot has come no nearer its goal (by PROGRESS; ``dist``: how
+        far it is now); once that passes crowd_report_s, the note to make (once until it
+        gets on), naming the robot that holds it up (``by``: the door rule's, else the
+        nearest) and the place."""
+        if self.best is None or dist < self.best - PROGRESS:
+            self.best, self.blocked_since, self.reported = dist, now_ns, None
             return None
-        name = self.others.names[by]
-        if name != self.blocker:
-            self.blocker, self.blocked_since = name, now_ns
         held = (now_ns - self.blocked_since) / 1e9
-        key = f"{name}@{where}"
-        if held >= self.p.crowd_report_s and self.reported != key:
-            self.reported = key
-            return f"blocked by {name} {where} for {held:.0f} s"
-        return None
+        if held < self.p.crowd_report_s or self.reported is not None or by is None:
+            return None
+        self.reported = self.others.names[by]
+        return f"blocked by {self.reported} {where} for {held:.0f} s"
 
     def steer(self, pose: tuple[float, float, float], target: np.ndarray, dist: float,
               path: np.ndarray, index: int, points: np.ndarray, step_s: float
@@ -499,7 +504,7 @@ class Crowd:
         seen = self.visible(pose)
         rule, by = self.door_rule(pose, index, self.around(pose))
         if rule == "go" and not self.engaged(pose, seen):
-            self.blocked(self.now_ns, None, "")
+            self.best = self.blocked_since = None  # plain navigation: not held by robots
             self.waiting = False
             return None
         on_robot = self.robot_points(points, seen)
@@ -553,13 +558,15 @@ class Crowd:
                 self.parked_near(pose, seen).size:
             self.replan, self.stalled_since = True, None
         if rule == "go":
-            by = self.nearest(pose, seen) if abs(v) < 0.03 else None
+            by = self.nearest(pose, seen)
         where = f"at ({_place(pose[0])}, {_place(pose[1])})"
         door = self.door_ahead(index)
         if door is not None and rule != "go":
             mid = path[(door[0] + door[1]) // 2]
             where = f"at the door ({_place(mid[0])}, {_place(mid[1])})"
-        note = self.blocked(self.now_ns, by, where)
+        left = float(self.along[-1] - self.along[index]) + math.hypot(
+            path[index][0] - pose[0], path[index][1] - pose[1])
+        note = self.blocked(self.now_ns, left, by, where)
         if note:
             self._notes.append(note)
         return v, w
