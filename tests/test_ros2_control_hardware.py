@@ -95,3 +95,15 @@ def test_list_hardware_interfaces_lists_what_the_block_declares(ur):
     # the block declares position and velocity state interfaces: no effort
     assert [i.name for i in state] == [f"{j}/{i}" for j in sorted(INITIAL)
                                        for i in ("position", "velocity")]
+
+
+def test_physics_does_not_build_the_joint_states_a_broadcaster_replaces(ur, monkeypatch):
+    import nodes.physics.batch as batch
+
+    def built(*args):
+        raise AssertionError("physics built /joint_states a broadcaster publishes")
+
+    node = make_node(ur, "physics")
+    monkeypatch.setattr(batch.fm, "joint_state", built)
+    out = node.step(Tick(0, 0), {})
+    assert sorted(out["/joint_states"].name) == sorted(INITIAL)  # the broadcaster's

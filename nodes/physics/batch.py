@@ -77,8 +77,12 @@ class SwarmBook:
     """The path each mobile robot drives, its pose goal, and what every robot publishes:
     /odom, /joint_states, /imu and its moving /tf frames, from index arrays made once."""
 
-    def __init__(self, model: mujoco.MjModel, rigs: list):
+    def __init__(self, model: mujoco.MjModel, rigs: list, replaced: frozenset[str] = frozenset()):
+        """``replaced``: the /joint_states topics (graph names) something else in the step
+        publishes (a joint_state_broadcaster in the physics step): not built here."""
         self.rigs = rigs
+        self.joint_states = [rig.topics[JOINT_STATES] not in replaced for rig in rigs]
+        self.any_joint_states = any(self.joint_states)
         n = len(rigs)
         self.mobile = np.array([r.mobile for r in rigs], dtype=bool)
         mobile = [r for r in rigs if r.mobile]
@@ -174,7 +178,8 @@ class SwarmBook:
         return 0.0 if slot is None else float(self.path[slot])
 
     def publish(self, data: mujoco.MjData, out: dict[str, Any], tf: bool) -> list:
-        """Every robot's odometry, joint states and IMU into ``out``; every moving frame."""
+        """Every robot's odometry, joint states (where no broadcaster replaces them) and IMU
+        into ``out``; every moving frame."""
         rigs = self.rigs
         pose, vel = self.base_poses(data)
         qw, qx, qy, qz = pose[:, 3], pose[:, 4], pose[:, 5], pose[:, 6]
@@ -193,12 +198,16 @@ class SwarmBook:
                            r02 * vx + r12 * vy + r22 * vz], axis=1).tolist()
         angular = vel[:, 3:6].tolist()
         poses = pose.tolist()
-        jq = data.qpos[self.joint_q].tobytes()
-        jv = data.qvel[self.joint_v].tobytes()
-        je = data.qfrc_actuator[self.joint_v].tobytes()
+        if self.any_joint_states:
+            jq = data.qpos[self.joint_q].tobytes()
+            jv = data.qvel[self.joint_v].tobytes()
+            je = data.qfrc_actuator[self.joint_v].tobytes()
+        own = self.joint_states
         for i, rig in enumerate(rigs):
             out[rig.topics[ODOM]] = fm.odometry(poses[i], linear[i], angular[i], COVARIANCE,
                                                 rig.odom_frame, rig.base_frame)
+            if not own[i]:  # a broadcaster's replaces it
+                continue
             a, b = self.joint_bounds[i]
             out[rig.topics[JOINT_STATES]] = fm.joint_state(
                 rig.state_names, _f64(jq, a, b), _f64(jv, a, b), _f64(je, a, b))

@@ -355,7 +355,8 @@ class SwarmPhysics:
         hosted_base = self.hosted is not None and self.hosted.drives_base
         self.driven = [rig for rig in self.rigs if rig.drive is not None and not hosted_base]
         self.drives = SwarmDrives(self.driven, self.dt)
-        self.book = SwarmBook(self.model, self.rigs)
+        self.book = SwarmBook(self.model, self.rigs, frozenset() if self.hosted is None
+                              else self.hosted.published)
         self.any_imu = any(rig.imu is not None for rig in self.rigs)
         self.needs_kinematics = any(r.frames is not None and r.frames.needs_kinematics
                                     for r in self.rigs)

@@ -246,6 +246,9 @@ class HostedManagers:
         joints, base = takes_hardware(params)
         self.commands_joints = joints
         self.drives_base = base
+        # every topic the managers publish (physics' graph names): a broadcaster's
+        # /joint_states replaces physics' own, which physics then does not build
+        self.published = frozenset(m.graph[t] for m in self.managers for t in m.declared)
 
     def step(self, time_ns: int, period_ns, data, inputs: dict[str, Any], out: dict) -> None:
         """One update of every robot's manager, at the state physics publishes at the tick;
