@@ -42,6 +42,11 @@ COVERED = {"swarm_small.yaml": "swarm's nodes and topics with four robots, compa
            "crowd_door.yaml": "swarm's nodes and topics; /cosim/world_state to controllers as "
            "to lidars (compared packed in tests/test_crowd.py)",
            "crowd_plaza.yaml": "crowd_door's nodes and topics in another world",
+           # robots that enter: windows are the schedule's, the same for every transport
+           "swarm_enter.yaml": "swarm's nodes and topics, robots entering and leaving at "
+           "events (one digest over zenoh checked by hand, 10 s)",
+           "swarm_clients.yaml": "swarm_enter's, the robots clients may bring in dormant "
+           "without a client (8 s)",
            "nav_usd_robot.yaml": "nav_urdf's nodes and topics, the robot in USD (4 s)",
            "arm_usd.yaml": "arm_urdf's nodes and topics, the arm in USD (3 s)"}
 
