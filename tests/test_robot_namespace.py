@@ -89,3 +89,39 @@ def test_two_robots_in_one_namespace_are_refused(tmp_path):
     with pytest.raises(ScenarioError, match="share the namespace 'other'") as err:
         load_scenario(two_robots(tmp_path, namespace="other"))
     assert err.value.key == "robots.named[1].namespace"
+
+
+def mjcf_swarm_with_controllers(tmp_path, namespace: str = "alpha"):
+    """swarm.yaml cut to two MJCF robots, each with a hosted controller manager (nav_control's
+    diff drive, its blocks under /**), the first in ``namespace``."""
+    swarm = ROOT / "scenarios" / "swarm.yaml"
+    doc = yaml.safe_load(swarm.read_text())
+    doc["world"] = str((swarm.parent / doc["world"]).resolve())
+    robots = doc["robots"]
+    robots["description"] = str((swarm.parent / robots["description"]).resolve())
+    robots["named"] = robots["named"][:2]
+    robots["named"][0]["namespace"] = namespace
+    controllers = yaml.safe_load((swarm.parent / "controllers" / "nav_controllers.yaml")
+                                 .read_text())
+    (tmp_path / "controllers.yaml").write_text(yaml.safe_dump(
+        {f"/**/{key}": block for key, block in controllers.items()}))
+    robots["controllers"] = str(tmp_path / "controllers.yaml")
+    physics, control = doc["nodes"][0], doc["nodes"][2]
+    physics.pop("inputs")  # the managers' cmd_vel, not physics' own
+    control.update(params={"enable_stamped_cmd_vel": True},
+                   remap={"/cmd_vel": "/diff_drive_controller/cmd_vel"})
+    path = tmp_path / "swarm_control.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_an_mjcf_robots_controllers_find_its_joints_in_a_namespace_not_its_name(tmp_path):
+    # the hardware's joints are MuJoCo's less 'robot_0/', not the frames ('alpha/...')
+    scenario = load_scenario(mjcf_swarm_with_controllers(tmp_path))
+    physics = make_node(scenario, "physics")
+    out = physics.step(Tick(0, 0), {})
+    assert {"/alpha/diff_drive_controller/odom", "/robot_1/diff_drive_controller/odom"} <= set(
+        out)
+    metrics = physics.metrics()
+    for robot in ("robot_0", "robot_1"):
+        assert metrics[f"{robot}/controller_manager/active:diff_drive_controller"] == 1.0

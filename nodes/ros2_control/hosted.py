@@ -225,6 +225,15 @@ def metric_prefix(name: str, robot: str) -> str:
     return f"{robot}/{name}/" if robot else f"{name}/"
 
 
+def hardware_joints(model, robot, qadr) -> list[str]:
+    """The names the controllers know the joints at qpos addresses ``qadr`` by: their MuJoCo
+    names less the robot's MuJoCo prefix ('robot_0/left_wheel_joint' -> 'left_wheel_joint'),
+    whatever namespace its frames are in (``Rig.state_names`` are frames: 'alpha/...')."""
+    prefix = robot.prefix or ""
+    names = {int(model.jnt_qposadr[j]): model.joint(j).name for j in range(model.njnt)}
+    return [names[int(q)].removeprefix(prefix) for q in qadr]
+
+
 class HostedManagers:
     """Every robot's controller manager in the physics step (the module says how)."""
 
@@ -235,9 +244,7 @@ class HostedManagers:
         self.managers: list[RobotManager] = []
         for rig, robot in zip(rigs, robots, strict=True):
             info = hardware_info(model, robot, params.command_joints)
-            prefix = robot.prefix or ""
-            joints = [n[len(prefix):] if prefix and n.startswith(prefix) else n
-                      for n in rig.state_names]
+            joints = hardware_joints(model, robot, rig.state_q)
             wheels = rig.wheel_act if rig.drive is not None else None
             system = MujocoSystem(model, info, joints, rig.state_q, rig.state_v, wheels)
             namespace = getattr(robot, "namespace", rig.name)  # '' for a robot at the root
