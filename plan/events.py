@@ -224,11 +224,13 @@ def timing_problems(events: list[EventSpec], physics_period_ns: Ns | None, durat
 
 def object_problems(events: list[EventSpec], world: WorldObjects) -> list[Problem]:
     """Names and places against the world: a spawn's name is not the world's nor a live
-    object's; a delete names a live object (not a part of the world); a static object does
+    object's; a robot's name enters once (not again after its delete: its nodes are planned
+    for one window); a delete names a live object (not a part of the world); a static object does
     not stand inside an obstacle or a static object already there, nor, at time 0, inside
     a robot or loose object at its start."""
     out: list[Problem] = []
     live: dict[str, tuple[int, ObjectSpec | None]] = {}  # None: a robot
+    left: dict[str, int] = {}  # a robot taken out -> the delete's index
     for i, event in enumerate(events):
         key = f"events[{i}] ({event.name})"
         if event.robot is not None:
@@ -236,6 +238,11 @@ def object_problems(events: list[EventSpec], world: WorldObjects) -> list[Proble
             if name == "world" or name in world.names or name in world.robots:
                 out.append((f"{key}.robot.name", f"{name!r} is already a robot, body or "
                             "geom of the world.", "a name the world does not use."))
+            elif name in left:  # its nodes are planned for one stay (one window)
+                out.append((f"{key}.robot.name", f"{name!r} left the world at "
+                            f"events[{left[name]}]; a robot's name enters once (its nodes "
+                            "are planned for one stay in the world).", f"a name of its own "
+                            f"for the robot that comes back, e.g. {name}_2."))
             elif name in live:
                 out.append((f"{key}.robot.name", f"{name!r} is still in the world "
                             f"(events[{live[name][0]}] spawned it).",
@@ -247,7 +254,8 @@ def object_problems(events: list[EventSpec], world: WorldObjects) -> list[Proble
             continue
         if event.delete is not None:
             if event.delete in live:
-                del live[event.delete]
+                if live.pop(event.delete)[1] is None:
+                    left[event.delete] = i
             elif event.delete == "world" or event.delete in world.names:
                 out.append((f"{key}.delete", f"{event.delete!r} is part of the world file; "
                             "only objects an event spawned can be deleted.",

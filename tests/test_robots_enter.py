@@ -105,6 +105,10 @@ def test_attaching_and_removing_a_robot_keeps_every_other_body_bit_for_bit():
     ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}\n"
      "  - {at: 2s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
      "events[1] (a).robot.name", "still in the world"),
+    ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}\n"
+     "  - {at: 2s, delete: a}\n"
+     "  - {at: 3s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
+     "events[2] (a).robot.name", "enters once"),
     ("- {at: 15ms, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}}}",
      "events[0] (a).at", "not on a tick"),
     ("- {at: 1s, robot: {name: a, start: {x: 0, y: 2}, goal: {x: 0, y: -2}, "
