@@ -125,3 +125,7 @@ def test_an_mjcf_robots_controllers_find_its_joints_in_a_namespace_not_its_name(
     metrics = physics.metrics()
     for robot in ("robot_0", "robot_1"):
         assert metrics[f"{robot}/controller_manager/active:diff_drive_controller"] == 1.0
+    # each diff drive's odometry in its robot's frames (upstream's tf_frame_prefix default)
+    for ns in ("alpha", "robot_1"):
+        odom = out[f"/{ns}/diff_drive_controller/odom"]
+        assert (odom.header.frame_id, odom.child_frame_id) == (f"{ns}/odom", f"{ns}/base_link")

@@ -119,6 +119,31 @@ def test_parameters_are_checked_against_the_types_model(tmp_path):
     assert params.linear.x.max_velocity == 0.8 and params.cmd_vel_timeout == 0.5
 
 
+@pytest.mark.parametrize("namespace, prefix, expected", [
+    ("", {}, "odom"),  # a lone robot at the root
+    ("robot_2", {}, "robot_2/odom"),  # upstream's default: the controller's namespace
+    ("robot_2", {"tf_frame_prefix": "fleet/a"}, "fleet/a/odom"),
+    ("robot_2", {"tf_frame_prefix": "/fleet/"}, "fleet/odom"),  # tf2 takes no leading '/'
+    ("robot_2", {"tf_frame_prefix_enable": False, "tf_frame_prefix": "x"}, "odom"),
+])
+def test_a_diff_drives_odometry_frames_carry_its_tf_prefix(tmp_path, namespace, prefix,
+                                                           expected):
+    dd = "diff_drive_controller/DiffDriveController"
+    path = controllers_file(tmp_path, {"dd": dd}, {"dd": {
+        "left_wheel_names": ["l"], "right_wheel_names": ["r"], "wheel_separation": 0.4,
+        "wheel_radius": 0.06, "base_frame_id": "base_footprint", **prefix}})
+    manager = ControllerManager(read_controllers_file(path), namespace)
+    state = {"l": JointReading(0.0), "r": JointReading(0.0)}
+    manager.activate(["dd"], state)
+    odom = manager.update(0, 20_000_000, {}).published["/dd/odom"]
+    base = expected.removesuffix("odom") + "base_footprint"
+    assert (odom.header.frame_id, odom.child_frame_id) == (expected, base)
+    manager.switch([], ["dd"], state)
+    assert manager.lifecycle("unload", "dd") is None
+    assert manager.lifecycle("load", "dd") is None  # loaded again: in the same namespace
+    assert manager.controllers["dd"].namespace == namespace
+
+
 def test_a_command_interface_the_hardware_lacks_is_named_with_its_joint():
     info = HardwareInfo(("j1", "j2"), (CommandJoint("j1", "position", "j1_servo"),))
     claim = controller_class(EFFORT)("e", controller_class(EFFORT).Params(joints=["j1"])).claim()

@@ -43,6 +43,10 @@ def test_four_urdf_robots_reach_their_goals_through_their_own_diff_drive_control
             assert max(abs(v) for v in truth) > 0.3
             assert f"/{robot}/cmd_vel" not in bag.counts
             assert bag.counts[f"/{robot}/diff_drive_controller/odom"] > 0
+            # its odometry in its own frames, as upstream's tf_frame_prefix default has them
+            _, wheels = next(bag.messages(f"/{robot}/diff_drive_controller/odom", odom))
+            assert (wheels.header.frame_id, wheels.child_frame_id) == (
+                f"{robot}/odom", f"{robot}/base_footprint")
             assert bag.counts[f"/{robot}/diff_drive_controller/cmd_vel"] > 0
 
 

@@ -145,7 +145,7 @@ class RobotManager:
         self.system = system
         self.robot = robot
         self.note = note
-        self.manager = ControllerManager(self.file)
+        self.manager = ControllerManager(self.file, namespace)
         self.manager.unservable = unservable(self.manager.controllers, system.info)
         self.declared = publications(params)
         # topic -> (its controller, the controller's own name for it)

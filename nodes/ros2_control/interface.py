@@ -97,6 +97,7 @@ class ControllerInterface:
 
     Params: ClassVar[type[ControllerParams]] = ControllerParams
     drives_base: ClassVar[bool] = False
+    namespace: str = ""  # its node's ROS namespace ('' the root), set before it is configured
 
     def __init__(self, name: str, params: ControllerParams):
         self.name = name

@@ -32,22 +32,28 @@ def resolve(controller: str, topic: str) -> str:
     return f"/{controller}/{topic[2:]}" if topic.startswith("~/") else topic
 
 
-def load(file: ControllersFile) -> dict[str, ControllerInterface | None]:
-    """Every controller of the file, configured (None: a type cosim does not serve)."""
+def load(file: ControllersFile, namespace: str = "") -> dict[str, ControllerInterface | None]:
+    """Every controller of the file, configured (None: a type cosim does not serve), its
+    node in ROS namespace ``namespace`` ('' the root)."""
     out: dict[str, ControllerInterface | None] = {}
     for entry in file.controllers:
-        ctrl = load_one(file, entry.name)
+        ctrl = load_one(file, entry.name, namespace)
         if ctrl is not None:
             ctrl.configure()
         out[entry.name] = ctrl
     return out
 
 
-def load_one(file: ControllersFile, name: str) -> ControllerInterface | None:
-    """Controller ``name`` of the file, unconfigured (None: a type cosim does not serve)."""
+def load_one(file: ControllersFile, name: str, namespace: str = "") -> ControllerInterface | None:
+    """Controller ``name`` of the file, unconfigured (None: a type cosim does not serve),
+    its node in ROS namespace ``namespace``."""
     entry = file.named(name)
     cls = controller_class(entry.type)
-    return None if cls is None or entry.params is None else cls(entry.name, entry.params)
+    if cls is None or entry.params is None:
+        return None
+    ctrl = cls(entry.name, entry.params)
+    ctrl.namespace = namespace
+    return ctrl
 
 
 STATE_CODES = {"unloaded": 0.0, "unconfigured": 1.0, "inactive": 2.0, "active": 3.0}
@@ -121,9 +127,11 @@ def switch_problem(file: ControllersFile, controllers: Mapping[str, ControllerIn
 class ControllerManager:
     """The controllers of one file, their lifecycle, switches and updates."""
 
-    def __init__(self, file: ControllersFile):
+    def __init__(self, file: ControllersFile, namespace: str = ""):
+        """``namespace``: the robot's, its controllers' nodes' ('' the root)."""
         self.file = file
-        self.controllers = load(file)
+        self.namespace = namespace
+        self.controllers = load(file, namespace)
         self.unloaded: set[str] = set()
         self.held: dict[str, Any] = {}  # topic -> its message at the last tick
         self.unservable: dict[str, str] = {}  # controller -> what the hardware lacks for it
@@ -140,7 +148,7 @@ class ControllerManager:
         if problem:
             return problem
         if verb == "load":
-            self.controllers[name] = load_one(self.file, name)
+            self.controllers[name] = load_one(self.file, name, self.namespace)
             self.unloaded.discard(name)
         elif verb == "unload":
             ctrl = self.controllers[name]

@@ -2,8 +2,10 @@
 parameters say, stale after ``cmd_vel_timeout``, turned into the wheels' velocities (wheel
 radius, separation and their multipliers), which it commands on the wheels' velocity
 interfaces; ``~/odom`` from the wheels' positions over the time since its last update (its
-``odometry.cpp``). A command's time is its header stamp (the tick it was published at),
-so the same command held by the external node is not new and times out."""
+``odometry.cpp``), its frames prefixed as upstream's (``tf_frame_prefix``, else the robot's
+namespace: 'robot_2/odom'; none at the root). A command's time is its header stamp (the
+tick it was published at), so the same command held by the external node is not new and
+times out."""
 
 from __future__ import annotations
 
@@ -72,6 +74,9 @@ class DiffDriveParams(ControllerParams):
     right_wheel_radius_multiplier: float = 1.0
     odom_frame_id: str = "odom"
     base_frame_id: str = "base_link"
+    tf_frame_prefix_enable: bool = True
+    tf_frame_prefix: str = Field("", description="the frames' prefix ('': the controller's "
+                                 "namespace)")
     pose_covariance_diagonal: Covariance = [0.0] * 6
     twist_covariance_diagonal: Covariance = [0.0] * 6
     open_loop: bool = False
@@ -179,8 +184,9 @@ class DiffDriveController(ControllerInterface):
         return out
 
     def on_configure(self) -> None:
-        """Odometry from the origin."""
+        """Odometry from the origin, in its frames (``frame_ids``)."""
         p = self.params
+        self.frames = frame_ids(p, self.namespace)
         self.odometry = DiffDriveOdometry(
             p.wheel_separation * p.wheel_separation_multiplier,
             p.wheel_radius * p.left_wheel_radius_multiplier,
@@ -243,11 +249,22 @@ class DiffDriveController(ControllerInterface):
     def odometry_message(self) -> Odometry:
         """~/odom: the wheels' odometry in the controller's frames (built slot by slot:
         nodes.ros2_control.fast_messages)."""
-        p, odo = self.params, self.odometry
+        odo = self.odometry
         return fast.odometry(odo.x, odo.y, math.sin(odo.heading / 2.0),
                              math.cos(odo.heading / 2.0), odo.linear, odo.angular,
-                             self.covariances[0], self.covariances[1], p.odom_frame_id,
-                             p.base_frame_id)
+                             self.covariances[0], self.covariances[1], *self.frames)
+
+
+def frame_ids(p: DiffDriveParams, namespace: str) -> tuple[str, str]:
+    """~/odom's frame and child frame: ``odom_frame_id`` and ``base_frame_id`` with the TF
+    prefix upstream's Jazzy controller gives them (``tf_frame_prefix_enable``, default true:
+    ``tf_frame_prefix``, else the controller's namespace, followed by '/'; nothing at the
+    root): 'robot_2/odom' in a swarm, 'odom' for a lone robot. A leading '/' is dropped (tf2
+    refuses frame ids that start with one) and a prefix that ends in '/' gets no second."""
+    prefix = (p.tf_frame_prefix or namespace) if p.tf_frame_prefix_enable else ""
+    prefix = prefix.strip("/")
+    prefix = f"{prefix}/" if prefix else ""
+    return prefix + p.odom_frame_id, prefix + p.base_frame_id
 
 
 def _covariance(diagonal) -> np.ndarray:
