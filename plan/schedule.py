@@ -234,6 +234,29 @@ class Schedule:
                 out.append((index, wanted))
         return out
 
+    def first_activation(self, node: str, start: int) -> int:
+        """The node's first activation at or after tick ``start`` (a window's first tick)."""
+        p = self.periods[node]
+        return -(-start // p) * p
+
+    def wanted_samples(self, edge: Edge) -> tuple[int | None, int | None] | None:
+        """The producer ticks of the first and last sample a windowed consumer can take on
+        ``edge`` in its window (first None: its window is not opened yet, so only the newest
+        sample so far may be wanted where it opens; last None: to the run's end), or None
+        for a consumer without a window. First > last: it takes none."""
+        window = self.windows.get(edge.consumer)
+        if window is None:
+            return None
+        p, q = self.periods[edge.consumer], self.periods[edge.producer]
+        back = 0 if edge.mode == SAME_TICK else 1  # a delayed input: strictly before
+
+        def wanted(k: int) -> int:
+            return (k - back) // q * q
+        first = (None if window[0] >= NEVER
+                 else wanted(self.first_activation(edge.consumer, window[0])))
+        last = None if window[1] is None else wanted((window[1] - 1) // p * p)
+        return first, last
+
     def activations(self, node: str) -> int:
         """How many times the node acts in the whole run."""
         p = self.periods[node]

@@ -99,10 +99,31 @@ class InputHistory:
         self.topic = topic
         self.msg_type = msg_type
         self.samples: deque[tuple[int, Any]] = deque()
+        self._wanted = None  # () -> Schedule.wanted_samples of a windowed consumer's edge
+
+    def keep_for(self, schedule, edge) -> None:
+        """Keep only what the consumer of ``edge`` can still take in its window
+        (``Schedule.wanted_samples``, read at each sample: a window a client opens or closes
+        mid-run counts from then on): a dormant node, before its robot enters or after it
+        left, never takes a sample and so would keep every one."""
+        if edge.consumer in schedule.windows:
+            self._wanted = lambda: schedule.wanted_samples(edge)
 
     def push_bytes(self, tick: int, data: bytes) -> None:
         """Add a serialised sample; it is deserialised only if a step ever takes it (slow
-        consumers skip most samples of a fast producer)."""
+        consumers skip most samples of a fast producer). A windowed consumer's sample that
+        no activation in its window can take is not kept (``keep_for``)."""
+        if self._wanted is not None and (span := self._wanted()) is not None:
+            first, last = span
+            if last is not None and tick > last:  # after its window: never taken
+                while self.samples and self.samples[-1][0] > last:
+                    self.samples.pop()
+                return
+            if first is None:  # not opened yet: only the newest may be wanted where it opens
+                self.samples.clear()
+            elif tick < first:  # before its window's first sample: never taken
+                self.samples.clear()
+                return
         self.samples.append((tick, data))
 
     def has(self, tick: int) -> bool:

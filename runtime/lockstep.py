@@ -175,6 +175,7 @@ class LockstepRuntime:
             else:
                 channel = InputChannel(inp.topic, inp.graph_topic, inp.msg_type, period, drives,
                                        sched.sample_ticks(inp.producer, inp.graph_topic)[0])
+            channel.history.keep_for(sched, edge)  # a dormant node keeps no samples
             self.inputs[inp.graph_topic] = channel
             self.input_subs[inp.graph_topic] = self.transport.subscription(
                 inp.graph_topic, inp.msg_type, depth)

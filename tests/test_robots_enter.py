@@ -173,3 +173,34 @@ def test_robots_that_enter_beside_controller_managers_are_refused():
     with pytest.raises(ScenarioError) as err:
         load_scenario(ROOT / "scenarios" / "swarm_urdf_control.yaml", {"events": [late]})
     assert err.value.key == "events" and "controller managers" in err.value.problem
+
+
+def test_a_dormant_node_keeps_no_input_it_cannot_take():
+    """A robot's node before its window (here a client's robot: not opened yet, then opened
+    at tick 503) and after it keeps no more samples than it can take: one while it waits,
+    none it would never take after it left (it used to keep every sample it never took)."""
+    from std_msgs.msg import String
+
+    from plan.schedule import DELAYED, NEVER, SAME_TICK, Edge, Schedule
+    from runtime.exchange import InputHistory
+
+    edges = [Edge("lidar", "physics", "/w", SAME_TICK), Edge("lidar", "physics", "/c", DELAYED)]
+    sched = Schedule(1, 1000, {"physics": 2, "lidar": 5}, edges, {"lidar": (NEVER, None)})
+    histories = []
+    for edge in sched.inputs_of["lidar"]:
+        histories.append(InputHistory(edge.topic, String))
+        histories[-1].keep_for(sched, edge)
+    held = {}
+    for k in range(0, 1001, 2):
+        if k == 504:  # the window opens before any node reaches it (the master's handshake)
+            sched.windows["lidar"] = (503, 700)
+        for history in histories:
+            history.push_bytes(k, b"x")
+        for j in (k, k + 1):
+            if sched.is_due("lidar", j):
+                for index, wanted in sched.inputs_at("lidar", j):
+                    histories[index].take_raw(wanted)
+        held[k] = max(len(h.samples) for h in histories)
+    assert max(v for k, v in held.items() if k < 504) == 1
+    assert max(v for k, v in held.items() if 504 <= k < 700) <= 4
+    assert max(v for k, v in held.items() if k >= 700) <= 1

@@ -36,6 +36,9 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                    for name in sched.order}
     histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
                  for plan in scenario.nodes.values() for inp in plan.inputs}
+    for plan in scenario.nodes.values():  # a dormant node keeps no samples
+        for edge, inp in zip(sched.inputs_of[plan.name], plan.inputs, strict=True):
+            histories[(plan.name, inp.topic)].keep_for(sched, edge)
     consumers: dict[str, list[InputHistory]] = {}
     for plan in scenario.nodes.values():
         for inp in plan.inputs:
