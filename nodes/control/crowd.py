@@ -7,17 +7,23 @@ sight on the static map, as its lidar would). Near others it drives by:
 - **ORCA** (optimal reciprocal collision avoidance; van den Berg, Guy, Lin and Manocha,
   "Reciprocal n-body collision avoidance", 2011; the linear programs of the RVO2
   library): each robot within ``crowd_horizon`` seconds of a collision bounds the velocity
-  by a half-plane, each taking half the avoiding; static scan points within reach bound it
-  as obstacles (taking all of it). The velocity nearest the pursuit's preferred one is
-  driven as a differential drive does: turning towards it, at its speed along the heading
-  (backing up where the half-planes demand it). The radius grows by ``crowd_margin`` for
-  what a differential drive cannot follow at once (NH-ORCA's tracking error).
+  by a half-plane; of the avoiding, the earlier name in the scenario's robots takes 0.3 and
+  the later 0.7 (a fixed asymmetry breaks symmetric standoffs); a robot parked at its goal
+  takes none. Static scan points within reach bound it as obstacles (all of it ours). The
+  velocity nearest the pursuit's preferred one is driven as a differential drive does:
+  turning towards it, at its speed along the heading (backing up where the half-planes
+  demand it). The radius grows by ``crowd_margin`` for what a differential drive cannot
+  follow at once (NH-ORCA's tracking error). A robot stalled YIELD_AFTER beside an earlier
+  name backs off from it for YIELD_FOR; one stalled beside robots parked at their goals
+  plans round them.
 - **Doors one way at a time**: a stretch of the plan narrower than two robots side by
-  side is used by one direction at a time. A robot holds before it while another robot
-  is in it facing the other way, or waits in front of its far end facing in, with
-  priority (the earlier name in the scenario's robots: ``priority``); a robot inside that
-  meets one of higher priority inside facing it backs out. Every robot decides from the
-  same poses by the same rule, so both sides of a door agree on who goes.
+  side (a door, a narrow corridor) is used by one direction at a time. A robot waits aside
+  (on a grid of places to the right of its way, then the left, out of the way out) while
+  another robot is in it facing the other way, or waits beyond its far end facing in with
+  an earlier name; a robot inside that meets an earlier name inside facing it backs out;
+  robots going the same way go in one at a time (the nearer the entry first). Every robot
+  decides from the same poses by the same rule, so both sides of a door agree on who goes;
+  a claim not followed within CLAIM_PATIENCE is passed (a robot stuck elsewhere).
 
 A robot among others that comes no nearer its goal (along its plan) for ``crowd_report_s``
 says by whom and where (``Crowd.blocked``).
