@@ -107,3 +107,56 @@ def test_physics_does_not_build_the_joint_states_a_broadcaster_replaces(ur, monk
     monkeypatch.setattr(batch.fm, "joint_state", built)
     out = node.step(Tick(0, 0), {})
     assert sorted(out["/joint_states"].name) == sorted(INITIAL)  # the broadcaster's
+
+
+def ur_with_an_acceleration_controller(tmp_path, inactive: list[str]):
+    """ur5e_control with its manager written as a node, its file given a second trajectory
+    controller reading acceleration, which the arm's block does not declare."""
+    import yaml
+
+    doc = yaml.safe_load(UR.read_text())
+    here = UR.parent
+    doc["world"] = str((here / doc["world"]).resolve())
+    robots = doc["robots"]
+    robots["description"] = str((here / robots["description"]).resolve())
+    robots["urdf"]["packages"] = UR_PACKAGES
+    controllers = yaml.safe_load((here / robots.pop("controllers")).read_text())
+    manager = controllers["controller_manager"]["ros__parameters"]
+    manager["accel_jtc"] = {"type": "joint_trajectory_controller/JointTrajectoryController"}
+    jtc = controllers["joint_trajectory_controller"]["ros__parameters"]
+    controllers["accel_jtc"] = {"ros__parameters": {
+        **jtc, "state_interfaces": ["position", "velocity", "acceleration"]}}
+    (tmp_path / "controllers.yaml").write_text(yaml.safe_dump(controllers))
+    params = {"controllers": str(tmp_path / "controllers.yaml"), "inactive": inactive}
+    doc["nodes"].append({"name": "controller_manager", "kind": "ros2_control", "rate": 100,
+                         "for_each": "robot", "params": params})
+    path = tmp_path / "ur_accel.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_a_state_interface_the_block_does_not_declare_is_refused(tmp_path):
+    from std_msgs.msg import String
+
+    from plan.errors import ScenarioError
+
+    lacks = "joint 'shoulder_pan_joint' has no acceleration state interface"
+    # active from the start: the scenario is refused, naming the controller and interface
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(ur_with_an_acceleration_controller(tmp_path, ["joint_trajectory_"
+                                                                    "controller"]))
+    assert f"accel_jtc: {lacks}" in str(err.value)
+    # loaded inactive: it loads, and its activation is refused, as upstream's
+    scenario = load_scenario(ur_with_an_acceleration_controller(tmp_path, ["accel_jtc"]),
+                             {"duration": "100ms"})
+    physics = make_node(scenario, "physics")
+    physics.step(Tick(0, 0), {})
+    assert any(n.startswith(f"accel_jtc: {lacks}") for n in physics.take_notes())
+    switch = String(data="#1 -joint_trajectory_controller +accel_jtc")
+    physics.step(Tick(1, TICK_NS), {"/controller_manager/cosim/switch": switch})
+    notes = physics.take_notes()
+    assert any(f"controller 'accel_jtc' cannot be activated: {lacks}" in n for n in notes)
+    metrics = physics.metrics()
+    assert metrics["ur/controller_manager/refused:1"] == 1.0
+    assert metrics["ur/controller_manager/active:accel_jtc"] == 0.0
+    assert metrics["ur/controller_manager/active:joint_trajectory_controller"] == 1.0

@@ -4,13 +4,15 @@ interface is one a joint's actuator realises, a mobile base's wheels take veloci
 physics step reads and writes it over MjData (``nodes.ros2_control.hosted.MujocoSystem``).
 
 A command interface a controller claims and MuJoCo cannot realise (a velocity command for
-a joint whose actuator is a position servo, a joint no actuator drives) is a problem naming
-the joint, found when the scenario loads.
+a joint whose actuator is a position servo, a joint no actuator drives), or a state
+interface the robot's ``<ros2_control>`` block does not declare (a robot with one), is a
+problem naming the joint and interface: found when the scenario loads for a controller
+active from the start, its activation refused for one loaded inactive, as upstream's.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 
@@ -40,11 +42,14 @@ class DriveWheels:
 @dataclass(frozen=True)
 class HardwareInfo:
     """The robot's joints (names as its controllers file gives them), the joints physics
-    takes commands for in /joint_commands order, and its drive's wheels."""
+    takes commands for in /joint_commands order, its drive's wheels, and the state
+    interfaces its ``<ros2_control>`` block declares (joint -> interfaces; None: the robot
+    has no block, and every joint reads position, velocity and effort)."""
 
     joints: tuple[str, ...]
     commands: tuple[CommandJoint, ...]
     drive: DriveWheels | None = None
+    states: dict[str, tuple[str, ...]] | None = field(default=None, hash=False)
 
     def command_interfaces(self) -> set[str]:
         """Every command interface the hardware exports (``joint/interface``)."""
@@ -67,7 +72,20 @@ class HardwareInfo:
         for name in claim.command:
             if name not in exported:
                 return [self._missing(name)]
+        if self.states is not None and not claim.every_state:
+            for name in claim.state:
+                joint, _, interface = name.rpartition("/")
+                if interface not in self.states.get(joint, ()):
+                    return [self._undeclared(joint, interface)]
         return []
+
+    def _undeclared(self, joint: str, interface: str) -> tuple[str, str]:
+        have = ", ".join(self.states.get(joint, ())) or "none"
+        return (f"joint {joint!r} has no {interface} state interface: the robot's "
+                f"<ros2_control> block does not declare it (its state interfaces: {have}).",
+                f"a controller claiming state interfaces the block declares, or <state_"
+                f"interface name=\"{interface}\"/> on joint {joint!r} in the robot's "
+                "<ros2_control> block.")
 
     def _missing(self, name: str) -> tuple[str, str]:
         joint, _, interface = name.rpartition("/")
@@ -140,7 +158,9 @@ def hardware_info(model, robot, command_joints: list[str] | None = None) -> Hard
         d = robot.drive
         drive = DriveWheels(local(d.left_joint), local(d.right_joint), d.wheel_radius,
                             d.wheel_separation)
-    return HardwareInfo(joints, tuple(commands), drive)
+    block = robot.control if robot is not None else ()
+    states = {local(c.joint): c.states for c in block if c.states} if block else None
+    return HardwareInfo(joints, tuple(commands), drive, states)
 
 
 def unservable(controllers, info: HardwareInfo) -> dict[str, str]:

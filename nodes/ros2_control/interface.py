@@ -81,6 +81,8 @@ class Claim:
 
     command: tuple[str, ...] = ()
     state: tuple[str, ...] = ()
+    every_state: bool = False  # ``state`` is upstream's ALL: the joints' interfaces the
+    # hardware has (a joint_state_broadcaster's); one the hardware lacks is no problem
 
 
 class ControllerInterface:

@@ -51,10 +51,8 @@ def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware
     info = hardware_info(model, found[0] if found else None,
                          config.params.controller_manager.command_joints)
     prefix = found[0].prefix if found else ""
-    declared = found[0].control if found else ()
-    if declared:
-        return ManagerHardware(info, {c.joint.removeprefix(prefix): c.states
-                                      for c in declared if c.states})
+    if info.states is not None:  # the block's
+        return ManagerHardware(info, dict(info.states))
     kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     moving = {model.joint(j).name[len(prefix):] for j in range(model.njnt)
               if int(model.jnt_type[j]) in kinds and model.joint(j).name.startswith(prefix)}

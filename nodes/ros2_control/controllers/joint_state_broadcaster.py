@@ -40,7 +40,8 @@ class JointStateBroadcaster(ControllerInterface):
 
     def claim(self) -> Claim:
         """Every state interface of its joints (none named: all, known at activation)."""
-        return Claim(state=tuple(f"{j}/{i}" for j in self.params.joints for i in INTERFACES))
+        return Claim(state=tuple(f"{j}/{i}" for j in self.params.joints for i in INTERFACES),
+                     every_state=True)
 
     def notes(self) -> list[str]:
         """frame_id, when given, is not applied."""
