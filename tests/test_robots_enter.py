@@ -204,3 +204,43 @@ def test_a_dormant_node_keeps_no_input_it_cannot_take():
     assert max(v for k, v in held.items() if k < 504) == 1
     assert max(v for k, v in held.items() if 504 <= k < 700) <= 4
     assert max(v for k, v in held.items() if k >= 700) <= 1
+
+
+def _imu_run(tmp_path, events: str) -> dict[str, list]:
+    """swarm_enter with IMUs, given ``events``, over 1 s in-process: each robot's /imu
+    readings (gyro and accelerometer) by tick."""
+    from sensor_msgs.msg import Imu
+
+    from runtime.cdr.decode import decode
+
+    text = SCENARIO.read_text().replace("../../scenarios/", str(ROOT / "scenarios") + "/")
+    head, _, rest = text.partition("events:\n")
+    path = tmp_path / f"imu{len(list(tmp_path.iterdir()))}.yaml"
+    path.write_text(head + events + "success:" + rest.partition("success:")[2]
+                    .replace("params: {imu: null}", "params: {}"))
+    readings: dict[str, list] = collections.defaultdict(list)
+
+    def observe(k: int, name: str, items) -> None:
+        for topic, data in items:
+            if topic.endswith("/imu"):
+                msg = decode(data, Imu)
+                w, a = msg.angular_velocity, msg.linear_acceleration
+                readings[topic].append((k, w.x, w.y, w.z, a.x, a.y, a.z))
+
+    run_in_process(load_scenario(path, {"duration": "1s"}), observe)
+    return readings
+
+
+def test_a_robot_that_enters_leaves_every_imu_bias_and_noise_as_it_was(tmp_path):
+    """A robot entering (or leaving) redrew every robot's IMU bias and took noise from the
+    others' generator: robot_0's and robot_1's readings are now those of a run without it,
+    and the one that enters draws from a generator of its own name, the same whenever it
+    enters (at rest where it enters: its first reading the same at 0.4 s or 0.6 s)."""
+    late = ("events:\n  - {at: %s, robot: {name: late, start: {x: -2.5, y: 0.0}, "
+            "goal: {x: -1.2, y: 0.0}}}\n  - {at: 800ms, delete: late}\n")
+    without = _imu_run(tmp_path, "")
+    early, later = _imu_run(tmp_path, late % "400ms"), _imu_run(tmp_path, late % "600ms")
+    for robot in ("/robot_0/imu", "/robot_1/imu"):
+        assert early[robot] == without[robot] == later[robot]
+    assert early["/late/imu"][0][0] == 20 and later["/late/imu"][0][0] == 30
+    assert early["/late/imu"][0][1:] == later["/late/imu"][0][1:]

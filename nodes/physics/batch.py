@@ -134,6 +134,10 @@ class SwarmBook:
             self.quat = np.array([[u.quat.start + k for k in range(4)] for u in imus])
             self.imu_noise = np.stack([u.noise for u in imus])
             self.imu_bias = np.stack([u.bias for u in imus])
+            rngs: dict[int, tuple[np.random.Generator, list[int]]] = {}
+            for k, u in enumerate(imus):  # the node's generator; a robot that entered: its own
+                rngs.setdefault(id(u.rng), (u.rng, []))[1].append(k)
+            self.imu_rngs = [(rng, np.array(ks)) for rng, ks in rngs.values()]
         self.n = n
 
     def base_poses(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -216,11 +220,16 @@ class SwarmBook:
         return self._frames(data, poses) if tf else []
 
     def _imu(self, data: mujoco.MjData, out: dict[str, Any]) -> None:
-        """SimulatedImu.measure for every IMU: one draw of the generator for all of them
-        (the same numbers, in the same order, as one draw of nine per robot)."""
+        """SimulatedImu.measure for every IMU: one draw of each generator for all the IMUs
+        it serves (the same numbers, in the same order, as one draw of nine per robot)."""
         s = data.sensordata
-        rng = self.imus[0][1].rng
-        draw = rng.normal(size=(len(self.imus), 9)) * self.imu_noise
+        if len(self.imu_rngs) == 1:
+            draw = self.imu_rngs[0][0].normal(size=(len(self.imus), 9))
+        else:
+            draw = np.empty((len(self.imus), 9))
+            for rng, ks in self.imu_rngs:
+                draw[ks] = rng.normal(size=(len(ks), 9))
+        draw *= self.imu_noise
         gyro = (s[self.gyro] + self.imu_bias[:, :3] + draw[:, :3]).tolist()
         accel = (s[self.accel] + self.imu_bias[:, 3:] + draw[:, 3:6]).tolist()
         quats = s[self.quat]

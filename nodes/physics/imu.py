@@ -68,7 +68,10 @@ def imu_problems(model: mujoco.MjModel, params: ImuParams) -> list[tuple[str, st
 class SimulatedImu:
     """Reads the IMU's MuJoCo sensors and adds seeded noise; builds sensor_msgs/Imu."""
 
-    def __init__(self, model: mujoco.MjModel, params: ImuParams, rng: np.random.Generator):
+    def __init__(self, model: mujoco.MjModel, params: ImuParams, rng: np.random.Generator,
+                 bias: np.ndarray | None = None):
+        """Its sensors in ``model``; its bias drawn from ``rng`` (which then draws its
+        noise), or ``bias`` carried over from the same IMU in a world recompiled."""
         self.params = params
         self.rng = rng
         adr = {key: int(model.sensor_adr[mujoco.mj_name2id(model, SENSOR, getattr(params, key))])
@@ -79,8 +82,8 @@ class SimulatedImu:
         p = params
         self.noise = np.repeat([p.angular_velocity_stddev, p.linear_acceleration_stddev,
                                 p.orientation_stddev], 3)
-        self.bias = rng.normal(size=6) * np.repeat([p.angular_velocity_bias_stddev,
-                                                    p.linear_acceleration_bias_stddev], 3)
+        self.bias = bias if bias is not None else rng.normal(size=6) * np.repeat(
+            [p.angular_velocity_bias_stddev, p.linear_acceleration_bias_stddev], 3)
         self.covariance = [_diagonal(s * s) for s in (p.orientation_stddev,
                                                       p.angular_velocity_stddev,
                                                       p.linear_acceleration_stddev)]

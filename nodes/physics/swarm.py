@@ -27,7 +27,7 @@ from tf2_msgs.msg import TFMessage
 from descriptions.readers import robot_description_text
 from descriptions.robot_model import RobotModel
 from descriptions.world_geometry import floor_mask
-from nodes.contract import Tick
+from nodes.contract import Tick, node_seed
 from nodes.physics import messages as m
 from nodes.physics.batch import IMU, SwarmBook, SwarmDrives
 from nodes.physics.described_rig import (
@@ -85,12 +85,22 @@ def robot_params(params, robot: str, namespace: str | None = None):
         "tf": tf, "imu": imu, "start": None})
 
 
+def robot_rng(rng: np.random.Generator, robot: str) -> np.random.Generator:
+    """The generator of a robot that enters a running world (its IMU's bias and noise):
+    seeded by the node's seed (``rng``'s) and the robot's name, so its draws are the same
+    whatever tick it enters at, and the draws of the robots already there are unchanged."""
+    return np.random.default_rng(node_seed(rng.bit_generator.seed_seq.entropy, robot))
+
+
 class Rig:
     """One robot of the world, as its model describes it: its base (free, or fixed to the
     world), drive, commanded joints, frames, IMU and goal."""
 
     def __init__(self, model: mujoco.MjModel, robot: RobotModel, params, rng: np.random.Generator,
-                 goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None):
+                 goal: dict[str, float] | None, joint_goal: dict[str, Any] | None = None,
+                 imu: SimulatedImu | None = None):
+        """``rng`` draws its IMU's bias and noise; ``imu``: its IMU in the world before a
+        recompile, whose bias and generator it keeps."""
         self.name = robot.name
         self.described = None  # a described robot's joint states and links (its model's)
         if robot.described:
@@ -132,7 +142,10 @@ class Rig:
         self.topics = {t: namespaced(robot.namespace, t) for t in
                        (CMD_VEL, JOINT_COMMANDS, MIRROR_TOPIC, MIRROR_JOINTS_TOPIC, ODOM,
                         JOINT_STATES, IMU, ROBOT_DESCRIPTION)}
-        self.imu = SimulatedImu(model, params.imu, rng) if params.imu else None
+        self.imu = None
+        if params.imu:
+            self.imu = (SimulatedImu(model, params.imu, rng) if imu is None
+                        else SimulatedImu(model, params.imu, imu.rng, imu.bias))
         self.frames = None  # nodes.physics.frames.RobotFrames, whatever describes the robot
         if params.tf is not None and self.described is not None:
             self.frames = self.described.frames(params.tf)
@@ -364,7 +377,9 @@ class SwarmPhysics:
     def _rebind_robots(self, moved: np.ndarray) -> None:
         """Make every rig again for the recompiled world with the robots in it now (the
         live world's), each one that was there keeping its drive, goal, collision counts and
-        path; a robot that entered starts at rest where its event put it."""
+        path and its IMU's bias and noise generator; a robot that entered starts at rest
+        where its event put it, its IMU drawing from a generator of its own (``robot_rng``:
+        the same whenever it enters, and the others' draws unchanged)."""
         old = {rig.name: rig for rig in self.rigs}
         paths = {rig.name: self.book.path_length(rig) for rig in self.rigs}
         last = self.book.last_xy
@@ -375,9 +390,11 @@ class SwarmPhysics:
         for robot in self.all_robots:
             if robot.name not in self.live.robots:
                 continue
-            rig = Rig(self.model, robot, self.params, self.rng,
-                      self.layout.goal_of(robot.name), None)
             prev = old.get(robot.name)
+            rig = Rig(self.model, robot, self.params,
+                      robot_rng(self.rng, robot.name) if prev is None else self.rng,
+                      self.layout.goal_of(robot.name), None,
+                      None if prev is None else prev.imu)
             if prev is None:
                 self.entered.append(rig)
             else:
