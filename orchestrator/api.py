@@ -163,17 +163,25 @@ def spawn_robot_swarm(scenario: str | Path | Scenario, count: int, *, at: str | 
 
 def _with_events(scenario: str | Path | Scenario, events: list[Event]) -> dict[str, Any]:
     """The override of ``events`` that adds ``events`` to the scenario's own, in time order
-    (those at one time in the order given, after the scenario's)."""
+    (those at one time in the order given, after the scenario's). The scenario's own are
+    its file's (with a loaded Scenario's overrides) as written: the checked model's have
+    their robots' urdf:/usd: settings read out into the plan."""
     from plan.events import parse_time_ns
+    from plan.load import read_raw
 
     if isinstance(scenario, Scenario):
-        own = scenario.model
+        raw = read_raw(scenario.file, scenario.overrides)
     else:
-        own = load_scenario(scenario).model
-    items = [{**e.model_dump(mode="json", exclude_none=True, exclude={"at"}),
-              "at": f"{e.at}ns"} for e in own.events]
-    items += [dict(e) for e in events]
-    items.sort(key=lambda e: parse_time_ns(e["at"]))  # stable: the given order kept
+        raw = read_raw(scenario)
+    own = raw.get("events") if isinstance(raw, dict) else None
+    items = [*(own if isinstance(own, list) else []), *(dict(e) for e in events)]
+
+    def when(event: Any) -> int:
+        try:
+            return parse_time_ns(event["at"])
+        except (TypeError, KeyError, ValueError):
+            return -1  # not a time: the load that follows names its key
+    items.sort(key=when)  # stable: the given order kept
     return {"events": items}
 
 

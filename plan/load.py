@@ -53,6 +53,17 @@ def read_scenario(path: str | Path, worlds: WorldReader,
         raise blame_override(exc, raw, overridden, overrides) from None
 
 
+def read_raw(path: str | Path, overrides: dict[str, Any] | None = None) -> dict:
+    """The scenario file's YAML as written, with ``overrides`` applied, unchecked: what a
+    front end adds to before loading it (its robots' urdf:/usd: settings and relative
+    paths as the file has them). ScenarioError for a file that cannot be read."""
+    path = Path(path)
+    raw, _ = _read_yaml(path)
+    for key, value in (overrides or {}).items():
+        apply_override(raw, key, value, path)
+    return raw
+
+
 def _validate(path: Path, raw: dict) -> tuple[ScenarioModel | None, list[ScenarioError]]:
     """The schema's model of ``raw`` and every problem pydantic finds in it. When the only
     problems are unknown keys, the model is that of the file without them: a key the schema

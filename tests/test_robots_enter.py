@@ -244,3 +244,17 @@ def test_a_robot_that_enters_leaves_every_imu_bias_and_noise_as_it_was(tmp_path)
         assert early[robot] == without[robot] == later[robot]
     assert early["/late/imu"][0][0] == 20 and later["/late/imu"][0][0] == 30
     assert early["/late/imu"][0][1:] == later["/late/imu"][0][1:]
+
+
+def test_events_added_to_a_loaded_scenario_keep_its_robots_settings():
+    """orchestrator.api adding an event to a loaded Scenario re-read the scenario's events
+    from its checked model, which holds no urdf:/usd: settings any more: swarm_enter's
+    late robot lost its packages (exit 2: package 'mybot_description' not found)."""
+    from orchestrator.api import load, spawn_object
+
+    loaded = load(SCENARIO, duration="2s")
+    more = load(loaded, events=[spawn_object("crate", at="1s", shape="box",
+                                             pose=(1.0, 1.0), size=(0.2, 0.2, 0.2))])
+    assert [e.name for e in more.model.events] == ["gone", "late", "crate", "gone"]
+    assert more.schedule.windows == loaded.schedule.windows
+    assert more.schedule.last_tick == loaded.schedule.last_tick  # its overrides kept
