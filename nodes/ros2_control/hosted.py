@@ -30,45 +30,22 @@ import numpy as np
 
 from nodes.ros2_control.hardware import HardwareInfo, hardware_info, unservable
 from nodes.ros2_control.interface import Fresh, JointReading
-from nodes.ros2_control.manager import ControllerManager, load, resolve
+from nodes.ros2_control.manager import ControllerManager, resolve
 from nodes.ros2_control.node import (  # noqa: F401 - the physics node's names for them
     SWITCH_TOPIC,
     SWITCH_TYPE,
     ControllerManagerParams,
     HostedManagerParams,
     at_start,
+    client_inputs,
     message_type_name,
+    publications,
     read,
+    subscriptions,
     takes_hardware,
 )
 from nodes.ros2_control.requests import apply_request, request_lines
 from plan.robots import namespaced
-
-
-def publications(params: ControllerManagerParams) -> dict[str, type]:
-    """Every loaded controller's published topics, under the graph's names for one robot."""
-    out: dict[str, type] = {}
-    for name, ctrl in load(read(params)).items():
-        if ctrl is not None:
-            out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
-    return out
-
-
-def subscriptions(params: ControllerManagerParams) -> dict[str, type]:
-    """Every loaded controller's subscribed topics and the switch topic, for one robot."""
-    from std_msgs.msg import String
-
-    out: dict[str, type] = {SWITCH_TOPIC: String}
-    for name, ctrl in load(read(params)).items():
-        if ctrl is not None:
-            out.update({resolve(name, t): m for t, m in ctrl.subscriptions().items()})
-    return out
-
-
-def client_inputs(params: ControllerManagerParams) -> dict[str, str]:
-    """What ROS 2 clients feed an interactive run: switches, command topics, goals."""
-    return {SWITCH_TOPIC: SWITCH_TYPE, **{t: message_type_name(m) for t, m in
-                                          subscriptions(params).items() if t != SWITCH_TOPIC}}
 
 
 class MujocoSystem:

@@ -104,6 +104,31 @@ def message_type_name(cls: type) -> str:
     return f"{package}/{kind}/{cls.__name__}"
 
 
+def publications(params: ControllerManagerParams) -> dict[str, type]:
+    """Every loaded controller's published topics, under the graph's names for one robot."""
+    out: dict[str, type] = {}
+    for name, ctrl in load(read(params)).items():
+        if ctrl is not None:
+            out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
+    return out
+
+
+def subscriptions(params: ControllerManagerParams) -> dict[str, type]:
+    """The switch topic and every loaded controller's subscribed topics, for one robot."""
+    out: dict[str, type] = {SWITCH_TOPIC: String}
+    for name, ctrl in load(read(params)).items():
+        if ctrl is not None:
+            out.update({resolve(name, t): m for t, m in ctrl.subscriptions().items()})
+    return out
+
+
+def client_inputs(params: ControllerManagerParams) -> dict[str, str]:
+    """What ROS 2 clients feed an interactive run: controller switches, each controller's
+    command topics and the trajectory controllers' action goals."""
+    return {SWITCH_TOPIC: SWITCH_TYPE, **{t: message_type_name(m) for t, m in
+                                          subscriptions(params).items() if t != SWITCH_TOPIC}}
+
+
 def at_start(params: ControllerManagerParams, file: c.ControllersFile) -> list[str]:
     """The controllers active from the start: every one not listed in ``inactive``."""
     return [e.name for e in file.controllers if e.name not in params.inactive]
@@ -119,24 +144,13 @@ class ControllerManagerNode(StepNode):
 
     @classmethod
     def outputs(cls, params: ControllerManagerParams) -> dict[str, type]:
-        """Every controller's published topics."""
-        out: dict[str, type] = {}
-        for name, ctrl in load(read(params)).items():
-            if ctrl is not None:
-                out.update({resolve(name, t): m for t, m in ctrl.publications().items()})
-        return out
-
-    @classmethod
-    def _subscriptions(cls, params: ControllerManagerParams) -> dict[str, type]:
-        return {resolve(name, t): m for name, ctrl in load(read(params)).items()
-                if ctrl is not None for t, m in ctrl.subscriptions().items()}
+        """Every controller's published topics (``publications``)."""
+        return publications(params)
 
     @classmethod
     def client_inputs(cls, params: ControllerManagerParams) -> dict[str, str]:
-        """What ROS 2 clients feed an interactive run: each controller's command topics, the
-        trajectory controllers' action goals, and controller switches."""
-        return {SWITCH_TOPIC: SWITCH_TYPE, **{t: message_type_name(m) for t, m in
-                                              cls._subscriptions(params).items()}}
+        """What ROS 2 clients feed an interactive run (``client_inputs``)."""
+        return client_inputs(params)
 
     @classmethod
     def accepted_inputs(cls, params: ControllerManagerParams) -> set[str]:
@@ -145,8 +159,8 @@ class ControllerManagerNode(StepNode):
 
     @classmethod
     def input_types(cls, params: ControllerManagerParams) -> dict[str, type]:
-        """The switch topic's and the command topics' types."""
-        return {SWITCH_TOPIC: String, **cls._subscriptions(params)}
+        """The switch topic's and the command topics' types (``subscriptions``)."""
+        return subscriptions(params)
 
     @classmethod
     def world_problems(cls, params: ControllerManagerParams, model, goal
