@@ -16,7 +16,7 @@ from pydantic import BaseModel
 from plan.model import NodeSpec, ScenarioModel
 from plan.robots import RobotsLayout
 from plan.roles import NodeRole
-from plan.schedule import Schedule
+from plan.schedule import Schedule, first_activation
 from plan.timeutil import Ns
 
 EXTERNAL_NAME = "external"  # the node that the scenario's external: section becomes
@@ -72,7 +72,7 @@ class NodePlan:
             if own not in self.latched:
                 continue
             if window is not None and window[0] > 0:
-                if tick == -(-window[0] // p) * p:
+                if tick == first_activation(p, window[0]):
                     due_latched.add(own)
             elif first or tick in self.relatch:
                 due_latched.add(own)

@@ -90,6 +90,12 @@ Window = tuple[int, int | None]  # [start, end) in ticks; end None: to the run's
 NEVER = 1 << 62  # the start of a window not opened yet (a robot a client may bring in)
 
 
+def first_activation(period: int, start: int) -> int:
+    """The first activation at or after tick ``start`` of a node acting every ``period``
+    ticks (its first in a window that starts at ``start``)."""
+    return -(-start // period) * period
+
+
 class Schedule:
     """Who acts at each tick, in which order, and which producer tick each input consumes."""
 
@@ -140,8 +146,7 @@ class Schedule:
         if window is None:
             return 0, None
         start, end = window
-        first = -(-start // p) * p
-        return first, None if end is None else (end - 1) // p * p
+        return first_activation(p, start), None if end is None else (end - 1) // p * p
 
     def carries(self, producer: str, topic: str, tick: int) -> bool:
         """Whether the producer's activation at ``tick`` publishes ``topic``."""
@@ -236,8 +241,7 @@ class Schedule:
 
     def first_activation(self, node: str, start: int) -> int:
         """The node's first activation at or after tick ``start`` (a window's first tick)."""
-        p = self.periods[node]
-        return -(-start // p) * p
+        return first_activation(self.periods[node], start)
 
     def wanted_samples(self, edge: Edge) -> tuple[int | None, int | None] | None:
         """The producer ticks of the first and last sample a windowed consumer can take on
@@ -257,15 +261,16 @@ class Schedule:
         last = None if window[1] is None else wanted((window[1] - 1) // p * p)
         return first, last
 
-    def activations(self, node: str) -> int:
-        """How many times the node acts in the whole run."""
+    def activations(self, node: str, until: int | None = None) -> int:
+        """How many times the node acts in ticks [0, ``until``) (default: the whole run),
+        inside its window (``windows``) if it has one."""
         p = self.periods[node]
-        window = self.windows.get(node)
-        if window is None:
-            return self.last_tick // p + 1
-        first = -(-window[0] // p) * p
-        last = self.last_tick if window[1] is None else min(self.last_tick, window[1] - 1)
-        return max(0, last // p * p - first) // p + 1 if last >= first else 0
+        last = self.last_tick if until is None else min(until - 1, self.last_tick)
+        first, window = 0, self.windows.get(node)
+        if window is not None:
+            first = first_activation(p, window[0])
+            last = last if window[1] is None else min(last, window[1] - 1)
+        return (last // p * p - first) // p + 1 if last >= first else 0
 
     def history_depth(self, edge: Edge) -> int:
         """History to keep on both sides of an edge: the samples a consumer may hold between

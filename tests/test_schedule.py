@@ -280,3 +280,20 @@ def test_delayed_edges_never_make_a_cycle(s):
     # turning every edge delayed keeps it acyclic whatever the direction
     flipped = [Edge(e.producer, e.consumer, e.topic, DELAYED) for e in s.edges]
     assert find_same_tick_cycle(list(s.periods), flipped) is None
+
+
+@BOUNDED
+@given(st.integers(1, 7), st.integers(0, 40), st.one_of(st.none(), st.integers(0, 45)))
+def test_a_windowed_nodes_activations_up_to_any_tick_are_counted_once(period, start, end):
+    """Schedule.activations(node, until=) and first_activation: the one count of a windowed
+    node's activations (the manifest's, the plan's latched outputs', the samples')."""
+    from plan.schedule import first_activation
+
+    s = Schedule(1, 40, {"a": 1, "n": period}, [Edge("n", "a", "/t", SAME_TICK)],
+                 {"n": (start, end)})
+    due = [k for k in range(s.n_ticks) if s.is_due("n", k)]
+    assert s.first_activation("n", start) == first_activation(period, start)
+    assert not due or due[0] == first_activation(period, start)
+    for until in range(s.n_ticks + 3):
+        assert s.activations("n", until=until) == len([k for k in due if k < until])
+    assert s.activations("n") == len(due)

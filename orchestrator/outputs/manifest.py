@@ -68,14 +68,7 @@ def node_entry(stats, proc) -> dict[str, Any]:
 def _served(schedule, name: str, ticks: int) -> int:
     """How many activations node ``name`` served in the first ``ticks`` ticks (a robot's
     node only inside its robot's window: ``plan.schedule``)."""
-    if not ticks:
-        return 0
-    period, window = schedule.periods[name], schedule.windows.get(name)
-    if window is None:
-        return (ticks - 1) // period + 1
-    first = -(-window[0] // period) * period
-    last = ticks - 1 if window[1] is None else min(ticks - 1, window[1] - 1)
-    return (last // period * period - first) // period + 1 if last >= first else 0
+    return schedule.activations(name, until=ticks)
 
 
 def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str, Any]:
