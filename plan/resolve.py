@@ -21,7 +21,14 @@ from plan.external_node import complete_model
 from plan.hardware_wiring import fold_managers, hand_wiring_notices, with_robot_managers
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
-from plan.robots import BY_CLIENT, RobotPlacement, RobotsLayout, namespaced, robot_of
+from plan.robots import (
+    BY_CLIENT,
+    RobotPlacement,
+    RobotsLayout,
+    namespace_in,
+    namespaced,
+    robot_of,
+)
 from plan.roles import role_of
 from plan.scenario import NodePlan, Scenario
 from plan.schedule import NEVER, Edge, Schedule, Window
@@ -311,13 +318,9 @@ def unconsumed_remaps(path: Path, nodes: dict[str, NodePlan], edges: list[Edge],
     """Warnings for outputs remapped to a name no node consumes (allowed: ROS tools see it);
     a template's own topics in its robot's namespace are no remap of the scenario's."""
     consumed = {e.topic for e in edges}
-
-    def namespace(node: str) -> str:
-        robot = robot_of(node) or ""
-        return layout.namespace_of(robot) if robot and layout is not None else robot
     return [ScenarioNotice(path, f"nodes ({plan.name}).remap.{own}", f"{graph} is published "
                           "but no node of the scenario consumes it (only ROS tools will see "
                           "it).", "a remap to a topic a node of the scenario consumes.")
             for plan in nodes.values() for own, graph in plan.output_names.items()
             if own != graph and graph not in consumed
-            and graph != namespaced(namespace(plan.name), own)]
+            and graph != namespaced(namespace_in(layout, robot_of(plan.name)), own)]

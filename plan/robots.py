@@ -105,10 +105,8 @@ class RobotsLayout:
         return self.placement(name).base_body or self.base_body
 
     def namespace_of(self, name: str) -> str:
-        """Robot ``name``'s ROS namespace ('' for the root); a robot the section does not
-        place is under its name."""
-        robot = next((r for r in self.robots if r.name == name), None)
-        return name if robot is None or robot.namespace is None else robot.namespace
+        """Robot ``name``'s ROS namespace ('' for the root): ``namespace_in``."""
+        return namespace_in(self, name)
 
     def goal_of(self, name: str) -> dict[str, float]:
         """The goal of robot ``name`` as the scenario's ``goal:`` would give it."""
@@ -140,6 +138,19 @@ def robot_namespace(section, robot: str) -> str:
                                    robot in {f"{section.name_prefix}_{i}"
                                              for i in range(section.count)})
     return robot if several or not placed else ""
+
+
+def namespace_in(layout: RobotsLayout | None, robot: str | None) -> str:
+    """The ROS namespace of robot ``robot`` of a resolved scenario whose ``robots:`` section
+    is ``layout`` (None without one), the one reading of it once the robots are placed: ''
+    for no robot (a world node, nav's unnamed robot); the robot's name where no layout
+    places it; else what placement gave it (``robot_namespace``: '' a lone robot at the
+    root, its entry's namespace, its name in a swarm)."""
+    if not robot:
+        return ""
+    placed = None if layout is None else next((r for r in layout.robots if r.name == robot),
+                                              None)
+    return robot if placed is None or placed.namespace is None else placed.namespace
 
 
 def robot_namespaces(section, robots: list[str] | None) -> list[str] | None:

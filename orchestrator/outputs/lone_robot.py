@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from plan.robots import namespaced
+from plan.robots import namespace_in, namespaced
 
 
 def lone_robot(scenario) -> str | None:
@@ -23,7 +23,7 @@ def topics_of(scenario, topics: tuple[str, ...]) -> dict[str, str]:
     """Each of nav's ``topics`` -> the topic the run has it on (under its lone robot's
     namespace, if it has one)."""
     robot = lone_robot(scenario)
-    namespace = scenario.robots.namespace_of(robot) if robot else ""
+    namespace = namespace_in(scenario.robots, robot)
     return {t: namespaced(namespace, t) for t in topics}
 
 

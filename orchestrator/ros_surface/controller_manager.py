@@ -50,7 +50,7 @@ from nodes.ros2_control.switching import STRICTNESS, plan_switch
 from orchestrator.ros_surface import controller_hardware as hardware
 from orchestrator.ros_surface.controller_actions import FACES
 from orchestrator.ros_surface.simcontrol import PAUSED, RunControl
-from plan.robots import namespaced
+from plan.robots import namespace_in, namespaced
 from plan.scenario import EXTERNAL_NAME, Scenario
 from runtime.arrivals import Arrivals
 
@@ -409,20 +409,11 @@ def controller_managers(node, group, scenario: Scenario, control: RunControl,
             continue
         fed = {inp.topic for inp in plan.inputs if inp.producer == EXTERNAL_NAME}
         for robot in plan.spec.robots or [""]:
-            namespace = _namespace(scenario, robot)
+            namespace = namespace_in(scenario.robots, robot)
             if namespaced(namespace, SWITCH_TOPIC) in fed:
                 out.append(ControllerManagerServer(node, group, control, arrivals, plan,
                                                    answering, scenario, robot, namespace))
     return out
-
-
-def _namespace(scenario: Scenario, robot: str) -> str:
-    """Robot ``robot``'s ROS namespace ('' the root; its name in a swarm)."""
-    layout = scenario.robots
-    if not robot or layout is None:
-        return robot
-    namespace_of = getattr(layout, "namespace_of", None)
-    return namespace_of(robot) if namespace_of is not None else robot
 
 
 def _local(topic: str, namespace: str) -> str:

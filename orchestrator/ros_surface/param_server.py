@@ -23,7 +23,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from nodes.live_params import change_message, flatten, with_changes
 from orchestrator.ros_surface.simcontrol import RunControl
 from plan.interactive import params_topic
-from plan.robots import robot_of, ros_identity
+from plan.robots import namespace_in, robot_of, ros_identity
 from plan.scenario import EXTERNAL_NAME, NodePlan
 from plan.validation import describe_validation_error, field_of, inner_model
 from runtime.arrivals import Arrivals
@@ -126,9 +126,7 @@ def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, cont
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
     for plan in scenario.nodes.values():
         if plan.role.runs_step_runtime:
-            robot = robot_of(plan.name)
-            namespace = (scenario.robots.namespace_of(robot)
-                         if robot and scenario.robots is not None else None)
+            namespace = namespace_in(scenario.robots, robot_of(plan.name))
             yield NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control,
                                  period, namespace)
 
