@@ -52,16 +52,23 @@ def place_robots(path: Path, spec: RobotsSpec, obstacles: list[Obstacle], footpr
 def _namespaced(where: _Where, spec: RobotsSpec, robots: list[RobotPlacement]
                 ) -> list[RobotPlacement]:
     """Each robot with its ROS namespace (``plan.robots.robot_namespace``: a lone robot at
-    the root unless it names one); two robots in one namespace are refused."""
+    the root unless it names one); two robots in one namespace are refused, at the entry
+    whose ``namespace`` key gives it (the later one's where both do)."""
     out: list[RobotPlacement] = []
     taken: dict[str, str] = {}
+    entries = {e.name: (i, e) for i, e in enumerate(spec.named or [])}
+
+    def key_of(name: str) -> str | None:
+        i, entry = entries.get(name, (None, None))
+        return None if entry is None or entry.namespace is None else \
+            f"robots.named[{i}].namespace"
     for robot in robots:
         namespace = robot_namespace(spec, robot.name)
         if namespace in taken:
-            i = next(i for i, e in enumerate(spec.named or []) if e.name == robot.name)
-            raise where.fail(f"robots.named[{i}].namespace", f"robots {taken[namespace]!r} and "
-                             f"{robot.name!r} would share the namespace {namespace!r}.",
-                             "a distinct namespace per robot.")
+            first = taken[namespace]
+            raise where.fail(key_of(robot.name) or key_of(first) or "robots.named",
+                             f"robots {first!r} and {robot.name!r} would share the namespace "
+                             f"{namespace!r}.", "a distinct namespace per robot.")
         taken[namespace] = robot.name
         out.append(replace(robot, namespace=namespace))
     return out

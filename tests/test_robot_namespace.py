@@ -85,9 +85,14 @@ def test_two_robots_are_each_under_their_namespace(tmp_path):
     assert scan["/scan"].header.frame_id == "other/base_scan"
 
 
-def test_two_robots_in_one_namespace_are_refused(tmp_path):
+def test_two_robots_in_one_namespace_are_refused_at_the_key_that_gives_it(tmp_path):
+    # mybot's entry says namespace: other; robot 'other' has none (its name is its namespace)
     with pytest.raises(ScenarioError, match="share the namespace 'other'") as err:
         load_scenario(two_robots(tmp_path, namespace="other"))
+    assert err.value.key == "robots.named[0].namespace"
+    # the second entry says namespace: mybot, the first robot's by its name
+    with pytest.raises(ScenarioError, match="share the namespace 'mybot'") as err:
+        load_scenario(two_robots(tmp_path), {"robots.named.other.namespace": "mybot"})
     assert err.value.key == "robots.named[1].namespace"
 
 
