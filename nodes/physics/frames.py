@@ -145,7 +145,7 @@ class RobotFrames:
     ``has_moving`` and ``moving(data)``, descriptions.robot_state.RobotStateFrames).
 
     ``mjcf_frames`` makes one for an MJCF robot (frames named after its bodies, sites and
-    cameras), ``nodes.physics.described_rig.described_frames`` for a described one (URDF,
+    cameras), ``nodes.physics.described_rig.DescribedRobot.frames`` for a described one (URDF,
     xacro, USD: frames named after its links)."""
 
     def __init__(self, params: TfParams, odom_frame: str, base_frame: str,
