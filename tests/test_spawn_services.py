@@ -125,6 +125,38 @@ def test_the_spawner_checks_requests_against_what_is_in_the_world_then():
     assert sorted(spawner.live()) == ["ball_1"]
 
 
+def test_clients_name_only_the_scenarios_spawnables(tmp_path):
+    """A file a client names (SpawnEntity's uri, a resource_string's mesh, GetSpawnables'
+    sources) is served only from the scenario's spawnables: and their folders; any other
+    host path is refused alike whether it exists or not, the message naming the fix."""
+    import shutil
+
+    from descriptions.load import load_scenario
+    from orchestrator.ros_surface.sim_spawn import object_spawner
+    from orchestrator.ros_surface.simcontrol import RunControl
+    from orchestrator.ros_surface.spawnables import list_spawnables
+    from runtime.arrivals import Arrivals
+
+    scenario = load_scenario(ROOT / "tests" / "scenarios" / "spawn_short.yaml",
+                             {"interactive": True, "spawnables": [str(MESH.parent)]})
+    control = RunControl(scenario.tick_ns, paused=True)
+    spawner = object_spawner(scenario, control, Arrivals(scenario.nodes["external"].outputs))
+    control.boundary = 5
+    other = tmp_path / "elsewhere.stl"
+    shutil.copy(MESH, other)
+    assert spawner.spawn(request(0, 3, name="m", uri=f"file://{MESH}"))[0] == OK
+    for uri in (str(other), "/etc/hostname", "/no/such.stl", f"file://{MESH.parent}/../x"):
+        code, message, _ = spawner.spawn(request(0, 3, name="n", uri=uri))
+        assert code == R.NO_RESOURCE and "add it, or its folder, to spawnables:" in message, \
+            message
+    named = DRUM.replace('<cylinder radius="0.12" length="0.4"/>', f'<mesh filename="{other}"/>')
+    code, message, _ = spawner.spawn(request(0, 3, name="n", resource=named))
+    assert code == R.MISSING_ASSETS and "spawnables:" in message, message
+    found, unknown = list_spawnables(scenario, [str(tmp_path), "/etc", str(MESH.parent)])
+    assert found and all(uri.startswith(f"file://{MESH.parent}/") for uri, _ in found)
+    assert len(unknown) == 2 and all("spawnables:" in why for why in unknown), unknown
+
+
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory):
     """spawn_short without its events and camera, interactive, 2 s."""
@@ -192,7 +224,7 @@ def session(sim: SimClient, checks: bool) -> int:
                         if f.suffix in (".urdf", ".xacro", ".usd", ".usda", ".xml"))
         assert [f"file://{f}" for f in folder] == list(listed)[:len(folder)]
         assert listed[f"file://{ROOT / 'scenarios' / 'worlds' / 'robot.xml'}"] == "the nav robot"
-        assert spawnables.result.result == OK
+        assert spawnables.result.result == Result.RESULT_NOT_FOUND  # not a spawnable
         assert "/no/such/folder" in spawnables.result.error_message
         assert crate.result.result == OK and crate.entity_name == "crate", crate.result
         assert "tick 10" in crate.result.error_message

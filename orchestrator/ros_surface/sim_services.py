@@ -265,9 +265,8 @@ class SimServices:
 
         found, unknown = list_spawnables(self.scenario, list(request.sources))
         response.spawnables = [Spawnable(uri=uri, description=text) for uri, text in found]
-        response.result = _result(Result.RESULT_OK, "" if not unknown else
-                                  "not recognised (not a file or folder here): "
-                                  + ", ".join(unknown))
+        response.result = (_result(Result.RESULT_OK, "") if not unknown else _result(
+            Result.RESULT_NOT_FOUND, "sources not listed: " + " ".join(unknown)))
         return response
 
     def _get_state(self, request, response):

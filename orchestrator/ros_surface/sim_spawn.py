@@ -19,6 +19,7 @@ from std_msgs.msg import String
 
 from orchestrator.ros_surface.simcontrol import RunControl
 from orchestrator.ros_surface.spawn_resources import Refused, requested_object
+from orchestrator.ros_surface.spawnables import outside
 from plan.events import EventSpec, ObjectSpec, edit_event, edits_text, object_problems
 from plan.interactive import WORLD_EDITS_TOPIC
 from plan.obstacles import Obstacle
@@ -109,8 +110,9 @@ class ObjectSpawner:
             return (R.NAMESPACE_INVALID, f"entity_namespace {request.entity_namespace!r}: "
                     "objects have no topics (a robot enters through the scenario's "
                     "events:); leave it empty.", "")
-        try:
-            given, obj = requested_object(request)
+        try:  # a file the client names: only the scenario's spawnables
+            given, obj = requested_object(request, lambda source: outside(self.scenario,
+                                                                          source))
         except Refused as exc:
             return exc.code, str(exc), ""
         from descriptions.world_edits import object_problem

@@ -36,15 +36,17 @@ class Refused(Exception):
         self.code = code
 
 
-def requested_object(request: SpawnEntity.Request) -> tuple[str, ObjectSpec]:
+def requested_object(request: SpawnEntity.Request, outside=None) -> tuple[str, ObjectSpec]:
     """(the name the resource gives, the object at the request's pose, named after the
-    request or else that) of a SpawnEntity request; ``Refused`` naming the problem."""
-    text, base, mesh = _resource(request)
+    request or else that) of a SpawnEntity request; ``Refused`` naming the problem.
+    ``outside(path)``: why the client may not name that file (its ``uri``, or a mesh its
+    ``resource_string`` names), or None; asked before the file is looked at."""
+    text, base, mesh = _resource(request, outside)
     pose = pose_of(request.initial_pose)
     if mesh is not None:
         found = {"name": "", "shape": "mesh", "mesh": str(mesh), "static": True}
     else:
-        found = _model(text, base)
+        found = _model(text, base, outside)
     name = request.name or found.pop("name")
     found.pop("name", None)
     try:
@@ -57,7 +59,8 @@ def requested_object(request: SpawnEntity.Request) -> tuple[str, ObjectSpec]:
         raise Refused(code, f"{where or 'the object'}: {error['msg']}") from None
 
 
-def _resource(request: SpawnEntity.Request) -> tuple[str, Path | None, Path | None]:
+def _resource(request: SpawnEntity.Request, outside=None
+              ) -> tuple[str, Path | None, Path | None]:
     """(model text, the folder its relative files are in, or a mesh file) of the request."""
     uri = request.uri
     if not uri:
@@ -67,6 +70,8 @@ def _resource(request: SpawnEntity.Request) -> tuple[str, Path | None, Path | No
     if "://" in uri and not uri.startswith("file://"):
         raise Refused(R.UNSUPPORTED_FORMAT, f"uri {uri!r}: only files are read (a path or "
                       "file://PATH; package:// and other schemes are not).")
+    if outside is not None and (why := outside(uri)) is not None:
+        raise Refused(R.NO_RESOURCE, f"uri {why}")
     path = Path(uri.removeprefix("file://")).expanduser()
     if not path.is_file():
         raise Refused(R.NO_RESOURCE, f"uri {uri!r}: no such file.")
@@ -106,7 +111,7 @@ def pose_of(stamped) -> dict:
     return pose
 
 
-def _model(text: str, base: Path | None) -> dict:
+def _model(text: str, base: Path | None, outside=None) -> dict:
     """The object fields (and ``name``) of an SDFormat or URDF model of one link."""
     try:
         root = ET.fromstring(text)
@@ -138,7 +143,7 @@ def _model(text: str, base: Path | None) -> dict:
     if geometry is None or len(geometry) == 0:
         raise Refused(R.RESOURCE_PARSE_ERROR, f"the {fmt} link has no collision or visual "
                       "geometry.")
-    out = {"name": name, **_geometry(geometry[0], fmt, base)}
+    out = {"name": name, **_geometry(geometry[0], fmt, base, outside)}
     mass = _mass(link, fmt)
     if fmt == "SDFormat":
         out["static"] = static
@@ -154,7 +159,7 @@ def _model(text: str, base: Path | None) -> dict:
     return out
 
 
-def _geometry(shape: ET.Element, fmt: str, base: Path | None) -> dict:
+def _geometry(shape: ET.Element, fmt: str, base: Path | None, outside=None) -> dict:
     def numbers(text: str | None, what: str) -> list[float]:
         try:
             return [float(v) for v in (text or "").split()]
@@ -175,13 +180,15 @@ def _geometry(shape: ET.Element, fmt: str, base: Path | None) -> dict:
     if shape.tag == "mesh":
         uri = (shape.findtext("uri") if sdf else shape.get("filename")) or ""
         scale = numbers(shape.findtext("scale") if sdf else shape.get("scale"), "mesh scale")
-        return {"shape": "mesh", "mesh": str(_mesh_file(uri, base)),
+        return {"shape": "mesh", "mesh": str(_mesh_file(uri, base, outside)),
                 "scale": scale or [1.0, 1.0, 1.0]}
     raise Refused(R.UNSUPPORTED_FORMAT, f"<{shape.tag}> geometry: cosim spawns a box, "
                   "cylinder, sphere or mesh.")
 
 
-def _mesh_file(uri: str, base: Path | None) -> Path:
+def _mesh_file(uri: str, base: Path | None, outside=None) -> Path:
+    """A model's mesh file; one a resource_string names (``base`` None) is the client's,
+    asked of ``outside`` (a model file's own meshes are its author's)."""
     if "://" in uri and not uri.startswith("file://"):
         raise Refused(R.UNSUPPORTED_ASSETS, f"mesh {uri!r}: only files are read (a path or "
                       "file://PATH; package:// and model:// are not).")
@@ -191,6 +198,8 @@ def _mesh_file(uri: str, base: Path | None) -> Path:
             raise Refused(R.MISSING_ASSETS, f"mesh {uri!r}: a resource_string's mesh needs "
                           "an absolute path.")
         path = base / path
+    elif base is None and outside is not None and (why := outside(path)) is not None:
+        raise Refused(R.MISSING_ASSETS, f"mesh {why}")
     if path.suffix.lower() not in MESHES:
         raise Refused(R.UNSUPPORTED_ASSETS, f"mesh {uri!r}: cosim reads {', '.join(MESHES)}.")
     if not path.is_file():

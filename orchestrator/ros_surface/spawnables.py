@@ -1,7 +1,9 @@
 """GetSpawnables: what a client may spawn in this run, as the scenario's ``spawnables:``
 list names it (``plan.spawnables.SpawnableSpec``: files, and folders of files), each as a
-``file://`` URI SpawnEntity takes; sources a request adds that are local files or folders
-are listed the same way, others are named as unrecognised. A folder lists the files the
+``file://`` URI SpawnEntity takes. A request's sources are served only where they are the
+scenario's spawnables or inside their folders (``outside``); any other is named in the
+result's message (``RESULT_NOT_FOUND``, whether it exists or not): a client on the graph
+cannot make the run list or read the host's files. A folder lists the files the
 description readers recognise (``descriptions.readers``) and the objects SpawnEntity reads
 (``spawn_resources``: SDFormat, meshes) and MJCF files."""
 
@@ -40,18 +42,35 @@ def spawnable_files(folder: Path, spawnables: list[SpawnableSpec]) -> list[tuple
     return out
 
 
+def outside(scenario: Scenario, source: str | Path) -> str | None:
+    """Why a client may not name ``source`` (a path or ``file://`` URI), or None: it is
+    one of the scenario's spawnables or inside one of their folders (after links are
+    followed). The same answer whether it exists or not."""
+    where = Path(str(source).removeprefix("file://")).expanduser().resolve()
+    for entry in scenario.model.spawnables:
+        allowed = (scenario.file.parent / entry.path).resolve()
+        if where == allowed or (where.is_relative_to(allowed) and allowed.is_dir()):
+            return None
+    return (f"{str(source)!r} is not among this run's spawnables (clients name only the "
+            f"scenario's spawnables: and what is in their folders); add it, or its folder, "
+            f"to spawnables: in {scenario.file}.")
+
+
 def list_spawnables(scenario: Scenario, sources: list[str] = ()
                     ) -> tuple[list[tuple[str, str]], list[str]]:
-    """([(uri, description)], the sources not recognised): the scenario's spawnables, then
-    each request source that is a local file or folder (a ``file://`` URI or a path)."""
+    """([(uri, description)], why each source not served was not): the scenario's
+    spawnables, then each request source (a ``file://`` URI or a path) that is a file or
+    folder inside them (``outside``)."""
     found = spawnable_files(scenario.file.parent, list(scenario.model.spawnables))
     unknown = []
     for source in sources:
-        where = Path(source.removeprefix("file://"))
-        if where.exists():
+        where = Path(source.removeprefix("file://")).expanduser()
+        if (why := outside(scenario, source)) is not None:
+            unknown.append(why)
+        elif where.exists():
             found += spawnable_files(Path("/"), [SpawnableSpec(path=str(where.resolve()))])
         else:
-            unknown.append(source)
+            unknown.append(f"{source!r}: no such file or folder.")
     out, seen = [], set()
     for file, text in found:
         uri = f"file://{file}"
