@@ -12,7 +12,10 @@ kind --spread N``: the lidars over N processes and the controllers over N, N = b
 ``--spread``, by default half the cores less one), ``--pack robot`` (one process per robot plus the
 world's) and ``--in-process`` (the reference). Per run:
 real-time factor (sim s / wall s of the whole command), wall over the in-process wall,
-peak memory per robot (every process's peak RSS summed, over N), whether the digest equals
+peak memory per robot (every process's peak RSS summed, over N: forked node processes share
+the orchestrator's pages, which this counts once per process) and PSS per robot (every
+process's proportional set size just before the nodes stop, summed, over N: shared pages
+counted once), whether the digest equals
 the in-process one, where the step time goes (physics, lidars, controllers: summed over
 the nodes of each kind) and the tick loop's wall over the physics node's own step time
 (the one serial part of a tick: what spreading the other nodes over cores can reach). The
@@ -99,6 +102,18 @@ def peak_mb(manifest: dict) -> float:
     return manifest["orchestrator"]["peak_rss_mb"] + sum(by_pid.values())
 
 
+def pss_mb(manifest: dict) -> float | None:
+    """PSS of the orchestrator and every node process (each process once) at the run's end,
+    MB: a page the processes share (forked nodes share the orchestrator's copy-on-write) is
+    divided among them, where summed RSS counts it once per process. None without figures."""
+    own = manifest["orchestrator"].get("end_pss_mb")
+    if own is None:
+        return None
+    by_pid = {e["pid"]: e.get("end_pss_mb", 0.0) for e in manifest["nodes"].values()
+              if "pid" in e}
+    return own + sum(by_pid.values())
+
+
 def where_time_goes(manifest: dict) -> dict[str, float]:
     """In-process step seconds by kind of node: physics, lidars, controllers."""
     out = {"physics": 0.0, "lidar": 0.0, "control": 0.0}
@@ -158,6 +173,7 @@ def run(n: int, packing: str, path: Path, out: Path, spread: int = SPREAD) -> di
             "startup_s": (m.get("startup") or {}).get("command_to_first_tick_s"),
             "loop_real_time_factor": m["loop_real_time_factor"],
             "peak_mb_per_robot": round(peak_mb(m) / n, 1),
+            "pss_mb_per_robot": (round(pss_mb(m) / n, 2) if pss_mb(m) is not None else None),
             "dds_participants": participants.most,
             "time_s": split,
             "loop_over_physics": (round(m["loop_s"] / split["physics"], 2)
@@ -215,7 +231,8 @@ def line(row: dict) -> str:
             f"(loop {_f(row['loop_real_time_factor'], '>6')})  "
             f"wall {_f(row['wall_s'], '>7.2f')} s = {_f(row['wall_over_in_process'], '>5.2f')}x "
             f"in-process  start-up {_f(row['startup_s'], '>6.2f')} s  "
-            f"{_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot  "
+            f"{_f(row['peak_mb_per_robot'], '>7.1f')} MB/robot peak RSS "
+            f"({_f(row['pss_mb_per_robot'], '>6.2f')} PSS at end)  "
             f"{row['dds_participants']:>3} DDS participants  digest "
             f"{'=' if row['digest_equal'] else 'DIFFERS'}")
     if row["time_s"]:

@@ -158,6 +158,10 @@ def test_multi_process_manifest_has_each_nodes_cost(protocol_run):
     run, _ = protocol_run
     m = run.manifest
     assert m["transport"] == "ros2"
+    for entry in [*m["nodes"].values(), m["orchestrator"]]:
+        # PSS and USS of each process at one instant (just before the nodes stop): a page
+        # forked nodes share with the orchestrator counted once when PSS is summed
+        assert 0 < entry["end_uss_mb"] <= entry["end_pss_mb"] <= entry["peak_rss_mb"] + 1
     for entry in m["nodes"].values():
         assert entry["cpu_s"] > 0 and entry["peak_rss_mb"] > 0
         assert 0 < entry["step_ms_mean"] <= entry["step_ms_worst"]

@@ -151,6 +151,7 @@ def _keep_node_stats(outcome, master, supervisor: Supervisor) -> None:
     outcome.ticks_done = max(master.tick, 0)
     outcome.node_stats = {name: (master.stats[name], supervisor.procs.get(name))
                           for name in master.scenario.nodes}
+    outcome.supervisor = supervisor  # its memory figures are taken as it stops the nodes
 
 
 def _open_transport(settings: TransportSettings):

@@ -75,6 +75,8 @@ class NodeProcess:
     ps: psutil.Process | None = None
     started: str = "exec"  # 'fork' of the orchestrator, or 'exec' of a fresh program
     peak_rss: int = 0
+    pss: int = 0  # proportional set size when last sampled with children (``memory_of``)
+    uss: int = 0  # unique set size, likewise
     cpu_s: float = 0.0
     tree: set[int] = field(default_factory=set)
     members: tuple[str, ...] = ()  # the nodes packed into this process (default: its name)
@@ -110,8 +112,30 @@ class NodeProcess:
             cpu = sum(sum(p.cpu_times()[:2]) for p in procs)
             self.peak_rss = max(self.peak_rss, rss)
             self.cpu_s = max(self.cpu_s, cpu)
+            if with_children:  # the run's end, every process alive: one instant for all
+                shares = [memory_of(p.pid) for p in procs]
+                self.pss = sum(pss for pss, _ in shares)
+                self.uss = sum(uss for _, uss in shares)
         except (psutil.Error, OSError):
             pass
+
+
+def memory_of(pid: int) -> tuple[int, int]:
+    """(PSS, USS) of a process in bytes, from ``/proc/PID/smaps_rollup``: its resident
+    pages with each shared page divided among the processes that map it, and the pages no
+    other process maps. Forked node processes share the orchestrator's pages copy-on-write,
+    so their RSS summed counts those pages once per process; PSS summed counts them once.
+    (0, 0) where the file cannot be read."""
+    fields = {}
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            for line in f:
+                key, _, rest = line.partition(":")
+                if key in ("Pss", "Private_Clean", "Private_Dirty"):
+                    fields[key] = int(rest.split()[0]) * 1024
+    except (OSError, ValueError, IndexError):
+        return 0, 0
+    return fields.get("Pss", 0), fields.get("Private_Clean", 0) + fields.get("Private_Dirty", 0)
 
 
 class Supervisor:
@@ -120,6 +144,7 @@ class Supervisor:
     def __init__(self, log_dir: Path):
         self.log_dir = log_dir
         self.procs: dict[str, NodeProcess] = {}
+        self.own_memory: tuple[int, int] = (0, 0)  # this process's (PSS, USS) at the end
 
     def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None,
               cwd: Path | None = None, prefix: list[str] | None = None) -> NodeProcess:
@@ -190,6 +215,7 @@ class Supervisor:
         """Stop every node tree: SIGINT, then SIGTERM, then SIGKILL; never interrupted."""
         with signals_ignored():
             self.sample(with_children=True)
+            self.own_memory = memory_of(os.getpid())  # at the same instant as the nodes'
             pending = list({ps.pid: ps for p in self.processes()
                             for ps in self._tree(p)}.values())
             escalate(pending, on_gone=self._note_exit_codes)

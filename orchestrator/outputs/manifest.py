@@ -59,6 +59,9 @@ def node_entry(stats, proc) -> dict[str, Any]:
         entry.update(pid=proc.popen.pid, started=proc.started, exit=proc.exit_text(),
                      cpu_s=round(proc.cpu_s, 3),
                      peak_rss_mb=round(proc.peak_rss / 2**20, 1), log=str(proc.log_path.name))
+        if proc.pss:
+            entry.update(end_pss_mb=round(proc.pss / 2**20, 1),
+                         end_uss_mb=round(proc.uss / 2**20, 1))
         split = read_summary(RunPaths(proc.log_path.parent.parent).timing(proc.name))
         if split is not None:
             entry["time_s"] = split
@@ -86,11 +89,23 @@ def in_process_entries(scenario: Scenario, ticks: int, result=None) -> dict[str,
     return out
 
 
-def own_cost() -> dict[str, float]:
-    """This process's CPU time and peak memory (all of an in-process run's nodes)."""
+def own_cost(outcome=None) -> dict[str, float]:
+    """This process's CPU time, peak memory (all of an in-process run's nodes) and its PSS
+    and USS at the run's end (``end_pss_mb``, ``end_uss_mb``; in a multi-process run taken
+    with the node processes', just before they were stopped, so that PSS summed over the
+    orchestrator and the nodes counts the pages forked nodes share with it once)."""
     usage = resource.getrusage(resource.RUSAGE_SELF)
-    return {"cpu_s": round(usage.ru_utime + usage.ru_stime, 3),
-            "peak_rss_mb": round(usage.ru_maxrss / 1024, 1)}
+    out = {"cpu_s": round(usage.ru_utime + usage.ru_stime, 3),
+           "peak_rss_mb": round(usage.ru_maxrss / 1024, 1)}
+    import os
+
+    from orchestrator.lockstep.supervisor import memory_of
+
+    supervisor = getattr(outcome, "supervisor", None)
+    pss, uss = supervisor.own_memory if supervisor is not None else memory_of(os.getpid())
+    if pss:
+        out.update(end_pss_mb=round(pss / 2**20, 1), end_uss_mb=round(uss / 2**20, 1))
+    return out
 
 
 def relative(path: Path | None, run_dir: Path) -> str | None:
@@ -196,7 +211,7 @@ def build_manifest(scenario: Scenario, outcome, options) -> dict[str, Any]:
         "ticks_per_s": round(ticks / outcome.loop_s, 1) if outcome.loop_s else None,
         "real_time_factor": round(sim_s / outcome.wall_s, 2) if outcome.wall_s > 0 else None,
         "loop_real_time_factor": round(sim_s / outcome.loop_s, 2) if outcome.loop_s else None,
-        "orchestrator": own_cost(),
+        "orchestrator": own_cost(outcome),
         "nodes": nodes,
         "foreign": foreign_entry(scenario),
         "outputs": outputs_entry(outcome),
