@@ -84,6 +84,12 @@ class RobotStateFrames:
         pairs = [(j, body[j.parent], body[j.child]) for j in robot.joints]
         self._fixed = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind == "fixed"]
         self._moving = [(j.parent, j.child, p, c) for j, p, c in pairs if j.kind != "fixed"]
+        # the moving joints between two bodies (parent link, child link, parent body, child
+        # body): their transforms come from the bodies' poses, every robot's together
+        # (nodes.physics.batch); the others have an end on a site of the world body
+        self.moving_bodies = [(pn, cn, p[1], c[1]) for pn, cn, p, c in self._moving
+                              if not p[0] and not c[0]]
+        self._moving_on_sites = [t for t in self._moving if t[2][0] or t[3][0]]
         self._joints = []
         for j in robot.joints:
             if j.kind in ("fixed", "floating", "planar"):
@@ -119,6 +125,18 @@ class RobotStateFrames:
     def moving(self, data: mujoco.MjData) -> list[LinkTransform]:
         """The moving joints' transforms (for /tf; after mj_kinematics)."""
         return [LinkTransform(pn, cn, *_relative(data, p, c)) for pn, cn, p, c in self._moving]
+
+    @property
+    def has_moving_on_sites(self) -> bool:
+        """Whether a moving joint has an end on a site (a fixed arm's ``world`` link on a
+        joint that moves): not among ``moving_bodies``."""
+        return bool(self._moving_on_sites)
+
+    def moving_on_sites(self, data: mujoco.MjData) -> list[LinkTransform]:
+        """The transforms of the moving joints not among ``moving_bodies`` (after
+        mj_kinematics)."""
+        return [LinkTransform(pn, cn, *_relative(data, p, c))
+                for pn, cn, p, c in self._moving_on_sites]
 
     def joint_states(self, data: mujoco.MjData) -> JointStates:
         """Every movable joint's position, velocity and actuator effort."""

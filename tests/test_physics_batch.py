@@ -139,6 +139,17 @@ def test_the_batch_publishes_what_each_robot_would_bit_for_bit(path, params):
                     rig.imu.rng = kept
             assert type(rig.frames) is RobotFrames  # one frame publisher, any format
             transforms += rig.frames.dynamic(data, q)
+            if described:  # its moving links, as pairs of bodies: robot_state_publisher's
+                reference = described.state.moving(data)
+                assert reference and rig.frames.moving and not rig.frames.link_frames
+                links = rig.frames.dynamic(data, q)[-len(reference):]
+                for t, r in zip(links, reference, strict=True):
+                    assert (t.header.frame_id, t.child_frame_id) == (r.parent, r.child)
+                    p, o = t.transform.translation, t.transform.rotation
+                    quat = np.array([o.w, o.x, o.y, o.z])
+                    assert np.allclose([p.x, p.y, p.z], r.pos, rtol=0, atol=1e-12)
+                    assert np.allclose(quat * np.sign(quat @ r.quat), r.quat, rtol=0,
+                                       atol=1e-12)
         assert len(out["/tf"].transforms) == len(transforms)
         if not rigs[0].described:
             per_robot = 3 + (swarm.params.tf.map_frame is not None)  # (map,) base, head

@@ -243,8 +243,9 @@ class SwarmBook:
 
     def _frames(self, data: mujoco.MjData, poses: list) -> list:
         """``dynamic`` of every robot's frames: map -> odom, odom -> base (where its frames
-        publish it), its moving bodies (batched) and moving links (a described robot's:
-        RobotFrames.links), every robot through the same path."""
+        publish it), its moving bodies (batched: every robot's, MJCF or described) and the
+        moving links read per robot (RobotFrames.links: a joint on a world site), every
+        robot through the same path."""
         moved: list[list] = [[] for _ in self.rigs]
         if self.moving:
             body, parent = self.moving_body, self.moving_parent

@@ -15,7 +15,7 @@ from std_msgs.msg import String
 from descriptions.robot_model import RobotModel
 from descriptions.robot_state import RobotStateFrames
 from nodes.physics import messages as m
-from nodes.physics.frames import RobotFrames, TfParams, transform
+from nodes.physics.frames import MovingBody, RobotFrames, TfParams, transform
 
 ROBOT_DESCRIPTION = "/robot_description"
 
@@ -59,12 +59,19 @@ class DescribedRobot:
 
     def frames(self, params: TfParams) -> RobotFrames:
         """Its TF: every fixed joint once (/tf_static), map -> odom, odom -> the root link
-        (a mobile robot's free joint) and every moving joint per state (/tf)."""
+        (a mobile robot's free joint) and every moving joint per state (/tf): a joint
+        between two bodies as the pair of bodies an MJCF robot's moving frames are
+        (batched with every robot's by nodes.physics.batch), one with an end on a world
+        site (rare: a fixed arm's ``world`` link on a joint that moves) read per robot."""
         data = mujoco.MjData(self.model)
         mujoco.mj_kinematics(self.model, data)  # fixed joints: the same in every state
+        moving = [MovingBody(body, parent, parent_link, child_link)
+                  for parent_link, child_link, parent, body in self.state.moving_bodies]
         return RobotFrames(params, self.odom_frame, self.robot.base_link,
-                           [_msg(t) for t in self.state.static(data)],
-                           link_frames=self.state, publishes_base=self.robot.mobile)
+                           [_msg(t) for t in self.state.static(data)], moving,
+                           link_frames=(_OnSites(self.state) if self.state.has_moving_on_sites
+                                        else None),
+                           publishes_base=self.robot.mobile)
 
     @property
     def state_joints(self) -> tuple[list[str], list[int], list[int]]:
@@ -78,6 +85,18 @@ class DescribedRobot:
         s = self.state.joint_states(data)
         return m.joint_state(list(s.names), np.array(s.position), np.array(s.velocity),
                              np.array(s.effort))
+
+
+class _OnSites:
+    """The moving joints with an end on a world site, as RobotFrames reads moving links."""
+
+    def __init__(self, state: RobotStateFrames):
+        self.state = state
+        self.has_moving = True
+
+    def moving(self, data: mujoco.MjData):
+        """Their transforms in ``data``'s kinematics."""
+        return self.state.moving_on_sites(data)
 
 
 def robot_description(urdf_text: str) -> String:

@@ -140,9 +140,10 @@ def on_robot(model: mujoco.MjModel, body: int, base: int) -> bool:
 class RobotFrames:
     """Every robot's TF, whatever describes it: the static transforms (computed once, for
     /tf_static) and, per state, ``map -> odom``, ``odom -> base`` (where ``publishes_base``),
-    the moving bodies (pairs of bodies, batched by nodes.physics.batch) and the moving links
-    (a described robot's, read from its robot model by ``link_frames``: an object with
-    ``has_moving`` and ``moving(data)``, descriptions.robot_state.RobotStateFrames).
+    the moving bodies (pairs of bodies, batched by nodes.physics.batch: an MJCF robot's
+    bodies on a joint, a described robot's moving joints) and the moving links read per
+    robot by ``link_frames`` (an object with ``has_moving`` and ``moving(data)``; only a
+    described robot's joint with an end on a world site has one).
 
     ``mjcf_frames`` makes one for an MJCF robot (frames named after its bodies, sites and
     cameras), ``nodes.physics.described_rig.DescribedRobot.frames`` for a described one (URDF,
