@@ -52,6 +52,10 @@ CLEARANCE = 0.45  # m from a start or goal to the nearest wall, at least
 TARGET = 0.95
 
 
+class NoRoom(ValueError):
+    """A room of the draw has too few places for its group."""
+
+
 @dataclass(frozen=True)
 class CrowdWorld:
     """A generated crowd world: its walls, half size, and every robot's start and goal."""
@@ -139,7 +143,10 @@ def generate(seed: int, family: str | None = None) -> CrowdWorld:
     rng = np.random.default_rng(seed)
     build = {"door_swap": door_swap, "plaza": plaza, "corridor": corridor}[family]
     for _ in range(50):
-        half, shapes, starts, goals = build(rng)
+        try:
+            half, shapes, starts, goals = build(rng)
+        except NoRoom:  # a draw whose rooms do not hold the group: drawn again
+            continue
         longest = checked(half, shapes, starts, goals)
         if longest is not None:
             return CrowdWorld(seed, family, half, tuple(shapes), tuple(starts), tuple(goals),
@@ -189,7 +196,7 @@ def grid_spots(rng: np.random.Generator, x: tuple[float, float], y: tuple[float,
     cells = [(float(a), float(b)) for a in xs for b in ys
              if math.hypot(a - away[0], b - away[1]) >= MOUTH]
     if len(cells) < count:
-        raise ValueError("room too small for the group")
+        raise NoRoom(f"{len(cells)} places for {count} robots")
     picked = rng.choice(len(cells), size=count, replace=False)
     return [(round(cells[k][0] + float(rng.uniform(-0.04, 0.04)), 3),
              round(cells[k][1] + float(rng.uniform(-0.04, 0.04)), 3)) for k in picked]
