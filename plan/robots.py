@@ -32,6 +32,7 @@ robot. A scenario without a robots: section is a swarm of one unnamed robot.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass, replace
@@ -91,8 +92,14 @@ class RobotsLayout:
                                           for r in self.robots))
 
     def placement(self, name: str) -> RobotPlacement:
-        """The robot named ``name``."""
-        return next(r for r in self.robots if r.name == name)
+        """The robot named ``name`` (KeyError where none is)."""
+        return self._by_name[name]
+
+    @functools.cached_property
+    def _by_name(self) -> dict[str, RobotPlacement]:
+        """The robots by name, made once: a lookup per robot's node must not walk every
+        robot (a thousand robots' nodes would take a million steps)."""
+        return {r.name: r for r in self.robots}
 
     def source_of(self, name: str) -> tuple[Path, str]:
         """(description, reader settings) of robot ``name``: its own, or the layout's."""
@@ -135,9 +142,16 @@ def robot_namespace(section, robot: str) -> str:
         return entry.namespace
     several = (section.count or len(entries)) > 1
     placed = entry is not None or (section.named is None and section.count is not None and
-                                   robot in {f"{section.name_prefix}_{i}"
-                                             for i in range(section.count)})
+                                   _is_counted(robot, section.name_prefix, section.count))
     return robot if several or not placed else ""
+
+
+def _is_counted(robot: str, prefix: str, count: int) -> bool:
+    """Whether ``robot`` is one of ``{prefix}_0`` .. ``{prefix}_{count - 1}`` (read from the
+    name, not by making every name: once per robot of every world node's input)."""
+    head, number = f"{prefix}_", robot[len(prefix) + 1:]
+    return (robot.startswith(head) and number.isascii() and number.isdigit()
+            and str(int(number)) == number and int(number) < count)
 
 
 def namespace_in(layout: RobotsLayout | None, robot: str | None) -> str:
@@ -148,14 +162,44 @@ def namespace_in(layout: RobotsLayout | None, robot: str | None) -> str:
     root, its entry's namespace, its name in a swarm)."""
     if not robot:
         return ""
-    placed = None if layout is None else next((r for r in layout.robots if r.name == robot),
-                                              None)
+    placed = None if layout is None else layout._by_name.get(robot)
     return robot if placed is None or placed.namespace is None else placed.namespace
 
 
 def robot_namespaces(section, robots: list[str] | None) -> list[str] | None:
-    """``robot_namespace`` of each of ``robots`` (a world node's spec.robots); None without."""
-    return None if robots is None else [robot_namespace(section, r) for r in robots]
+    """``robot_namespace`` of each of ``robots`` (a world node's spec.robots); None without.
+    The plan asks this of the world node's spec once per input of every robot's node: the
+    answer for the same section and robots is kept (the last few)."""
+    if robots is None:
+        return None
+    key = (id(section), tuple(robots))
+    held = _NAMESPACES.get(key)
+    if held is None or held[0] is not section:
+        entries = {} if section is None else {  # the first entry of a name, as next() finds
+            e.name: e for e in reversed(section.named or [])}
+        held = (section, [_namespace_of(section, entries, r) for r in robots])
+        if len(_NAMESPACES) >= 8:
+            _NAMESPACES.clear()
+        _NAMESPACES[key] = held
+    return list(held[1])
+
+
+_NAMESPACES: dict[tuple[int, tuple[str, ...]], tuple[object, list[str]]] = {}
+"""robot_namespaces' answers by (the section's id, the robots); the section is kept with
+its answer, so its id cannot be reused while the answer is held."""
+
+
+def _namespace_of(section, entries: dict, robot: str) -> str:
+    """``robot_namespace`` with the section's named entries by name (``entries``)."""
+    if section is None:
+        return robot
+    entry = entries.get(robot)
+    if entry is not None and entry.namespace is not None:
+        return entry.namespace
+    several = (section.count or len(section.named or [])) > 1
+    placed = entry is not None or (section.named is None and section.count is not None and
+                                   _is_counted(robot, section.name_prefix, section.count))
+    return robot if several or not placed else ""
 
 
 def frame_prefix(namespace: str) -> str:

@@ -40,15 +40,39 @@ def scenario_robots(scenario: Scenario) -> tuple[RobotModel, ...]:
     without a world, or in a world without the robot's base body."""
     if scenario.world is None:
         return ()
-    return world_robots(scenario.world, scenario.robots, description_names(scenario))
+    held = _ROBOTS.get(id(scenario))  # world_robots' own cache hashes the whole layout
+    if held is not None and held[0] is scenario:
+        return held[1]
+    robots = world_robots(scenario.world, scenario.robots, description_names(scenario))
+    if len(_ROBOTS) >= 4:
+        _ROBOTS.clear()
+    _ROBOTS[id(scenario)] = (scenario, robots)
+    return robots
+
+
+_ROBOTS: dict[int, tuple[Scenario, tuple[RobotModel, ...]]] = {}
+"""scenario_robots by scenario (kept with it, so that its id is not reused meanwhile)."""
 
 
 def description_names(scenario: Scenario) -> RobotNames:
     """The description's names as the scenario's nodes give them; two nodes that name one
-    thing differently are a ValueError naming both."""
-    return RobotNames.of(merged_names([
+    thing differently are a ValueError naming both. Asked by every node that needs the
+    world, it is worked out once per scenario (it reads every node: a process of a thousand
+    lidars would otherwise read a million)."""
+    held = _NAMES.get(id(scenario))
+    if held is not None and held[0] is scenario:
+        return held[1]
+    names = RobotNames.of(merged_names([
         (plan.name, load_class(plan.class_ref).description_names(plan.params))
         for plan in scenario.nodes.values()]))
+    if len(_NAMES) >= 4:
+        _NAMES.clear()
+    _NAMES[id(scenario)] = (scenario, names)
+    return names
+
+
+_NAMES: dict[int, tuple[Scenario, RobotNames]] = {}
+"""description_names by scenario (kept with it, so that its id is not reused meanwhile)."""
 
 
 def make_node(scenario: Scenario, name: str, options: RunOptions | None = None) -> StepNode:

@@ -111,8 +111,8 @@ class SensorsNode(StepNode):
         if self.config.layout is not None and len(robots) == 1:
             others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
             if p.lidar or p.point_cloud:
-                self.arena = StaticWorld(self.config.world, self.config.layout,
-                                         self.mirror.model, self.config.events)
+                self.arena = StaticWorld.shared(self.config.world, self.config.layout,
+                                                self.mirror.model, self.config.events)
         self.lidar = (Lidar2D(self.mirror, p.lidar, self.config.period_ns, others, self.arena)
                       if p.lidar else None)
         self.cloud = (Lidar3D(self.mirror, p.point_cloud, others, self.arena)

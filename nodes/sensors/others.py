@@ -32,7 +32,7 @@ class OtherRobots:
     """The other robots' bases and their footprint radius, for ray casting as cylinders."""
 
     def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: RobotModel):
-        self.names = [prefixed(r, layout.base_of(r)) for r in layout.names if r != robot.name]
+        self.names = [base for r, base in _bases(layout) if r != robot.name]
         self.radius = robot.footprint_radius
         self._bind(model)
 
@@ -71,10 +71,39 @@ class OtherRobots:
         return np.where(hit & ((dist < 0) | (t < dist)), t, dist)
 
 
+def _bases(layout: RobotsLayout) -> list[tuple[str, str]]:
+    """(robot, its base body's MuJoCo name) of every robot of ``layout``, worked out once per
+    layout of the process (every lidar of a swarm asks)."""
+    held = _BASES.get(id(layout))
+    if held is None or held[0] is not layout:
+        held = (layout, [(r, prefixed(r, layout.base_of(r))) for r in layout.names])
+        if len(_BASES) >= 4:
+            _BASES.clear()
+        _BASES[id(layout)] = held
+    return held[1]
+
+
+_BASES: dict[int, tuple[RobotsLayout, list[tuple[str, str]]]] = {}
+"""_bases by layout (kept with it, so that its id is not reused meanwhile)."""
+
+
 class StaticWorld:
     """The swarm's arena without its robots, posed like the swarm's mirror: what a lidar
     casts its beams against (the other robots come from ``OtherRobots``); with the
     scenario's events, the arena of the version the mirror shows."""
+
+    @classmethod
+    def shared(cls, world: Path | str, layout: RobotsLayout, full: mujoco.MjModel,
+               events: tuple[EventSpec, ...] = ()) -> StaticWorld:
+        """The process's one arena for the mirror ``WorldMirror.shared`` gives (its model
+        ``full``): the lidars of a swarm packed into one process share it as they share the
+        mirror (each poses it from the mirror before it casts: the same qpos and version
+        give the same arena), instead of an MjData each."""
+        key = (str(world), layout, tuple(events))
+        held = _ARENAS.get(key)
+        if held is None:
+            held = _ARENAS[key] = cls(world, layout, full, events)
+        return held
 
     def __init__(self, world: Path | str, layout: RobotsLayout, full: mujoco.MjModel,
                  events: tuple[EventSpec, ...] = ()):
@@ -112,6 +141,10 @@ class StaticWorld:
         if self.src.size:
             self.data.qpos[self.dst] = qpos[self.src]
             mujoco.mj_kinematics(self.model, self.data)
+
+
+_ARENAS: dict[tuple, StaticWorld] = {}
+"""StaticWorld.shared by (world, layout, events)."""
 
 
 def _qpos_width(kind: int) -> int:
