@@ -21,7 +21,13 @@ from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
 
-from orchestrator.lockstep.supervisor import NodeProcess, Supervisor, fork_is_safe, node_argv
+from orchestrator.lockstep.supervisor import (
+    NodeProcess,
+    Supervisor,
+    fork_is_safe,
+    node_argv,
+    write_checked_plan,
+)
 from plan.options import RunOptions
 from plan.packing import Process, ProcessLayout
 from plan.roles import NodeRole
@@ -75,8 +81,9 @@ def start_cosim(site: Site, process: Process) -> Started:
                   partial(run_packed, scenario, names, site.paths.root, options, layout))
         proc = site.supervisor.fork(label, target)
     else:
+        checked = write_checked_plan(scenario, site.paths.checked_plan)
         argv = node_argv(scenario.file, plan.spec.kind or "any", names, site.paths.root,
-                         scenario.overrides, options)
+                         scenario.overrides, options, checked)
         proc = site.supervisor.spawn(label, argv, prefix=plan.launch_prefix)
     if len(names) > 1:
         site.supervisor.pack(proc, names)

@@ -37,6 +37,11 @@ class RunPaths:
         return self.root / "run.usda"
 
     @property
+    def checked_plan(self) -> Path:
+        """The checked scenario the orchestrator hands to the node processes it execs."""
+        return self.root / "plan.pickle"
+
+    @property
     def logs(self) -> Path:
         """One log per node, and the orchestrator's."""
         return self.root / "logs"

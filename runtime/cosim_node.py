@@ -57,6 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, as the orchestrator does (repeatable)")
     p.add_argument("--run-options", metavar="JSON", help=argparse.SUPPRESS)  # orchestrator's
+    p.add_argument("--plan", type=Path, help=argparse.SUPPRESS)  # the orchestrator's checked
+    # scenario (orchestrator.lockstep.supervisor.write_checked_plan), instead of checking again
     return p
 
 
@@ -106,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     from plan.overrides import parse_overrides
 
     try:
-        scenario = load_scenario(args.scenario, parse_overrides(args.set))
+        scenario = (checked_plan(args.plan, args.scenario) if args.plan else
+                    load_scenario(args.scenario, parse_overrides(args.set)))
         # several --node: a process of packed nodes, named by its first node's kind
         names = [pick_node(scenario, args.kind if i == 0 else "any", n)
                  for i, n in enumerate(args.node or [None])]
@@ -135,6 +138,26 @@ def main(argv: list[str] | None = None) -> int:
         print(f"cosim-node {names[0]}: {lockstep_waits_for(scenario, names[0])}",
               file=sys.stderr, flush=True)
     return run_lockstep(scenario, names[0], args.run_dir, options, layout)
+
+
+def checked_plan(path: Path, scenario_file: Path) -> Scenario:
+    """The scenario its orchestrator checked and wrote for this run (``--plan``), which must
+    be of the file given with ``--scenario``: the whole plan is checked once, before any
+    process starts, and a process it starts need not check it again."""
+    import pickle
+
+    from plan.scenario import Scenario
+
+    try:
+        scenario = pickle.loads(path.read_bytes())
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
+        raise ValueError(f"--plan {path}: cannot read the orchestrator's checked plan "
+                         f"({exc}); leave --plan out to load {scenario_file}") from None
+    if not isinstance(scenario, Scenario) or (Path(scenario.file).resolve()
+                                              != scenario_file.resolve()):
+        raise ValueError(f"--plan {path} is not the checked plan of {scenario_file}; leave "
+                         "--plan out to load the scenario")
+    return scenario
 
 
 def lockstep_waits_for(scenario: Scenario, name: str) -> str:

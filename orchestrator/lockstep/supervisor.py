@@ -341,9 +341,11 @@ def _alive(ps: psutil.Process) -> bool:
 
 
 def node_argv(scenario_file: Path, kind: str, names: list[str], run_dir: Path | None,
-              overrides: dict, options: RunOptions | None = None) -> list[str]:
+              overrides: dict, options: RunOptions | None = None,
+              plan: Path | None = None) -> list[str]:
     """The command line that runs the nodes ``names`` (one process) under this
-    orchestrator."""
+    orchestrator; ``plan``: the checked plan it wrote (``write_checked_plan``), which the
+    process takes instead of loading and checking the scenario again."""
     import json
 
     argv = [sys.executable, "-m", "runtime.cosim_node", kind,
@@ -356,4 +358,24 @@ def node_argv(scenario_file: Path, kind: str, names: list[str], run_dir: Path | 
         argv += ["--run-options", options.node_json()]
     for key, value in overrides.items():
         argv += ["--set", f"{key}={json.dumps(value)}"]
+    if plan is not None:
+        argv += ["--plan", str(plan)]
     return argv
+
+
+def write_checked_plan(scenario, path: Path) -> Path | None:
+    """The checked scenario pickled at ``path`` (once per run: kept if already there) for the
+    node processes this orchestrator execs: a process that loads the file itself checks the
+    whole plan again (seconds at hundreds of robots, in every process). None where it cannot
+    be written (the processes then load the file)."""
+    import pickle
+
+    if path.exists():
+        return path
+    try:
+        part = path.with_suffix(".part")
+        part.write_bytes(pickle.dumps(scenario, protocol=pickle.HIGHEST_PROTOCOL))
+        part.replace(path)
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        return None
+    return path
