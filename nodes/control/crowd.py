@@ -5,18 +5,17 @@ robots' poses and velocities (a robot sees another within ``crowd_range`` and in
 sight on the static map, as its lidar would). Near others it drives by:
 
 - **ORCA** (optimal reciprocal collision avoidance; van den Berg, Guy, Lin and Manocha,
-  "Reciprocal n-body collision avoidance", 2011; the linear programs of the RVO2 library):
-  each robot within ``crowd_horizon`` seconds of a collision bounds the velocity by a
-  half-plane; of the avoiding, the earlier name in the scenario's robots takes 0.3 and the
-  later 0.7 (a fixed asymmetry breaks symmetric standoffs); a robot parked at its goal
-  takes none, and a robot waiting aside for a door takes all of it (whoever is on its way
-  goes first: the waiting ones make room). Static scan points within reach bound it as
-  obstacles (all of it ours). The velocity nearest the pursuit's preferred one is driven
-  as a differential drive does: turning towards it, at its speed along the heading
-  (backing up where the half-planes demand it). The radius grows by ``crowd_margin`` for
-  what a differential drive cannot follow at once (NH-ORCA's tracking error). A robot
-  stalled YIELD_AFTER beside an earlier name backs off from it for YIELD_FOR; one stalled
-  beside robots parked at their goals plans round them.
+  "Reciprocal n-body collision avoidance", 2011; the linear programs of the RVO2
+  library): each robot within ``crowd_horizon`` seconds of a collision bounds the velocity
+  by a half-plane; of the avoiding, the earlier name in the scenario's robots takes 0.3 and
+  the later 0.7 (a fixed asymmetry breaks symmetric standoffs); a robot parked at its goal
+  takes none. Static scan points within reach bound it as obstacles (all of it ours). The
+  velocity nearest the pursuit's preferred one is driven as a differential drive does:
+  turning towards it, at its speed along the heading (backing up where the half-planes
+  demand it). The radius grows by ``crowd_margin`` for what a differential drive cannot
+  follow at once (NH-ORCA's tracking error). A robot stalled YIELD_AFTER beside an earlier
+  name backs off from it for YIELD_FOR; one stalled beside robots parked at their goals
+  plans round them.
 - **Doors one way at a time**: a stretch of the plan narrower than two robots side by
   side (a door, a narrow corridor) is used by one direction at a time. A robot waits aside
   (on a grid of places to the right of its way, then the left, out of the way out) while
@@ -653,7 +652,7 @@ class Crowd:
                 lines.append(orca_line(rel, vel - o.vel[k], vel, radius - p.crowd_margin,
                                        p.crowd_horizon, step_s, 1.0))
                 continue
-            share = 1.0 if self.waiting else 0.5 + (SHARE if k < o.own else -SHARE)
+            share = 0.5 + (SHARE if k < o.own else -SHARE)
             lines.append(orca_line(rel, vel - o.vel[k], vel, radius, p.crowd_horizon,
                                    step_s, share))
         return orca_velocity(lines, n_static, preferred, p.max_speed)
