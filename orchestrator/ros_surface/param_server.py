@@ -124,11 +124,37 @@ def parameter_nodes(context, scenario: Scenario, arrivals: Arrivals | None, cont
     from nodes.registry import load_class
 
     period = scenario.schedule.periods.get(EXTERNAL_NAME, 1)
-    for plan in scenario.nodes.values():
-        if plan.role.runs_step_runtime:
-            namespace = namespace_in(scenario.robots, robot_of(plan.name))
-            yield NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control,
-                                 period, namespace)
+    for plan in served(scenario):
+        namespace = namespace_in(scenario.robots, robot_of(plan.name))
+        yield NodeParameters(context, plan, load_class(plan.class_ref), arrivals, control,
+                             period, namespace)
+
+
+PARAMETER_NODES_MAX = 64
+"""Above this many cosim nodes, a robot's node serves its parameters only where it is the
+first robot's, or it takes parameter changes (an interactive run). Each served node is an
+rclpy node of eight services: at 256 robots (513 nodes) they took about 600 MB and 30 CPU
+seconds of the orchestrator, more than the whole run's nodes, and every process discovered
+their endpoints."""
+
+
+def served(scenario: Scenario) -> list[NodePlan]:
+    """The cosim nodes whose parameters the run serves: every one, but in a run of more than
+    ``PARAMETER_NODES_MAX`` the copies of a ``for_each: robot`` node only for the first
+    robot (their values are the template's, as the scenario file gives them),
+    besides those that take parameter changes."""
+    plans = [p for p in scenario.nodes.values() if p.role.runs_step_runtime]
+    if len(plans) <= PARAMETER_NODES_MAX:
+        return plans
+    first: dict[str, str] = {}
+    out = []
+    for plan in plans:
+        robot = robot_of(plan.name)
+        takes = any(inp.topic == params_topic(plan.name) for inp in plan.inputs)
+        if robot is None or takes or first.setdefault(plan.name.partition("@")[0],
+                                                      robot) == robot:
+            out.append(plan)
+    return out
 
 
 def describe(model: type[BaseModel], name: str, runtime: bool) -> ParameterDescriptor:
