@@ -34,6 +34,10 @@ class ExternalInputs(StepNode):
 
     Params = ExternalParams
     runs_in_orchestrator: ClassVar[bool] = True  # no process: the orchestrator steps it
+    # it publishes the latest of every topic; a topic of a robot that enters or leaves (a
+    # controller manager's requests) goes out only while the robot is in the run
+    # (runtime.activation keeps those due)
+    holds_outputs: ClassVar[bool] = True
 
     @classmethod
     def outputs(cls, params: ExternalParams) -> dict[str, type]:

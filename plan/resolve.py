@@ -133,13 +133,6 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         where.check_twin(nodes)
     found.raise_any()  # a schedule has no cycle
     windows, topic_windows = robot_windows_of(layout, nodes, tick_ns)
-    hosting = [n for n, plan in nodes.items()
-               if getattr(plan.params, "controller_manager", None) is not None]
-    if windows and hosting:
-        raise where.fail("events", f"{hosting[0]} runs the robots' controller managers "
-                         "(ros2_control), which cannot take in a robot that enters or leaves "
-                         "the run yet.", "robots that enter without robots.controllers or "
-                         "a ros2_control node, or every robot there from the start.")
     for name in windows:
         if nodes[name].role.is_foreign:
             raise where.fail(f"nodes[{origins.get(name, 0)}] ({name.partition('@')[0]})"

@@ -45,6 +45,8 @@ class Activation:
         names, latched, first = self.plan.output_names, self.plan.latched, self.first
         if self.plan.windows or self.plan.relatch:  # a robot's topics while it is there
             names, latched, first = self.plan.windowed(tick.index, first)
+            if getattr(self.node, "holds_outputs", False):  # it holds every topic: the due
+                outputs = {own: msg for own, msg in outputs.items() if own in names}
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs, names, tick,
                                 outputs, latched, first)
         self.first = False

@@ -166,15 +166,6 @@ def test_events_from_python_are_those_of_the_file(counted, tmp_path):
     assert result.digest == counted[3]
 
 
-def test_robots_that_enter_beside_controller_managers_are_refused():
-    """A controller manager run in the physics step cannot take in a robot yet: exit 2."""
-    late = {"at": "1s", "robot": {"name": "late", "start": {"x": 0.0, "y": 0.3},
-                                  "goal": {"x": 0.5, "y": 0.3}}}
-    with pytest.raises(ScenarioError) as err:
-        load_scenario(ROOT / "scenarios" / "swarm_urdf_control.yaml", {"events": [late]})
-    assert err.value.key == "events" and "controller managers" in err.value.problem
-
-
 def test_a_dormant_node_keeps_no_input_it_cannot_take():
     """A robot's node before its window (here a client's robot: not opened yet, then opened
     at tick 503) and after it keeps no more samples than it can take: one while it waits,

@@ -412,6 +412,9 @@ class SwarmPhysics:
         self.contacts.touching = frozenset(
             (int(moved[a]), int(moved[b])) for a, b in contacts.touching
             if moved[a] >= 0 and moved[b] >= 0)
+        if self.hosted is not None:  # before the book: it leaves the managers' topics to them
+            models = {robot.name: robot for robot in self.all_robots}
+            self.hosted.rebind(self.model, rigs, [models[rig.name] for rig in rigs])
         self._bind()
         book = self.book
         for rig in rigs:
@@ -475,10 +478,15 @@ class SwarmPhysics:
         if first and self.params.robot_description:
             for rig in self.rigs:
                 out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text(rig))
-        if self.entered:  # a robot that entered at this tick: its latched description
+        if self.entered:  # a robot that entered at this tick: its latched description,
+            # and again those of the robots there from the start, latched outputs without a
+            # window being due again when a robot enters (plan.scenario.NodePlan.windowed)
             if self.params.robot_description and not first:
-                for rig in self.entered:
-                    out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(self.urdf_text(rig))
+                start = set(self.layout.at_start.names)
+                for rig in self.rigs:
+                    if rig in self.entered or rig.name in start:
+                        out[rig.topics[ROBOT_DESCRIPTION]] = robot_description(
+                            self.urdf_text(rig))
             self.entered = []
         return out
 

@@ -57,9 +57,16 @@ class MujocoSystem:
                  wheels: list[int] | None):
         self.info = info
         self.joints = joints
+        self.state: dict[str, JointReading] = {n: JointReading(0.0) for n in joints}
+        self.bind(model, qadr, dadr, wheels)
+
+    def bind(self, model, qadr, dadr, wheels: list[int] | None) -> None:
+        """The addresses of the joints (``qadr``, ``dadr``) and actuators in ``model``: a
+        world recompiled with a robot in or out moves them (the robot's joints, actuators
+        and the state its controllers were loaned stay what they were)."""
+        info = self.info
         self.qadr = np.asarray(qadr, dtype=np.int64)
         self.dadr = np.asarray(dadr, dtype=np.int64)
-        self.state: dict[str, JointReading] = {n: JointReading(0.0) for n in joints}
         self.actuator: dict[str, int] = {}  # 'joint/interface' -> actuator id
         for c in info.commands:
             if c.interface:
@@ -217,22 +224,40 @@ class HostedManagers:
     def __init__(self, params: HostedManagerParams, model, rigs, robots, held: frozenset[str],
                  note):
         """``rigs``: physics' robots (nodes.physics.swarm.Rig), ``robots``: their models."""
-        self.params = params
+        self.params, self.held, self.note = params, held, note
         self.managers: list[RobotManager] = []
-        for rig, robot in zip(rigs, robots, strict=True):
-            info = hardware_info(model, robot, params.command_joints)
-            joints = hardware_joints(model, robot, rig.state_q)
-            wheels = rig.wheel_act if rig.drive is not None else None
-            system = MujocoSystem(model, info, joints, rig.state_q, rig.state_v, wheels)
-            namespace = getattr(robot, "namespace", rig.name)  # '' for a robot at the root
-            self.managers.append(RobotManager(params, system, rig.name, namespace, held,
-                                              note))
+        self.published: frozenset[str] = frozenset()
         joints, base = takes_hardware(params)
         self.commands_joints = joints
         self.drives_base = base
+        self.rebind(model, rigs, robots)
+
+    def rebind(self, model, rigs, robots) -> None:
+        """Follow the world ``model`` with the robots ``rigs`` now (first, and after every
+        recompile that brought a robot in or took one out): each robot already there keeps
+        its manager (its controllers and their state) over its joints' and actuators' new
+        addresses; a robot that entered gets its manager, which activates its controllers
+        at its first update (this tick); one that left takes its manager with it."""
+        had = {m.robot: m for m in self.managers}
+        self.managers = []
+        for rig, robot in zip(rigs, robots, strict=True):
+            wheels = rig.wheel_act if rig.drive is not None else None
+            manager = had.get(rig.name)
+            if manager is not None:
+                manager.system.bind(model, rig.state_q, rig.state_v, wheels)
+                self.managers.append(manager)
+                continue
+            info = hardware_info(model, robot, self.params.command_joints)
+            joints = hardware_joints(model, robot, rig.state_q)
+            system = MujocoSystem(model, info, joints, rig.state_q, rig.state_v, wheels)
+            namespace = getattr(robot, "namespace", rig.name)  # '' for a robot at the root
+            self.managers.append(RobotManager(self.params, system, rig.name, namespace,
+                                              self.held, self.note))
         # every topic the managers publish (physics' graph names): a broadcaster's
-        # /joint_states replaces physics' own, which physics then does not build
-        self.published = frozenset(m.graph[t] for m in self.managers for t in m.declared)
+        # /joint_states replaces physics' own, which physics then does not build (those of
+        # a robot that left stay in: no robot takes its name again)
+        self.published = self.published | frozenset(
+            m.graph[t] for m in self.managers for t in m.declared)
 
     def step(self, time_ns: int, period_ns, data, inputs: dict[str, Any], out: dict) -> None:
         """One update of every robot's manager, at the state physics publishes at the tick;

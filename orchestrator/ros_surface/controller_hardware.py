@@ -39,7 +39,8 @@ class ManagerHardware:
 
 def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware:
     """The hardware the controller manager of robot ``robot`` ('' the unnamed one) drives,
-    in the physics node ``physics`` that runs it, as that node finds it at setup."""
+    in the physics node ``physics`` that runs it, as that node finds it at setup (a robot
+    that enters during the run: as it finds it when the robot enters)."""
     import mujoco
 
     from nodes.physics.world import load_model
@@ -47,7 +48,9 @@ def manager_hardware(scenario, physics: str, robot: str = "") -> ManagerHardware
 
     config = node_config(scenario, physics)
     found = [r for r in config.robots if r.name == robot] or list(config.robots[:1])
-    model = load_model(config.world, config.layout)
+    layout = config.layout  # a robot that enters during the run is in the world with all
+    model = load_model(config.world, layout if layout is None or robot in
+                       layout.at_start.names else layout.everyone)
     info = hardware_info(model, found[0] if found else None,
                          config.params.controller_manager.command_joints)
     prefix = found[0].prefix if found else ""

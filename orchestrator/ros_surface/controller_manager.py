@@ -16,6 +16,12 @@ recorded like any message; the answers follow physics' metrics of the manager
 (``controller_manager/...``, ``ROBOT/controller_manager/...`` in a swarm) at the ticks the
 master decides (its controllers' states, each trajectory controller's newest goal: number,
 state, result code).
+
+A robot that enters or leaves the run (``events:``, SpawnEntity, DeleteEntity) has its
+manager only while it is in the run (physics has its metrics then): before it enters and
+after it leaves, its manager lists no controllers and no hardware, refuses every switch,
+load, unload, configure and goal, saying so, and a request or goal that was waiting when
+the robot left is answered as failed.
 """
 
 from __future__ import annotations
@@ -93,6 +99,9 @@ class ControllerManagerServer:
         self.states = {name: ("unconfigured" if ctrl is None else "active" if name in starting
                               else "inactive") for name, ctrl in self.controllers.items()}
         self._hardware = None
+        layout = scenario.robots if scenario is not None else None
+        # whether the robot is in the run (as of the newest tick seen): those of the start
+        self.present = layout is None or not robot or robot in layout.at_start.names
         self._cond = threading.Condition()
         self._reports: deque[tuple[int, dict[str, float]]] = deque(maxlen=4096)
         self._seq = 0
@@ -146,6 +155,7 @@ class ControllerManagerServer:
         n = len(self.prefix)
         mine = {k[n:]: v for k, v in done.metrics.items() if k.startswith(self.prefix)}
         with self._cond:
+            self.present = bool(mine)  # its manager reports while the robot is in the run
             self._seq += 1
             self._reports.append((self._seq, mine))
             for name in self.controllers:
@@ -166,9 +176,16 @@ class ControllerManagerServer:
         return [i for n, c in self.controllers.items() if c is not None and self.active(n)
                 for i in c.claim().command]
 
+    def _absent(self) -> str | None:
+        """Why the manager cannot act now (its robot is not in the run), or None."""
+        if self.present:
+            return None
+        return (f"robot {self.robot!r} is not in the run at {self.control.at()} (its "
+                "controller manager runs only while the robot is in the run)")
+
     def _list(self, request, response):
         with self._cond:
-            states = dict(self.states)
+            states = dict(self.states) if self.present else {}
         for entry in self.file.controllers:
             if entry.name not in states:  # unloaded
                 continue
@@ -194,6 +211,8 @@ class ControllerManagerServer:
     def _hardware_interfaces(self, request, response):
         with self._cond:
             claimed = self._claimed()
+            if not self.present:
+                return response
         response.command_interfaces, response.state_interfaces = hardware.interfaces(
             self.hardware(), claimed)
         return response
@@ -201,6 +220,8 @@ class ControllerManagerServer:
     def _hardware_components(self, request, response):
         with self._cond:
             claimed = self._claimed()
+            if not self.present:
+                return response
         name = self.ns.strip("/") or "cosim"
         response.component = [hardware.component(self.hardware(), f"{name}_mujoco_system",
                                                   claimed, self.file.update_rate)]
@@ -217,6 +238,11 @@ class ControllerManagerServer:
         the timeout is not waited on)."""
         with self._cond:
             states = dict(self.states)
+            absent = self._absent()
+        if absent:
+            log.warning("%s/controller_manager/switch_controller refused: %s", self.ns, absent)
+            response.ok, response.message = False, absent
+            return response
         claims = {n: c.claim().command for n, c in self.controllers.items() if c is not None}
         unrunnable = {n: f"its type {self.file.named(n).type!r} is one cosim cannot run (it "
                       "is loaded and stays inactive)" for n, c in self.controllers.items()
@@ -241,8 +267,9 @@ class ControllerManagerServer:
         def handle(request, response):
             with self._cond:
                 states = dict(self.states)
-            problem = lifecycle_problem(self.file, self.controllers, states, verb,
-                                        request.name)
+                absent = self._absent()
+            problem = absent or lifecycle_problem(self.file, self.controllers, states, verb,
+                                                  request.name)
             if problem:
                 log.warning("%s/controller_manager/%s_controller refused at %s: %s", self.ns,
                             verb, self.control.at(), problem)
@@ -274,7 +301,12 @@ class ControllerManagerServer:
                 if self._seq == seen:
                     self._cond.wait(WAIT_S)
                 fresh = [m for s, m in self._reports if s > seen]
-            handled = next((m for m in fresh if m.get("request", 0.0) >= rid), None)
+            handled = next((m for m in fresh if m.get("request", 0.0) >= rid or not m), None)
+            if handled is not None and not handled:  # no manager: its robot left the run
+                response.ok = False
+                if hasattr(response, "message"):
+                    response.message = f"the robot left the run before the {what} entered"
+                return response
             if handled is not None:
                 response.ok = f"refused:{rid}" not in handled
                 if not response.ok and hasattr(response, "message"):
@@ -293,6 +325,9 @@ class ControllerManagerServer:
 
         def on_goal(request) -> GoalResponse:
             with self._cond:
+                if (absent := self._absent()) is not None:
+                    log.warning("%s: goal for %s rejected: %s", label, name, absent)
+                    return GoalResponse.REJECT
                 if not self.active(name):  # as upstream: nothing would ever answer it
                     log.warning("%s: goal for %s rejected at %s: the controller is not "
                                 "running (activate it with /controller_manager/"
@@ -371,6 +406,8 @@ class ControllerManagerServer:
                     fresh = [(s, m) for s, m in self._reports if s > seen]
                     seen = fresh[-1][0] if fresh else seen
                 for s, m in fresh:
+                    if not m:  # no manager reports: its robot left the run
+                        return finish(handle, face.failed("abort", "the robot left the run"))
                     if m.get(f"goal_seq:{name}", 0.0) != float(mine):
                         if m.get(f"goal_seq:{name}", 0.0) > mine:
                             return finish(handle, face.failed("abort",
