@@ -18,7 +18,10 @@ inputs and outputs under the names a separate manager had, each robot's under it
 namespace in a swarm.
 
 The manager runs at the physics node's rate, which must be the controllers file's
-``update_rate``.
+``update_rate``. A robot that enters the run gets its manager at the tick it enters, after
+the world is recompiled with it (``HostedManagers.rebind``: every other robot's system moves
+to the new model's addresses, its controllers untouched); one that leaves takes its manager
+with it.
 """
 
 from __future__ import annotations
