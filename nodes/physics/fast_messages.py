@@ -92,9 +92,10 @@ def transform_stamped(parent: str, child: str, pos, quat_wxyz) -> TransformStamp
 
 
 def odometry(pose7, linear, angular, covariance: np.ndarray, odom_frame: str,
-             base_frame: str) -> Odometry:
+             base_frame: str, twist_covariance: np.ndarray | None = None) -> Odometry:
     """What ``nodes.physics.messages.odometry`` builds: the pose (x, y, z, qw, qx, qy, qz),
-    the twist's linear and angular parts (Python floats) and the covariance of both."""
+    the twist's linear and angular parts (Python floats) and the covariance of both (the
+    twist's ``twist_covariance`` where given); each covariance is copied."""
     x, y, z, qw, qx, qy, qz = pose7
     p = Pose.__new__(Pose)
     p._check_fields = CHECK
@@ -111,7 +112,7 @@ def odometry(pose7, linear, angular, covariance: np.ndarray, odom_frame: str,
     tc = TwistWithCovariance.__new__(TwistWithCovariance)
     tc._check_fields = CHECK
     tc._twist = t
-    tc._covariance = covariance.copy()
+    tc._covariance = (covariance if twist_covariance is None else twist_covariance).copy()
     msg = Odometry.__new__(Odometry)
     msg._check_fields = CHECK
     msg._header = header(odom_frame)

@@ -16,14 +16,13 @@ from array import array
 import numpy as np
 from builtin_interfaces.msg import Duration
 from control_msgs.msg import DynamicJointState, InterfaceValue, JointTrajectoryControllerState
-from geometry_msgs.msg import Pose, PoseWithCovariance, Twist, TwistWithCovariance
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64MultiArray, MultiArrayLayout
 from trajectory_msgs.msg import JointTrajectoryPoint, MultiDOFJointTrajectoryPoint
 
-from nodes.physics.fast_messages import CHECK, header, quaternion, vector3
+from nodes.physics.fast_messages import CHECK, header
 from nodes.physics.fast_messages import joint_state as _joint_state
-from nodes.physics.fast_messages import point as _point
+from nodes.physics.fast_messages import odometry as _odometry
 
 INTERFACES = ("position", "velocity", "effort")
 
@@ -124,26 +123,5 @@ def odometry(x: float, y: float, qz: float, qw: float, linear: float, angular: f
              child_frame_id: str) -> Odometry:
     """A diff drive's ~/odom: a planar pose (x, y, the heading as qz, qw) and twist (linear
     x, angular z), each covariance a float64 array of 36 (copied)."""
-    pose = Pose.__new__(Pose)
-    pose._check_fields = CHECK
-    pose._position = _point(x, y, 0.0)
-    pose._orientation = quaternion(qw, 0.0, 0.0, qz)
-    pc = PoseWithCovariance.__new__(PoseWithCovariance)
-    pc._check_fields = CHECK
-    pc._pose = pose
-    pc._covariance = pose_covariance.copy()
-    twist = Twist.__new__(Twist)
-    twist._check_fields = CHECK
-    twist._linear = vector3(linear, 0.0, 0.0)
-    twist._angular = vector3(0.0, 0.0, angular)
-    tc = TwistWithCovariance.__new__(TwistWithCovariance)
-    tc._check_fields = CHECK
-    tc._twist = twist
-    tc._covariance = twist_covariance.copy()
-    msg = Odometry.__new__(Odometry)
-    msg._check_fields = CHECK
-    msg._header = header(frame_id)
-    msg._child_frame_id = child_frame_id
-    msg._pose = pc
-    msg._twist = tc
-    return msg
+    return _odometry((x, y, 0.0, qw, 0.0, 0.0, qz), (linear, 0.0, 0.0), (0.0, 0.0, angular),
+                     pose_covariance, frame_id, child_frame_id, twist_covariance)
