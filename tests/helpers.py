@@ -57,6 +57,20 @@ def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240,
     return CliRun(proc.returncode, proc.stdout, proc.stderr, new[-1] if new else None)
 
 
+def replayed_digest(run_dir: Path, out: Path) -> str:
+    """``cosim-orchestrate --replay RUN_DIR --in-process`` from the run directory alone (the
+    recorded requests fed back); the replay's digest, after checking it exits 0 and prints
+    the digest its manifest has."""
+    proc = subprocess.run([*ORCHESTRATE, "--replay", str(run_dir), "--in-process", "--quiet",
+                           "--out", str(out)], capture_output=True, text=True, timeout=240,
+                          cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    (replay_dir,) = out.iterdir()
+    digest = json.loads((replay_dir / "manifest.json").read_text())["digest"]
+    assert digest in proc.stdout, proc.stdout
+    return digest
+
+
 def node_process(orchestrator_pid: int, name: str):
     """The psutil process of node ``name`` among an orchestrator's children (by the process
     name every node gives itself, whether forked or started as a fresh interpreter)."""

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 
 from geometry_msgs.msg import PoseStamped
 from simulation_interfaces.msg import Result
@@ -19,7 +18,7 @@ from simulation_interfaces.srv import DeleteEntity, SpawnEntity
 
 from orchestrator.outputs.bag import BagReader
 from plan.ros_types import message_class
-from tests.helpers import ORCHESTRATE, ROOT
+from tests.helpers import ROOT, replayed_digest
 from tests.sim_client import OK, SimClient, live_runs
 
 SCENARIO = ROOT / "tests" / "scenarios" / "swarm_clients.yaml"
@@ -91,9 +90,4 @@ def test_clients_bring_robots_in_and_take_them_out(tmp_path, ros_node):
     metrics = json.loads((run.run_dir / "manifest.json").read_text())["outcome"]["metrics"]
     arrived = {n: metrics[f"{n}/arrived"] for n in ticks if n not in TAKEN_OUT}
     assert arrived == dict.fromkeys(arrived, 1.0), metrics  # driven to their goals
-    again = subprocess.run([*ORCHESTRATE, "--replay", str(run.run_dir), "--in-process",
-                            "--quiet", "--out", str(tmp_path / "replay")],
-                           capture_output=True, text=True, timeout=240, cwd=ROOT)
-    assert again.returncode == 0 and run.digest in again.stdout, again.stderr
-    (replay_dir,) = (tmp_path / "replay").iterdir()
-    assert json.loads((replay_dir / "manifest.json").read_text())["digest"] == run.digest
+    assert replayed_digest(run.run_dir, tmp_path / "replay") == run.digest

@@ -6,9 +6,7 @@ gives the run's digest. The parsing of requests is tested on its own, without a 
 
 from __future__ import annotations
 
-import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -29,7 +27,7 @@ from orchestrator.outputs.bag import BagReader
 from orchestrator.ros_surface.spawn_resources import Refused, requested_object
 from plan.events import parse_edits
 from plan.ros_types import message_class
-from tests.helpers import ORCHESTRATE, ROOT
+from tests.helpers import ROOT, replayed_digest
 from tests.sim_client import OK, SimClient, live_runs
 
 R = SpawnEntity.Response
@@ -266,9 +264,4 @@ def test_clients_spawn_and_delete_objects_recorded_and_replayed(tmp_path, ros_no
     ahead = slice(41, 47)
     assert scans[5][ahead].min() > 3.5 and scans[10][ahead].min() < 1.0  # the crate
     # --replay from the run directory alone, in-process: the recorded requests, one digest
-    again = subprocess.run([*ORCHESTRATE, "--replay", str(run.run_dir), "--in-process",
-                            "--quiet", "--out", str(tmp_path / "replay")],
-                           capture_output=True, text=True, timeout=240, cwd=ROOT)
-    assert again.returncode == 0 and run.digest in again.stdout, again.stderr
-    (replay_dir,) = (tmp_path / "replay").iterdir()
-    assert json.loads((replay_dir / "manifest.json").read_text())["digest"] == run.digest
+    assert replayed_digest(run.run_dir, tmp_path / "replay") == run.digest
