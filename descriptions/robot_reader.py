@@ -113,7 +113,7 @@ def read_robot(model: mujoco.MjModel, names: RobotNames = RobotNames(), robot: s
         _id(model, ACTUATOR, actuator, "actuator")
         actuated.append(ActuatedJoint(joint, actuator, "position"))
     root = int(model.body_rootid[base])
-    bodies = [b for b in range(model.nbody) if int(model.body_rootid[b]) == root]
+    bodies = np.flatnonzero(model.body_rootid == root).tolist()  # in array code: once a robot
     sensors = []
     laser = mujoco.mj_name2id(model, SITE, names.laser_site)
     if laser >= 0:

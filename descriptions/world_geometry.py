@@ -104,6 +104,24 @@ def site_offset(model, name: str) -> tuple[float, float, float]:
     return float(model.site_pos[sid][0]), float(model.site_pos[sid][1]), yaw(w, x, y, z)
 
 
+def _posed(model):
+    """An MjData of ``model`` at its default pose (kinematics only), made once for the last
+    model asked: a swarm world asks once per robot, and posing the whole world each time
+    made reading a thousand robots take seconds."""
+    import mujoco
+
+    held = _POSED.get("last")
+    if held is None or held[0] is not model:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        held = _POSED["last"] = (model, data)
+    return held[1]
+
+
+_POSED: dict[str, tuple] = {}
+"""_posed's last (model, data): the model is kept with it."""
+
+
 def robot_footprint_radius(model, base_body: str) -> float:
     """The radius of the circle around ``base_body``'s origin that holds every colliding geom
     of the robot (the body's whole subtree), seen from above, at the default pose."""
@@ -112,8 +130,7 @@ def robot_footprint_radius(model, base_body: str) -> float:
     base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base_body)
     if base < 0:
         raise ValueError(f"the world has no body {base_body!r}")
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    data = _posed(model)
     root = model.body_rootid[base]
     centre = data.xpos[base, :2]
     radius = 0.0
