@@ -162,3 +162,45 @@ class ChatterNode(StepNode):
             out.update({topic: String(data=text) for topic, text in self.params.latched.items()})
             self.first = False
         return out
+
+
+class TrajectoryOnceParams(BaseModel):
+    """The joints and the positions one trajectory takes them to (in ``seconds``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    joints: list[str]
+    positions: list[float]
+    seconds: int = 1
+
+
+class TrajectoryOnceNode(StepNode):
+    """Publishes one JointTrajectory on a trajectory controller's ~/joint_trajectory at its
+    first activation, then empty ones (which the controller ignores): a goal without a
+    client, for ros2_control tests."""
+
+    Params = TrajectoryOnceParams
+    TOPIC = "/joint_trajectory_controller/joint_trajectory"
+
+    @classmethod
+    def outputs(cls, params: TrajectoryOnceParams) -> dict[str, type]:
+        """The trajectory controller's topic."""
+        from trajectory_msgs.msg import JointTrajectory
+
+        return {cls.TOPIC: JointTrajectory}
+
+    def setup(self) -> None:
+        """Nothing sent yet."""
+        self.sent = False
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """The trajectory at the first activation, empty ones after."""
+        from builtin_interfaces.msg import Duration
+        from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+        msg = JointTrajectory()
+        if not self.sent:
+            msg.joint_names = list(self.params.joints)
+            msg.points = [JointTrajectoryPoint(positions=list(self.params.positions),
+                                               time_from_start=Duration(sec=self.params.seconds))]
+            self.sent = True
+        return {self.TOPIC: msg}

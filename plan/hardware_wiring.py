@@ -11,7 +11,8 @@ controller takes at its update what arrived before it) but those clients feed at
 its outputs are physics'. Physics' own ``/joint_commands`` and ``/cmd_vel`` give way to
 controllers that command the joints and the wheels.
 
-The manager must run at the physics node's rate (its controllers file's ``update_rate``).
+The manager runs at its controllers file's ``update_rate``, physics' rate / n for a whole n
+(every n-th physics activation; its controllers' topics at that period, ``plan.schedule``).
 Scenarios written for the manager as a node of its own wired physics to it with remaps to
 ``/cosim/hardware_states``, ``/cosim/hardware_commands`` and ``/cosim/base_command``: such
 remaps and inputs are dropped, each with a notice (``--strict`` refuses them).
@@ -19,6 +20,7 @@ remaps and inputs are dropped, each with a notice (``--strict`` refuses them).
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
 
 from plan.errors import ScenarioError, ScenarioNotice
@@ -26,7 +28,7 @@ from plan.kinds import catalogue, class_of
 from plan.model import InputSpec, NodeSpec, ScenarioModel
 from plan.robots import robot_of
 from plan.scenario import EXTERNAL_NAME
-from plan.timeutil import NS_PER_S
+from plan.timeutil import NS_PER_S, whole_divisions
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS
 
 HARDWARE_STATES = "/cosim/hardware_states"
@@ -62,7 +64,7 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
     physics node (module docstring); ``params``: each node's checked parameters, by index.
     Notices for physics' inputs that the controllers replace (None: no manager, nothing
     changed). Exit 2 where a manager cannot
-    run in physics' step: no physics node, a rate other than physics', managers for some
+    run in physics' step: no physics node, a rate not physics' / n, managers for some
     robots only or declared twice, a controller topic remapped in a swarm."""
     nodes = list(model.nodes)
     classes = {i: class_of(spec) for i, spec in enumerate(nodes)}
@@ -92,11 +94,7 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
                                                                    "the scenario's robot")
                             + " only.", "for_each: robot without robots: (every robot).")
     spec = nodes[first]
-    if spec.period_ns != physics.period_ns:
-        one_line = model.robots is not None and model.robots.controllers is not None
-        raise _rate_error(path, "robots.controllers" if one_line else f"{key}.rate",
-                          _key(nodes, origins, w), spec.period_ns,
-                          physics.period_ns, getattr(params[first], "controllers", None))
+    check_manager_rate(path, model, params, origins)
     cls = classes[first]
     hosted = cls.hosted_params(params[first], spec.name.partition("@")[0])
     joints, base = cls.takes_hardware(params[first])
@@ -152,6 +150,29 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
     return model.model_copy(update={"nodes": nodes}), notices
 
 
+def check_manager_rate(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int]
+                       ) -> None:
+    """Exit 2 where the controller manager's update_rate is not the physics node's rate / n
+    for a whole n (naming the controllers file, its key and the rates accepted); nothing
+    without a manager or a physics node (said by ``fold_managers``). Checked before the
+    world's timestep fits physics' period, so that a ratio such as 1.5 names the file."""
+    nodes = model.nodes
+    classes = {i: class_of(spec) for i, spec in enumerate(nodes)}
+    managers = [i for i, cls in classes.items() if getattr(cls, "hardware_role", False)]
+    worlds = [i for i, cls in classes.items() if getattr(cls, "every_robot", False)]
+    if not managers or len(worlds) != 1:
+        return
+    first, w = managers[0], worlds[0]
+    spec, physics = nodes[first], nodes[w]
+    ratio = Fraction(spec.period_ns) / Fraction(physics.period_ns)
+    if ratio.denominator != 1 or ratio < 1:  # update_rate = physics' rate / n
+        one_line = model.robots is not None and model.robots.controllers is not None
+        key = _key(nodes, origins, first)
+        raise _rate_error(path, "robots.controllers" if one_line else f"{key}.rate",
+                          _key(nodes, origins, w), spec.period_ns, physics.period_ns,
+                          getattr(params.get(first), "controllers", None))
+
+
 def _local(topic: str, robots: list[str]) -> str:
     """``topic`` without the namespace of the robot it is under ('/robot_2/cmd_vel' ->
     '/cmd_vel'), as it is where it is under none."""
@@ -169,21 +190,19 @@ def _external_topics(nodes: list[NodeSpec]) -> dict[str, str]:
 
 def _rate_error(path: Path, key: str, physics_key: str, period_ns, physics_ns,
                 controllers: str | None) -> ScenarioError:
-    """The manager's update_rate is not physics' rate: which file and key, the rates
-    accepted, and why a lower update_rate (physics' rate / n) is not one of them."""
+    """The manager's update_rate is not physics' rate / n for a whole n: which file and key,
+    and the rates accepted."""
     hz = lambda ns: f"{float(NS_PER_S / ns):g}"  # noqa: E731 - one short format
     rate, physics_rate = hz(period_ns), hz(physics_ns)
     where = (f"{controllers}: controller_manager.ros__parameters.update_rate"
              if controllers else "update_rate in the controllers file")
     return ScenarioError(
-        path, key, f"the controller manager runs in the physics node's step, so "
-        f"its update_rate ({rate} Hz, {where}) must be physics' rate ({physics_rate} Hz, "
-        f"{physics_key}.rate). A lower update_rate (physics' rate / n, an update every n-th "
-        "physics step) cannot be served yet: a lockstep node publishes each of its topics "
-        "at every activation (no topic of one node at a lower rate than its others), and the "
-        "controllers' topics are physics'.",
-        f"update_rate: {physics_rate} in {controllers or 'the controllers file'}, or "
-        f"physics' rate: {rate} (where the world's timestep divides its period).")
+        path, key, f"the controller manager runs in the physics node's step, at every n-th "
+        f"physics activation for a whole n, so its update_rate ({rate} Hz, {where}) must be "
+        f"physics' rate ({physics_rate} Hz, {physics_key}.rate) divided by a whole number.",
+        f"update_rate: one of {whole_divisions(NS_PER_S / physics_ns)} in "
+        f"{controllers or 'the controllers file'}, or physics' rate: a whole multiple of "
+        f"{rate} (where the world's timestep divides its period).")
 
 
 def _key(nodes: list[NodeSpec], origins: dict[str, int], i: int) -> str:

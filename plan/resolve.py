@@ -18,7 +18,12 @@ from plan.events import (
     timing_problems,
 )
 from plan.external_node import complete_model
-from plan.hardware_wiring import fold_managers, hand_wiring_notices, with_robot_managers
+from plan.hardware_wiring import (
+    check_manager_rate,
+    fold_managers,
+    hand_wiring_notices,
+    with_robot_managers,
+)
 from plan.kinds import catalogue
 from plan.model import ScenarioModel
 from plan.robots import (
@@ -27,6 +32,8 @@ from plan.robots import (
     RobotsLayout,
     namespace_in,
     namespaced,
+    per_robot,
+    robot_namespaces,
     robot_of,
 )
 from plan.roles import role_of
@@ -76,6 +83,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
             classes[i] = where.node_class(i, spec)
             params[i] = where.node_params(i, spec, classes[i][1])
             where.check_finite(where.node_key(i, "params"), params[i].model_dump())
+    with found.collecting():  # before the world's timestep against physics' period
+        check_manager_rate(path, model, params, origins)
     needs_world = any(cls.needs_world for _, cls in classes.values())
     world = world_model = None
     with found.collecting():
@@ -124,7 +133,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
             period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
             output_names=outputs[i][1], inputs=inputs[i], latched=outputs[i][2],
             role=role_of(spec, classes[i][0], getattr(params[i], "gate", "auto"),
-                         catalogue().external))
+                         catalogue().external),
+            output_periods=own_periods(where, spec, classes[i][1], params[i], tick_ns))
     with found.collecting():
         where.check_cycles(edges)
     with found.collecting():
@@ -143,11 +153,27 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     if topic_windows:
         nodes = {name: _with_windows(plan, topic_windows, windows) for name, plan in
                  nodes.items()}
+    topic_periods = {p.output_names[own]: ticks for p in nodes.values()
+                     for own, ticks in p.output_periods.items()}
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()},
-                        edges, windows, topic_windows)
+                        edges, windows, topic_windows, topic_periods)
     warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges, layout)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
+
+
+def own_periods(where: ScenarioChecks, spec, cls, params, tick_ns) -> dict[str, int]:
+    """The node's outputs that have a period of their own, a whole multiple of the node's
+    (own name -> ticks): those the node class's ``output_periods(params)`` names (the
+    controllers' topics of a manager run in the physics step below physics' rate), each
+    robot's under its namespace."""
+    periods = getattr(cls, "output_periods", None)
+    if periods is None:
+        return {}
+    own = per_robot(periods(params), robot_namespaces(where.model.robots, spec.robots)) or {}
+    node = spec.period_ns // tick_ns
+    ticks = {topic: int(period / tick_ns) for topic, period in own.items()}
+    return {topic: t for topic, t in ticks.items() if t != node}
 
 
 def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None,

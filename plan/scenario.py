@@ -54,16 +54,21 @@ class NodePlan:
     windows: dict[str, tuple[int, int | None]] = field(default_factory=dict)  # own output
     # name -> [start, end) ticks it is published in (a robot that enters or leaves the run)
     relatch: set[int] = field(default_factory=set)  # ticks its latched outputs are due again
+    output_periods: dict[str, int] = field(default_factory=dict)  # own output name -> its
+    # period in ticks, a multiple of the node's (published at those activations only)
 
     def windowed(self, tick: int, first: bool) -> tuple[dict[str, str], frozenset[str], bool]:
         """(own -> graph names, latched own names, first) of the outputs due at ``tick``
         (``runtime.activation``): a windowed output only inside its window, a windowed
         latched one at the node's first activation inside it; a latched one without a
         window at the first activation and again at each ``relatch`` tick (a robot entered:
-        /tf_static with its fixed frames too)."""
+        /tf_static with its fixed frames too); an output with a period of its own
+        (``output_periods``) only at ticks that are multiples of it."""
         p = self.period_ticks
         names, due_latched = {}, set()
         for own, graph in self.output_names.items():
+            if tick % self.output_periods.get(own, 1):
+                continue
             window = self.windows.get(own)
             if window is not None and (tick < window[0] or (window[1] is not None
                                                             and tick >= window[1])):

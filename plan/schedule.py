@@ -5,7 +5,11 @@ Time is counted in ticks; ``tick_ns`` is exact (an int, or a Fraction such as 1/
 nanoseconds once (``plan.timeutil.tick_time_ns``). A node with a period of
 ``p`` ticks acts at every ``k`` with ``k % p == 0``. An input edge is ``same_tick`` (the
 consumer waits for the producer's sample at or before ``k``) or ``delayed`` (the latest
-sample strictly before ``k``: a zero-order hold that breaks algebraic loops).
+sample strictly before ``k``: a zero-order hold that breaks algebraic loops). A topic may
+have a period of its own (``topic_periods``), a multiple of its producer's: it is published
+only at the producer's activations at multiples of it (a controller manager run in the
+physics step at physics' rate / n publishes its controllers' topics every n-th activation),
+as a topic with a window is published only inside it.
 """
 
 from __future__ import annotations
@@ -101,7 +105,8 @@ class Schedule:
 
     def __init__(self, tick_ns: Ns, last_tick: int, periods: dict[str, int], edges: list[Edge],
                  windows: dict[str, Window] | None = None,
-                 topic_windows: dict[str, Window] | None = None):
+                 topic_windows: dict[str, Window] | None = None,
+                 topic_periods: dict[str, int] | None = None):
         if (not (_is_int(tick_ns) or isinstance(tick_ns, Fraction)) or not _is_int(last_tick)
                 or tick_ns <= 0 or last_tick < 0):
             raise ValueError("tick_ns must be a positive int or Fraction and last_tick a "
@@ -127,6 +132,13 @@ class Schedule:
             self.inputs_of[e.consumer].append(e)
         self.windows = dict(windows or {})  # node -> the ticks it may act in
         self.topic_windows = dict(topic_windows or {})  # graph topic -> the ticks it carries
+        self.topic_periods = dict(topic_periods or {})  # graph topic -> its own period
+        for e in self.edges:
+            if e.topic in self.topic_periods:
+                own = self.topic_periods[e.topic]
+                if not _is_int(own) or own <= 0 or own % self.periods[e.producer]:
+                    raise ValueError(f"period of {e.topic} must be a whole multiple of its "
+                                     f"producer {e.producer}'s")
 
     def active(self, node: str, tick: int) -> bool:
         """Whether ``tick`` is inside the node's window (always, for a node without one)."""
@@ -138,10 +150,16 @@ class Schedule:
         producer's, else None (every activation)."""
         return self.topic_windows.get(topic, self.windows.get(producer))
 
+    def topic_period(self, producer: str, topic: str) -> int:
+        """The ticks between samples of ``topic`` as ``producer`` publishes it: the topic's
+        own period (``topic_periods``), else the producer's."""
+        return self.topic_periods.get(topic) or self.periods[producer]
+
     def sample_ticks(self, producer: str, topic: str) -> tuple[int, int | None]:
         """The producer ticks of the first and last sample on ``topic`` (last None: to the
-        run's end): its activations inside the topic's window. First > last: none at all."""
-        p = self.periods[producer]
+        run's end): its activations at its period (``topic_period``) inside the topic's
+        window. First > last: none at all."""
+        p = self.topic_period(producer, topic)
         window = self.topic_window(producer, topic)
         if window is None:
             return 0, None
@@ -150,6 +168,8 @@ class Schedule:
 
     def carries(self, producer: str, topic: str, tick: int) -> bool:
         """Whether the producer's activation at ``tick`` publishes ``topic``."""
+        if tick % self.topic_period(producer, topic):
+            return False
         window = self.topic_window(producer, topic)
         return window is None or (window[0] <= tick and (window[1] is None or tick < window[1]))
 
@@ -214,7 +234,7 @@ class Schedule:
 
     def input_tick(self, edge: Edge, tick: int) -> int | None:
         """The producer tick whose sample the consumer uses at ``tick`` (None: no sample yet)."""
-        p = self.periods[edge.producer]
+        p = self.topic_period(edge.producer, edge.topic)
         if edge.mode == SAME_TICK:
             wanted = (tick // p) * p
         elif tick == 0:
@@ -251,7 +271,7 @@ class Schedule:
         window = self.windows.get(edge.consumer)
         if window is None:
             return None
-        p, q = self.periods[edge.consumer], self.periods[edge.producer]
+        p, q = self.periods[edge.consumer], self.topic_period(edge.producer, edge.topic)
         back = 0 if edge.mode == SAME_TICK else 1  # a delayed input: strictly before
 
         def wanted(k: int) -> int:
@@ -270,6 +290,16 @@ class Schedule:
         if window is not None:
             first = first_activation(p, window[0])
             last = last if window[1] is None else min(last, window[1] - 1)
+        return (last // p * p - first) // p + 1 if last >= first else 0
+
+    def samples(self, producer: str, topic: str, until: int | None = None) -> int:
+        """How many samples ``producer`` publishes on ``topic`` in ticks [0, ``until``)
+        (default: the whole run): its activations at the topic's period inside its window
+        (what a bag of the run holds of a topic that is not latched)."""
+        p = self.topic_period(producer, topic)
+        first, last = self.sample_ticks(producer, topic)
+        end = self.last_tick if until is None else min(until - 1, self.last_tick)
+        last = end if last is None else min(last, end)
         return (last // p * p - first) // p + 1 if last >= first else 0
 
     def history_depth(self, edge: Edge) -> int:
@@ -300,7 +330,8 @@ class Schedule:
         one wake-up per node per tick.
         """
         for edge in sorted(self.inputs_of[node], key=lambda e: e.topic):
-            if edge.mode == SAME_TICK and self.periods[node] % self.periods[edge.producer] == 0:
+            if (edge.mode == SAME_TICK
+                    and self.periods[node] % self.topic_period(edge.producer, edge.topic) == 0):
                 return edge
         return None
 

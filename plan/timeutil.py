@@ -130,3 +130,21 @@ def format_rate(period_ns: Ns) -> str:
     if rate.denominator == 1:
         return str(rate.numerator)
     return f"{float(rate):.4g}"
+
+
+def divides_rate(slow_hz: int, period_ns) -> bool:
+    """Whether ``slow_hz`` is the rate of a node of period ``period_ns`` divided by a whole
+    n >= 1 (its period a whole multiple of ``period_ns``: a controller manager run in the
+    physics step every n-th activation)."""
+    if slow_hz <= 0:
+        return False
+    ratio = Fraction(NS_PER_S, slow_hz) / Fraction(period_ns)
+    return ratio.denominator == 1 and ratio >= 1
+
+
+def whole_divisions(hz, count: int = 6) -> str:
+    """The first ``count`` whole rates ``hz`` / n, n = 1, 2, ... ('500, 250, 125, 100, 50,
+    25 Hz'): the rates a controller manager in a node of rate ``hz`` may have."""
+    hz = Fraction(hz)
+    rates = [hz / n for n in range(1, 10_000) if (hz / n).denominator == 1][:count]
+    return ", ".join(str(int(r)) for r in rates) + " Hz" if rates else "none whole"

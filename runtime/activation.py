@@ -43,7 +43,8 @@ class Activation:
                 if self.on_note is not None:
                     self.on_note(Note(self.plan.name, tick.index, tick.time_ns, text))
         names, latched, first = self.plan.output_names, self.plan.latched, self.first
-        if self.plan.windows or self.plan.relatch:  # a robot's topics while it is there
+        if self.plan.windows or self.plan.relatch or self.plan.output_periods:  # a robot's
+            # topics while it is there, a topic of a period of its own at its ticks
             names, latched, first = self.plan.windowed(tick.index, first)
             if getattr(self.node, "holds_outputs", False):  # it holds every topic: the due
                 outputs = {own: msg for own, msg in outputs.items() if own in names}

@@ -158,7 +158,7 @@ class LockstepRuntime:
         self.acks: dict[str, list[GatedChannel]] = {}  # a gated producer's ack topic -> inputs
         driver = sched.driving_edge(self.name)
         for edge, inp in zip(sched.inputs_of[self.name], plan.inputs, strict=True):
-            period = sched.periods[inp.producer]
+            period = sched.topic_period(inp.producer, inp.graph_topic)  # its samples
             drives = sched.periods[self.name] if edge == driver else None
             depth = sched.history_depth(edge)
             producer = self.scenario.nodes[inp.producer]

@@ -97,8 +97,8 @@ def test_a_broadcaster_per_robot_publishes_each_robots_joint_states(tmp_path):
 
 def test_a_manager_at_another_rate_than_physics_is_refused_naming_the_node(tmp_path):
     text = (SCENARIOS / "nav_control.yaml").read_text()
-    slow = text.replace("    rate: 50\n    params:\n      start:", "    rate: 100\n"
-                        "    params:\n      start:", 1)
+    slow = text.replace("    rate: 50\n    params:\n      start:", "    rate: 25\n"
+                        "    params:\n      start:", 1)  # physics below update_rate 50
     assert slow != text
     with pytest.raises(ScenarioError) as err:
         load_scenario(_copy(tmp_path, "nav_control.yaml", slow))
@@ -140,12 +140,16 @@ def test_robots_controllers_refused_naming_the_key(tmp_path, change, problem):
     assert problem in err.value.problem
 
 
-def test_an_update_rate_other_than_physics_rate_names_the_file_key_and_rates():
+def test_an_update_rate_other_than_physics_rate_over_n_names_the_file_key_and_rates():
     ur = SCENARIOS.parent / "tests" / "scenarios" / "ur5e_control.yaml"
+    state = "/joint_trajectory_controller/controller_state"
+    slow = load_scenario(ur, {"nodes.physics.rate": 500})  # update_rate 100: 500 / 5
+    assert slow.schedule.topic_period("physics", state) == 5 * slow.schedule.periods["physics"]
     with pytest.raises(ScenarioError) as err:
-        load_scenario(ur, {"nodes.physics.rate": 500})  # update_rate 100: 500 / 5
+        load_scenario(ur, {"nodes.physics.rate": 50})  # 50 / 100: above physics' rate
     text = str(err.value)
     assert "robots.controllers" in text
     assert "ur_controllers.yaml: controller_manager.ros__parameters.update_rate" in text
-    assert "(100 Hz," in text and "(500 Hz, nodes[0] (physics).rate)" in text
-    assert "update_rate: 500 in" in text and "physics' rate: 100" in text
+    assert "(100 Hz," in text and "(50 Hz, nodes[0] (physics).rate)" in text
+    assert "update_rate: one of 50, 25, 10, 5, 2, 1 Hz in" in text
+    assert "physics' rate: a whole multiple of 100" in text

@@ -86,7 +86,8 @@ def expected_counts(scenario, ticks: int) -> dict[str, int]:
     counts = {"/clock": ticks}
     for topic in scenario.topics:
         latched = topic in scenario.latched_topics  # once, at the first activation
-        counts[topic] = 1 if latched else scenario.schedule.activations(scenario.producer_of(topic))
+        counts[topic] = 1 if latched else scenario.schedule.samples(scenario.producer_of(topic),
+                                                                   topic)
     return counts
 
 

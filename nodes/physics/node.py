@@ -28,14 +28,17 @@ activation integrates one node period (a whole number of world timesteps) and pu
 A robot's controller manager runs in this step (``controller_manager``, set by the plan from
 the scenario's ``ros2_control`` node or ``robots.controllers``: nodes.ros2_control.hosted):
 after integrating up to the tick it reads the joints from MjData, updates the controllers and
-writes their commands to the actuators; the controllers' topics are this node's (each
-robot's under its namespace), a joint state broadcaster's /joint_states the robot's, and
-/joint_commands and /cmd_vel give way to the controllers that command the joints and wheels.
+writes their commands to the actuators, at every n-th activation where its update_rate is this
+node's rate / n (``output_periods``: its topics then too); the controllers' topics are this
+node's (each robot's under its namespace), a joint state broadcaster's /joint_states the
+robot's, and /joint_commands and /cmd_vel give way to the controllers that command the joints
+and wheels.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
+from fractions import Fraction
 from typing import Any
 
 import mujoco
@@ -66,7 +69,7 @@ from nodes.ros2_control import hosted
 from nodes.ros2_control.hosted import HostedManagerParams
 from plan.interactive import SET_POSE_TOPIC, WORLD_EDITS_TOPIC
 from plan.obstacles import place_problem
-from plan.timeutil import format_ns
+from plan.timeutil import divides_rate, format_ns, whole_divisions
 from plan.topic_names import CMD_VEL, JOINT_COMMANDS, JOINT_STATES, ODOM
 from plan.twin import MIRROR_JOINTS_TOPIC, MIRROR_TOPIC
 
@@ -139,6 +142,16 @@ class PhysicsNode(StepNode):
         if params.controller_manager is not None:  # the controllers' topics, a robot's
             out.update(hosted.publications(params.controller_manager))
         return out
+
+    @classmethod
+    def output_periods(cls, params: PhysicsParams) -> dict[str, Any]:
+        """The outputs published at a period of their own (topic -> ns): the controllers'
+        topics, at the controller manager's update_rate (physics' rate / n: every n-th
+        activation, ``plan.schedule``)."""
+        if params.controller_manager is None:
+            return {}
+        period = hosted.manager_period_ns(params.controller_manager, None)
+        return {topic: period for topic in hosted.publications(params.controller_manager)}
 
     @classmethod
     def latched_outputs(cls, params: PhysicsParams) -> dict[str, type]:
@@ -265,11 +278,15 @@ class PhysicsNode(StepNode):
         manager = params.controller_manager
         if manager is not None:
             rate = hosted.read(manager).update_rate
-            if period_ns * rate != NS_PER_S:
-                return [("rate", f"the controller manager runs in this node's step, and its "
-                         f"controllers file says update_rate: {rate}, this node runs at "
-                         f"{float(NS_PER_S / period_ns):g} Hz.", f"rate: {rate} here (or "
-                         "update_rate: the physics node's rate in the controllers file).")]
+            if not divides_rate(rate, period_ns):
+                hz = NS_PER_S / Fraction(period_ns)
+                return [("rate", f"the controller manager runs in this node's step, at every "
+                         f"n-th activation for a whole n, and its controllers file "
+                         f"({manager.controllers}) says controller_manager.ros__parameters."
+                         f"update_rate: {rate}, this node runs at {float(hz):g} Hz "
+                         f"(ratio {float(hz / rate):g}).", f"update_rate: one of "
+                         f"{whole_divisions(hz)} (this rate / n) in the controllers file, or "
+                         f"rate: a whole multiple of {rate} here.")]
         if period_ns % step == 0:
             return []
         fits = [NS_PER_S // (k * step) for k in range(1, 1000)

@@ -18,6 +18,7 @@ other (one event for the pair). Each robot's goal is checked in ground truth; th
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import mujoco
@@ -350,6 +351,12 @@ class SwarmPhysics:
                                          [models[rig.name] for rig in self.rigs],
                                          config.held_inputs, note)
         self.period_ns = config.period_ns
+        self.hosted_every, self.hosted_period_ns = 1, self.period_ns  # ticks, ns per update
+        if self.hosted is not None:  # update_rate = this rate / n: every n-th activation
+            from nodes.ros2_control.hosted import manager_period_ns
+
+            self.hosted_period_ns = manager_period_ns(params.controller_manager, self.period_ns)
+            self.hosted_every = int(Fraction(self.hosted_period_ns) / Fraction(config.tick_ns))
         self.joint_commands = self.hosted is None or not self.hosted.commands_joints
         self._bind()
         self.started = False
@@ -470,8 +477,9 @@ class SwarmPhysics:
             self._apply_events(tick, edits)
         self.book.account(self.data, tick)
         out = self._publish()
-        if self.hosted is not None:  # read, update, write: the commands act from now on
-            self.hosted.step(tick.time_ns, self.period_ns, self.data, inputs, out)
+        if self.hosted is not None and tick.index % self.hosted_every == 0:  # read, update,
+            # write at the manager's update_rate: the commands act from now on
+            self.hosted.step(tick.time_ns, self.hosted_period_ns, self.data, inputs, out)
         if (first or self.entered) and self.params.tf is not None:  # again with a robot in
             out["/tf_static"] = TFMessage(transforms=[t for rig in self.rigs
                                                       for t in rig.frames.static])

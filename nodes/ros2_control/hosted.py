@@ -17,15 +17,20 @@ controllers' own topics (``~/x`` under the controller's name, the switch topic) 
 inputs and outputs under the names a separate manager had, each robot's under its
 namespace in a swarm.
 
-The manager runs at the physics node's rate, which must be the controllers file's
-``update_rate``. A robot that enters the run gets its manager at the tick it enters, after
-the world is recompiled with it (``HostedManagers.rebind``: every other robot's system moves
-to the new model's addresses, its controllers untouched); one that leaves takes its manager
+The manager runs at the controllers file's ``update_rate``, physics' rate or physics' rate / n
+for a whole n: it reads, updates and writes at every n-th activation of physics (ticks that
+are multiples of its period), and its controllers' topics are published at those only (the
+plan gives them that period: ``plan.schedule``); between updates the commands it wrote hold,
+as a real controller's do between its cycles. A robot that enters the run gets its manager
+at the tick it enters (its first update at the first of those ticks from then), after the
+world is recompiled with it (``HostedManagers.rebind``: every other robot's system moves to
+the new model's addresses, its controllers untouched); one that leaves takes its manager
 with it.
 """
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import mujoco
@@ -49,6 +54,7 @@ from nodes.ros2_control.node import (  # noqa: F401 - the physics node's names f
 )
 from nodes.ros2_control.requests import apply_request, request_lines
 from plan.robots import namespaced
+from plan.timeutil import NS_PER_S
 
 
 class MujocoSystem:
@@ -204,6 +210,15 @@ class RobotManager:
         handled (``request``) and those refused at this tick (``refused:<id>`` 1)."""
         return {**self.manager.metrics(), "request": float(self.request),
                 **{f"refused:{r}": 1.0 for r in self.refused}}
+
+
+def manager_period_ns(params: HostedManagerParams, physics_period_ns):
+    """The period of the manager's updates: 1 s / its ``update_rate``, exact (an int where
+    whole; physics' own period, as given, where they are equal)."""
+    period = Fraction(NS_PER_S, read(params).update_rate)
+    if period == physics_period_ns:
+        return physics_period_ns
+    return int(period) if period.denominator == 1 else period
 
 
 def metric_prefix(name: str, robot: str) -> str:

@@ -79,7 +79,8 @@ class ForeignProxy(Participant):
         for inp, edge in zip(self.plan.inputs, sched.inputs_of[self.name], strict=True):
             depth = sched.history_depth(edge)
             self.channels[inp.graph_topic] = InputChannel(
-                inp.topic, inp.graph_topic, inp.msg_type, sched.periods[inp.producer])
+                inp.topic, inp.graph_topic, inp.msg_type,
+                sched.topic_period(inp.producer, inp.graph_topic))
             transport.subscription(inp.graph_topic, inp.msg_type, depth)
             self.feeds[inp.topic] = transport.publisher(feed_topic(self.name, inp.topic),
                                                         inp.msg_type, 10)
