@@ -155,19 +155,26 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
                  nodes.items()}
     topic_periods = {p.output_names[own]: ticks for p in nodes.values()
                      for own, ticks in p.output_periods.items()}
+    input_periods = {}
+    for i, spec in enumerate(model.nodes):
+        periods = own_periods(where, spec, classes[i][1], params[i], tick_ns, "input_periods")
+        input_periods.update({(spec.name, inp.graph_topic): periods[inp.topic]
+                              for inp in inputs[i] if inp.topic in periods})
     schedule = Schedule(tick_ns, last_tick, {n: p.period_ticks for n, p in nodes.items()},
-                        edges, windows, topic_windows, topic_periods)
+                        edges, windows, topic_windows, topic_periods, input_periods)
     warnings = hand_wired + world_warnings + unconsumed_remaps(path, nodes, edges, layout)
     return Scenario(path, model, tick_ns, nodes, schedule, world, sha, overrides, warnings,
                     layout)
 
 
-def own_periods(where: ScenarioChecks, spec, cls, params, tick_ns) -> dict[str, int]:
-    """The node's outputs that have a period of their own, a whole multiple of the node's
-    (own name -> ticks): those the node class's ``output_periods(params)`` names (the
-    controllers' topics of a manager run in the physics step below physics' rate), each
-    robot's under its namespace."""
-    periods = getattr(cls, "output_periods", None)
+def own_periods(where: ScenarioChecks, spec, cls, params, tick_ns,
+                hook: str = "output_periods") -> dict[str, int]:
+    """The node's outputs (``hook`` 'input_periods': inputs) that have a period of their
+    own, a whole multiple of the node's (own name -> ticks): those the node class's
+    ``output_periods(params)`` (``input_periods``) names (the controllers' topics of a
+    manager run in the physics step below physics' rate), each robot's under its
+    namespace."""
+    periods = getattr(cls, hook, None)
     if periods is None:
         return {}
     own = per_robot(periods(params), robot_namespaces(where.model.robots, spec.robots)) or {}

@@ -106,7 +106,8 @@ class Schedule:
     def __init__(self, tick_ns: Ns, last_tick: int, periods: dict[str, int], edges: list[Edge],
                  windows: dict[str, Window] | None = None,
                  topic_windows: dict[str, Window] | None = None,
-                 topic_periods: dict[str, int] | None = None):
+                 topic_periods: dict[str, int] | None = None,
+                 input_periods: dict[tuple[str, str], int] | None = None):
         if (not (_is_int(tick_ns) or isinstance(tick_ns, Fraction)) or not _is_int(last_tick)
                 or tick_ns <= 0 or last_tick < 0):
             raise ValueError("tick_ns must be a positive int or Fraction and last_tick a "
@@ -139,6 +140,10 @@ class Schedule:
                 if not _is_int(own) or own <= 0 or own % self.periods[e.producer]:
                     raise ValueError(f"period of {e.topic} must be a whole multiple of its "
                                      f"producer {e.producer}'s")
+        # (consumer, graph topic) -> the period at which the consumer takes that input, a
+        # multiple of its own (a controller manager in the physics step takes its topics at
+        # its updates only)
+        self.input_periods = dict(input_periods or {})
 
     def active(self, node: str, tick: int) -> bool:
         """Whether ``tick`` is inside the node's window (always, for a node without one)."""
@@ -250,10 +255,13 @@ class Schedule:
     def inputs_at(self, node: str, tick: int) -> list[tuple[int, int]]:
         """Which input samples ``node`` consumes at ``tick``: (index of the input in the
         node's declared inputs, producer tick of the sample), for every input that has a
-        sample by then (a delayed input has none at tick 0). The one answer every driver
+        sample by then (a delayed input has none at tick 0) and that the node takes at this
+        tick (``input_periods``: every n-th activation for some). The one answer every driver
         (in-process, node runtime, foreign feeder, master's messages) uses."""
         out = []
         for index, edge in enumerate(self.inputs_of[node]):
+            if self.input_periods and tick % self.input_periods.get((node, edge.topic), 1):
+                continue  # an input the node takes every n-th activation only
             wanted = self.input_tick(edge, tick)
             if wanted is not None:
                 out.append((index, wanted))

@@ -37,6 +37,10 @@ def test_a_topic_of_its_own_period_is_due_sampled_and_counted_at_its_ticks():
     assert s.samples("p", "/slow", until=7) == 3  # ticks 0, 3, 6
     assert s.activations("p") == 21  # the node acts every tick all the same
     assert s.driving_edge("c").topic == "/fast"  # /slow does not tell c each of its ticks
+    # c takes /slow only at its every 4th tick (a manager in physics' step, at its updates)
+    takes = Schedule(1, 20, {"p": 1, "c": 2}, edges[:2], topic_periods={"/slow": 3},
+                     input_periods={("c", "/slow"): 4})
+    assert takes.inputs_at("c", 2) == [(0, 2)] and takes.inputs_at("c", 4) == [(0, 4), (1, 3)]
     with pytest.raises(ValueError, match="whole multiple"):
         Schedule(1, 20, {"p": 2, "c": 2}, edges[:2], topic_periods={"/slow": 3})
 
@@ -74,6 +78,7 @@ def test_a_manager_at_half_physics_rate_reaches_the_goal_one_digest_topics_at_it
     sched = scenario.schedule
     assert sched.periods["physics"] == 1 and sched.topic_period("physics", STATE) == 2
     assert sched.topic_period("physics", "/odom") == 1  # physics' own at its own rate
+    assert sched.input_periods[("physics", "/joint_trajectory_controller/joint_trajectory")] == 2
     reference = orchestrate(slow_manager, tmp_path / "in", "--in-process")
     assert reference.code == 0, reference.stderr
     multi = orchestrate(slow_manager, tmp_path / "multi")

@@ -154,6 +154,15 @@ class PhysicsNode(StepNode):
         return {topic: period for topic in hosted.publications(params.controller_manager)}
 
     @classmethod
+    def input_periods(cls, params: PhysicsParams) -> dict[str, Any]:
+        """The inputs taken at a period of their own (topic -> ns): the controller manager's
+        (its switch topic, its controllers' commands and goals), at its updates only."""
+        if params.controller_manager is None:
+            return {}
+        period = hosted.manager_period_ns(params.controller_manager, None)
+        return {topic: period for topic in hosted.subscriptions(params.controller_manager)}
+
+    @classmethod
     def latched_outputs(cls, params: PhysicsParams) -> dict[str, type]:
         """/tf_static: the robot's fixed frames, once; /robot_description: a URDF robot's
         expanded URDF (``robot_description``), once."""
