@@ -4,9 +4,10 @@ configured by the user's own controllers file (a ``ros2_control`` node, or the o
 
 It does not run as a node of its own: the plan folds it into the physics node
 (``plan.hardware_wiring``), which runs it in its step over MjData
-(``nodes.ros2_control.hosted``), at the physics node's rate, which must be the file's
-``update_rate``. This class holds what the scenario's checks ask of it: its parameters, the
-controllers file's problems, what the robot's hardware can serve, its topics.
+(``nodes.ros2_control.hosted``) at the file's ``update_rate``, which must be the physics
+node's rate / n for a whole n (an update every n-th physics activation). This class holds
+what the scenario's checks ask of it: its parameters, the controllers file's problems, what
+the robot's hardware can serve, its topics.
 
 Each controller's topics are its type's (``nodes/ros2_control/controllers/``), ``~/x`` under
 its name, as ros2_controllers' Jazzy documentation gives them. An inactive controller
