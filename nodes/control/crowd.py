@@ -70,6 +70,12 @@ class Line:
     direction: np.ndarray
 
 
+def _dot(a, b) -> float:
+    """The dot product of two plane vectors, summed in one fixed order (numpy's ``@`` goes
+    to BLAS, whose kernels round differently per CPU: tests/test_architecture.py)."""
+    return float(a[0]) * float(b[0]) + float(a[1]) * float(b[1])
+
+
 def _det(a: np.ndarray, b: np.ndarray) -> float:
     return float(a[0] * b[1] - a[1] * b[0])
 
@@ -77,8 +83,8 @@ def _det(a: np.ndarray, b: np.ndarray) -> float:
 def _lp1(lines: list[Line], n: int, radius: float, opt: np.ndarray, direction_opt: bool
          ) -> np.ndarray | None:
     line = lines[n]
-    dot = float(line.point @ line.direction)
-    disc = dot * dot + radius * radius - float(line.point @ line.point)
+    dot = _dot(line.point, line.direction)
+    disc = dot * dot + radius * radius - _dot(line.point, line.point)
     if disc < 0.0:
         return None
     root = math.sqrt(disc)
@@ -98,9 +104,9 @@ def _lp1(lines: list[Line], n: int, radius: float, opt: np.ndarray, direction_op
         if t_left > t_right:
             return None
     if direction_opt:
-        t = t_right if float(opt @ line.direction) > 0.0 else t_left
+        t = t_right if _dot(opt, line.direction) > 0.0 else t_left
     else:
-        t = min(max(float(line.direction @ (opt - line.point)), t_left), t_right)
+        t = min(max(_dot(line.direction, opt - line.point), t_left), t_right)
     return line.point + t * line.direction
 
 
@@ -108,7 +114,7 @@ def _lp2(lines: list[Line], radius: float, opt: np.ndarray, direction_opt: bool
          ) -> tuple[int, np.ndarray]:
     if direction_opt:
         result = opt * radius
-    elif float(opt @ opt) > radius * radius:
+    elif _dot(opt, opt) > radius * radius:
         result = opt / math.hypot(*opt) * radius
     else:
         result = opt.copy()
@@ -133,7 +139,7 @@ def _lp3(lines: list[Line], n_static: int, begin: int, radius: float, result: np
             lj = lines[j]
             determinant = _det(li.direction, lj.direction)
             if abs(determinant) <= EPS:
-                if float(li.direction @ lj.direction) > 0.0:
+                if _dot(li.direction, lj.direction) > 0.0:
                     continue
                 point = 0.5 * (li.point + lj.point)
             else:
@@ -157,12 +163,12 @@ def orca_line(rel_pos: np.ndarray, rel_vel: np.ndarray, velocity: np.ndarray, ra
     """The ORCA half-plane for one neighbour (RVO2's): ``rel_pos`` its position less ours,
     ``rel_vel`` our velocity less its, ``radius`` the two radii together; we take ``share``
     of the avoiding (0.5 between robots, 1 for a static obstacle)."""
-    dist_sq = float(rel_pos @ rel_pos)
+    dist_sq = _dot(rel_pos, rel_pos)
     r_sq = radius * radius
     if dist_sq > r_sq:
         w = rel_vel - rel_pos / horizon
-        w_sq = float(w @ w)
-        dot1 = float(w @ rel_pos)
+        w_sq = _dot(w, w)
+        dot1 = _dot(w, rel_pos)
         if dot1 < 0.0 and dot1 * dot1 > r_sq * w_sq:
             w_len = math.sqrt(w_sq)
             unit = w / w_len
@@ -175,7 +181,7 @@ def orca_line(rel_pos: np.ndarray, rel_vel: np.ndarray, velocity: np.ndarray, ra
                 direction = np.array([x * leg - y * radius, x * radius + y * leg]) / dist_sq
             else:
                 direction = -np.array([x * leg + y * radius, -x * radius + y * leg]) / dist_sq
-            u = float(rel_vel @ direction) * direction - rel_vel
+            u = _dot(rel_vel, direction) * direction - rel_vel
     else:  # already within the radius: get out within one step
         w = rel_vel - rel_pos / step
         w_len = max(math.hypot(*w), EPS)
@@ -400,14 +406,14 @@ class Crowd:
         zone = self.path[lo:hi + 1]
         o = self.others
         heading = np.stack([np.cos(o.yaw[seen]), np.sin(o.yaw[seen])], axis=1)
-        facing = heading @ d
+        facing = heading[:, 0] * d[0] + heading[:, 1] * d[1]
         xy = o.xy[seen]
         near = np.sqrt(((xy[:, None, :] - zone[None, :, :]) ** 2).sum(axis=2).min(axis=1))
         inside = near < DOOR_SEEN
         far_end = zone[-1]
         to_end = far_end - xy
         gap = np.hypot(to_end[:, 0], to_end[:, 1])
-        beyond = (xy - far_end) @ d > -0.2
+        beyond = (xy[:, 0] - far_end[0]) * d[0] + (xy[:, 1] - far_end[1]) * d[1] > -0.2
         faces_in = (heading * to_end).sum(axis=1) > FACING * np.maximum(gap, EPS)
         claims = ~inside & beyond & (gap < DOOR_APPROACH) & faces_in
         opposing = (facing < -FACING) & ~o.parked[seen]  # one at its goal is no rival
@@ -538,7 +544,7 @@ class Crowd:
         preferred = speed * direction
         u = self.velocity(pose, preferred, static, seen, step_s)
         heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
-        reverse = rule in ("back", "yield") or (float(u @ heading) < 0.0
+        reverse = rule in ("back", "yield") or (_dot(u, heading) < 0.0
                                      and math.hypot(*(u - preferred)) > 0.05)
         v, w = differential(u, pose, p, reverse)
         if v == 0.0 and w == 0.0 and speed < 0.02:  # held: face the way on, to show it
