@@ -113,3 +113,30 @@ def test_crowd_worlds_follow_the_seed_and_keep_their_robots_apart(tmp_path):
 
     loaded = load_scenario(scenario)
     assert len(loaded.robots.robots) == worlds[0].robots
+
+
+def test_robots_that_enter_are_seen_by_the_crowd(monkeypatch, tmp_path):
+    """A robot entering a crowd's run (a world edited at a tick) is in every robot's view
+    from its world state on (its place in that world's qpos), and none before: the crowd
+    neither stops nor crashes on the edited world (it did both)."""
+    from nodes.control import crowd
+    from orchestrator.api import spawn_robot
+
+    views: dict[tuple[str, int], set[int]] = {}
+    update = crowd.Others.update
+
+    def spy(self, msg):
+        update(self, msg)
+        assert self.known, (self.names[self.own], self.world)
+        views.setdefault((self.names[self.own], self.world[0]), set()).add(
+            int(self.present.sum()))
+
+    monkeypatch.setattr(crowd.Others, "update", spy)
+    late = spawn_robot("late", at="1s", start=(-3.0, 2.5, 0.0), goal=(-2.0, 2.5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        done = run(DOOR, in_process=True, events=[late], duration="2s", check=True,
+                   out=tmp_path)
+    assert done.status in ("success", "goal_not_met")
+    assert views[("robot_0", 0)] == {8} and views[("robot_0", 1)] == {9}
+    assert views[("late", 1)] == {9} and ("late", 0) not in views

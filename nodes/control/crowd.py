@@ -202,44 +202,71 @@ def orca_velocity(lines: list[Line], n_static: int, preferred: np.ndarray, max_s
 
 
 class Others:
-    """The other robots' poses and velocities, read from /cosim/world_state."""
+    """The other robots' poses and velocities, read from /cosim/world_state. The world may
+    change at run time (robots and objects entering and leaving): the message says which
+    world it shows (``world_version``), and the robots' places in its qpos are read from
+    that world (``model_at``); a robot not in it is absent (never seen)."""
 
-    def __init__(self, model: mujoco.MjModel, names: list[str], own: str, base_suffix: str,
+    FAR = 1e9  # m: where an absent robot is kept, beyond any crowd_range
+
+    def __init__(self, model_of, names: list[str], own: str, base_suffix: str,
                  goals: np.ndarray, tolerance: float):
+        """``model_of(version, label)``: the compiled world a world state of that version
+        shows."""
+        self.model_of = model_of
         self.names = list(names)
+        self.base_suffix = base_suffix
         self.goals, self.tolerance = np.asarray(goals, dtype=np.float64), tolerance
         self.own = self.names.index(own)
-        qpos, qvel = [], []
-        for name in self.names:
-            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{name}/{base_suffix}")
-            joint = model.body_jntadr[body] if body >= 0 else -1
-            if joint < 0 or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
-                raise ValueError(f"robot {name}: no free joint on {name}/{base_suffix}")
-            qpos.append(model.jnt_qposadr[joint])
-            qvel.append(model.jnt_dofadr[joint])
-        self.qpos = np.array(qpos, dtype=np.int64)
-        self.qvel = np.array(qvel, dtype=np.int64)
-        self.nq = model.nq
-        self.xy = np.zeros((len(names), 2))
+        self.world: tuple[int, str] | None = None
+        self._addresses(0, "")
+        self.xy = np.full((len(names), 2), self.FAR)
         self.vel = np.zeros((len(names), 2))
         self.yaw = np.zeros(len(names))
         self.parked = np.zeros(len(names), dtype=bool)  # at its goal and still
         self.known = False
 
+    def _addresses(self, version: int, label: str) -> None:
+        """Each robot's free joint in the world of ``version``/``label`` (absent: none)."""
+        model = self.model_of(version, label)
+        qpos, qvel, present = [], [], []
+        for name in self.names:
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY,
+                                     f"{name}/{self.base_suffix}")
+            joint = model.body_jntadr[body] if body >= 0 else -1
+            if body >= 0 and (joint < 0 or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE):
+                raise ValueError(f"robot {name}: no free joint on {name}/{self.base_suffix}")
+            present.append(body >= 0)
+            qpos.append(model.jnt_qposadr[joint] if body >= 0 else 0)
+            qvel.append(model.jnt_dofadr[joint] if body >= 0 else 0)
+        self.qpos = np.array(qpos, dtype=np.int64)
+        self.qvel = np.array(qvel, dtype=np.int64)
+        self.present = np.array(present, dtype=bool)
+        self.nq = model.nq
+        self.world = (version, label)
+
     def update(self, msg) -> None:
         """Take the poses and velocities out of a world state (its data: qpos then qvel)."""
+        from nodes.physics.messages import world_version
+
+        world = world_version(msg)
+        if world != self.world:
+            self._addresses(*world)
         data = np.asarray(msg.data, dtype=np.float64)
         nq = int(msg.layout.dim[0].size) if msg.layout.dim else self.nq
-        if nq != self.nq:  # a world edited at run time: its layout is not this one
-            self.known = False
+        if nq != self.nq or not self.present[self.own]:
+            self.known = False  # not the world its version names, or this robot not in it
             return
         self.xy = data[self.qpos[:, None] + np.arange(2)]
         q = data[self.qpos[:, None] + np.arange(3, 7)]
         w, x, y, z = q.T
         self.yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         self.vel = data[nq + self.qvel[:, None] + np.arange(2)]
+        absent = ~self.present
+        self.xy[absent] = self.FAR
+        self.vel[absent] = 0.0
         at_goal = np.hypot(*(self.xy - self.goals).T) < self.tolerance
-        self.parked = at_goal & (np.hypot(*self.vel.T) < 0.05)
+        self.parked = at_goal & (np.hypot(*self.vel.T) < 0.05) & self.present
         self.known = True
 
 
@@ -270,7 +297,7 @@ class Crowd:
     def of(cls, config, params, planner) -> Crowd:
         """The crowd of a swarm robot's control node: the scenario's robots (its layout),
         their base bodies named as this robot's is under its name."""
-        from nodes.physics.world import load_model
+        from nodes.physics.world_events import model_at
         from plan.robots import robot_of
 
         layout = config.layout
@@ -278,8 +305,9 @@ class Crowd:
         suffix = params.base_body.split("/", 1)[-1]
         goals = np.array([[layout.goal_of(n)["x"], layout.goal_of(n)["y"]]
                           for n in layout.names])
-        others = Others(load_model(config.world, layout), layout.names, own, suffix, goals,
-                        layout.position_tolerance)
+        world, events = str(config.world), tuple(config.events)
+        others = Others(lambda version, label: model_at(world, layout, events, version, label),
+                        layout.names, own, suffix, goals, layout.position_tolerance)
         return cls(others, planner, params)
 
     def update(self, msg, now_ns: int) -> None:
