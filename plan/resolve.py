@@ -105,8 +105,11 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
         last_tick = where.last_tick(tick_ns)
     if len(params) < len(model.nodes):
         found.raise_any()  # the topics of a node whose class or params are wrong are unknown
-    found.raise_any()  # a controller manager is folded into physics only when all is right
-    model, folded = fold_managers(path, model, params, origins)
+    # a controller manager is folded into physics only when all is right so far; otherwise
+    # the checks go on without the fold, so that independent mistakes are reported together
+    folded = None
+    if not found.errors:
+        model, folded = fold_managers(path, model, params, origins)
     if folded is not None:  # the node list changed: its classes and parameters again
         hand_wired += folded
         where = ScenarioChecks(path, model, origins, worlds, found)
