@@ -146,8 +146,10 @@ def checked_plan(path: Path, scenario_file: Path) -> Scenario:
     process starts, and a process it starts need not check it again."""
     import pickle
 
+    from plan.load import make_importable
     from plan.scenario import Scenario
 
+    make_importable(scenario_file.parent, Path.cwd())  # its module: nodes, as loading does
     try:
         scenario = pickle.loads(path.read_bytes())
     except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:

@@ -42,3 +42,23 @@ def test_exec_nodes_take_the_checked_plan_and_give_the_forked_digest(tmp_path):
                  for r in (forked, execed)]
     assert [m["startup"]["node_processes"] for m in manifests] == ["fork", "exec"]
     assert manifests[0]["digest"] == manifests[1]["digest"]
+
+
+def test_a_node_module_beside_the_scenario_loads_in_an_execd_process(tmp_path):
+    """A ``module:`` node in the scenario's own folder (not installed, not in the working
+    directory) is importable in a process that takes the checked plan, as in one that loads
+    the scenario: its parameters' class is in the plan."""
+    import yaml
+
+    from tests.helpers import ROOT
+
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "distance_node.py").write_text((ROOT / "examples" / "distance_node.py").read_text())
+    doc = yaml.safe_load((ROOT / "examples" / "distance.yaml").read_text())
+    doc["world"] = str(ROOT / "scenarios" / "worlds" / "nav.xml")
+    doc["duration"] = "1s"
+    (folder / "distance.yaml").write_text(yaml.safe_dump(doc))
+    done = orchestrate(folder / "distance.yaml", tmp_path / "out", "--spawn", "exec")
+    assert done.code in (0, 1), done.stderr  # 1 s does not reach the goal
+    assert done.manifest["startup"]["node_processes"] == "exec"
