@@ -28,7 +28,14 @@ SHORT = {"long_chain.yaml": "1s", "swarm.yaml": "1s", "swarm_urdf.yaml": "1s"}
 FIRST_SECONDS = "2s"
 # Scenarios whose every node kind and topic the others already send over zenoh, left out for
 # the suite's time (seconds it would add on 2 cores): why each adds nothing.
-COVERED = {"swarm_small.yaml": "swarm's nodes and topics with four robots, compared over "
+COVERED = {"cluttered.yaml": "nav's nodes and topics in another world (4 s)",
+           "corridor.yaml": "nav's nodes and topics in another world (4 s)",
+           "u_trap.yaml": "nav's nodes and topics in another world (4 s)",
+           "nav_usd.yaml": "nav's nodes and topics, the world from a USD stage (6 s)",
+           "meshbot.yaml": "nav_urdf's nodes and topics, a robot with mesh files (5 s)",
+           "worldarm.yaml": "arm's nodes and topics, the arm placed by its world (4 s)",
+           "nav_spawn.yaml": "spawn_short's object events over nav's nodes (5 s)",
+           "swarm_small.yaml": "swarm's nodes and topics with four robots, compared over "
            "zenoh across two hosts and network namespaces below (8 s)",
            "swarm_urdf_control.yaml": "swarm_urdf's robots and nodes with nav_urdf_control's "
            "controller manager per robot; namespacing is the plan's, not the transport's (14 s)",
