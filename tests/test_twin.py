@@ -162,18 +162,17 @@ def test_the_twin_mirrors_reconnects_and_replays(tmp_path, ros_node):
         assert list(joints_out[tick].name) == list(real.name)
         assert list(joints_out[tick].position) == pytest.approx(list(real.position), abs=1e-9)
     assert max(abs(p) for m in joints_in.values() for p in m.position[:2]) > 0.1
-    # the first stand-in's messages (the second one stamps from zero again, and its first
-    # messages may reach rosbridge before DDS discovery lets the rclpy user see them)
-    first, last = [], -1
-    for tick in sorted(entered):
-        stamp = entered[tick].header.stamp.sec * 10**9 + entered[tick].header.stamp.nanosec
-        if stamp < last:
-            break
-        first.append((stamp, entered[tick].pose.pose.position))
-        last = stamp
-    seen = [(stamp, p) for stamp, p in first if stamp in driver.odom]
-    assert len(seen) > 10
-    assert all((p.x, p.y) in driver.odom[stamp] for stamp, p in seen)
+    # what entered is what the rclpy user saw at the same stamps, counted over both
+    # stand-ins: either one's first messages may reach rosbridge before DDS discovery lets
+    # the rclpy user see them (on a loaded machine, all of the first one's), and the second
+    # stamps from zero again, so a stamp the user saw may be the other stand-in's
+    matched = []
+    for msg in entered.values():
+        stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        p = msg.pose.pose.position
+        if (p.x, p.y) in driver.odom.get(stamp, ()):
+            matched.append(stamp)
+    assert len(matched) > 10, (len(matched), len(driver.odom), len(entered))
     xs = [m.pose.pose.position.x for m in entered.values()]
     assert max(xs) - min(xs) > 0.05  # the driven robot moved, and the twin with it
 
