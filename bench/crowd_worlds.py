@@ -25,20 +25,16 @@ robots did not arrive and what they said (``blocked by robot_3 at the door ...``
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import shutil
-import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from bench import world_series
 from bench.free_space import FreeSpace, Shape
 from bench.worldgen import WALL, robot_radius
 
@@ -320,35 +316,13 @@ def verdict(entry: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the worlds; print the rate and each failure named. Exit 0 when it meets TARGET."""
-    p = argparse.ArgumentParser(description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--count", type=int, default=60, help="how many worlds (default 60)")
-    p.add_argument("--first-seed", type=int, default=0, help="seed of the first world")
-    p.add_argument("--seeds", type=int, nargs="+", help="these seeds instead of a range")
-    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
-                   help="runs side by side, each in its own process (default 2)")
-    p.add_argument("--out", type=Path, help="where worlds and runs go (default: a temp dir)")
-    args = p.parse_args(argv)
-    out = args.out or Path(tempfile.mkdtemp(prefix="cosim-crowd-worlds-"))
-    seeds = args.seeds or list(range(args.first_seed, args.first_seed + args.count))
-    started = time.monotonic()
-    results = []
-    with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
-        for entry in pool.map(run_world, seeds, [out] * len(seeds)):
-            results.append(entry)
-            print(f"  {entry['name']:22s} {entry['robots']:2d} robots  {verdict(entry)}"
-                  f"  ({entry['wall_s']:.1f} s)", flush=True)
-    wall = time.monotonic() - started
-    ok = sum(e["success"] for e in results)
-    rate = ok / len(results)
-    families = sorted({e["family"] for e in results})
-    print("per family: " + ", ".join(
-        f"{f} {sum(e['success'] for e in results if e['family'] == f)}/"
-        f"{sum(e['family'] == f for e in results)}" for f in families))
-    print(f"crowd success (every robot at its goal, no collision): {ok}/{len(results)} = "
-          f"{rate:.0%} (target {TARGET:.0%}: {'met' if rate >= TARGET else 'NOT met'}); "
-          f"{wall:.0f} s wall with {args.jobs} job(s), "
-          f"{sum(e['wall_s'] for e in results):.0f} s of runs")
+    seeds, jobs, out = world_series.parse(__doc__, 60, "cosim-crowd-worlds-", argv)
+    results, wall = world_series.run_all(
+        run_world, seeds, out, jobs,
+        lambda entry: (f"  {entry['name']:22s} {entry['robots']:2d} robots  {verdict(entry)}"
+                       f"  ({entry['wall_s']:.1f} s)"))
+    rate = world_series.tally(results, "crowd success (every robot at its goal, no collision)",
+                              TARGET, wall, jobs)
     for e in results:
         if not e["success"]:
             print(f"  failed: {e['name']} ({verdict(e)}): {e['report']}")
