@@ -39,6 +39,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from nodes.physics.messages import world_version
+
 EPS = 1e-9
 SECTORS = 24  # scan points taken as static obstacles: the nearest in each of these sectors
 STATIC_REACH = 1.0  # m: scan points nearer than this bound the velocity
@@ -247,8 +249,6 @@ class Others:
 
     def update(self, msg) -> None:
         """Take the poses and velocities out of a world state (its data: qpos then qvel)."""
-        from nodes.physics.messages import world_version
-
         world = world_version(msg)
         if world != self.world:
             self._addresses(*world)
