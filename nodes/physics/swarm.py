@@ -320,6 +320,7 @@ class SwarmPhysics:
         self.substeps, self.dt, self.note = substeps, dt, note
         layout = config.layout
         self.rng, self.all_robots = rng, tuple(config.robots)
+        self.robot_models = {robot.name: robot for robot in self.all_robots}  # by name
         present = None if layout is None else (  # the robots in the world now
             live.robots if live is not None else set(layout.at_start.names))
         self.rigs = [Rig(model, robot, params, rng,
@@ -346,9 +347,8 @@ class SwarmPhysics:
         if params.controller_manager is not None:
             from nodes.ros2_control.hosted import HostedManagers
 
-            models = {robot.name: robot for robot in config.robots}
             self.hosted = HostedManagers(params.controller_manager, model, self.rigs,
-                                         [models[rig.name] for rig in self.rigs],
+                                         [self.robot_models[rig.name] for rig in self.rigs],
                                          config.held_inputs, note)
         self.period_ns = config.period_ns
         self.hosted_every, self.hosted_period_ns = 1, self.period_ns  # ticks, ns per update
@@ -420,8 +420,7 @@ class SwarmPhysics:
             (int(moved[a]), int(moved[b])) for a, b in contacts.touching
             if moved[a] >= 0 and moved[b] >= 0)
         if self.hosted is not None:  # before the book: it leaves the managers' topics to them
-            models = {robot.name: robot for robot in self.all_robots}
-            self.hosted.rebind(self.model, rigs, [models[rig.name] for rig in rigs])
+            self.hosted.rebind(self.model, rigs, [self.robot_models[rig.name] for rig in rigs])
         self._bind()
         book = self.book
         for rig in rigs:
