@@ -8,8 +8,8 @@ this wing's loader).
 
 Every robot description format has one reader behind one registry, ``readers`` (the only
 place a file's format is recognised); what a reader gives nodes is format-neutral: the robot
-model, its TF and joint states (``robot_state``), its mark in a compiled world
-(``robot_marker``).
+model and its TF and joint states (``robot_state``), which the plan hands each node that
+needs the robot (``NodeConfig.robots``; a node's world check gets it too).
 
 A URDF or xacro robot (docs/tutorials/own-robot.md): ``xacro_expand`` (xacro, ``$(find)``),
 ``packages`` (``package://``), ``urdf_parse`` (the document as data), ``urdf_to_mjcf`` (the

@@ -14,7 +14,7 @@ import mujoco
 
 from descriptions.robot_layout import entering_robot, robots_layout
 from descriptions.robot_model import RobotModel
-from descriptions.robot_reader import RobotNames, world_robots
+from descriptions.robot_reader import RobotNames, described_robot, world_robots
 from descriptions.swarm_world import swarm_model
 from descriptions.world_edits import object_problem, world_objects
 from descriptions.worldfile import check_world
@@ -55,6 +55,11 @@ class MujocoWorlds:
             return world_robots(world, layout, robot_names)
         except ValueError as exc:
             raise WorldError(world, str(exc)) from None
+
+    def described_robot(self, layout: RobotsLayout, name: str) -> RobotModel | None:
+        """Robot ``name``'s model where a description reader made it, else None
+        (``robot_reader.described_robot``)."""
+        return described_robot(layout, name)
 
     def world_objects(self, world_model: mujoco.MjModel, start: tuple[str, float, float] | None
                       ) -> WorldObjects:

@@ -191,6 +191,17 @@ def _layout_robot(world: Path, layout, names: RobotNames, name: str) -> RobotMod
     return read_robot(model, names.scoped(name), name, str(description))
 
 
+def described_robot(layout, name: str) -> RobotModel | None:
+    """Robot ``name`` of a swarm's ``layout`` as ``world_robots`` gives it, where a
+    description reader made its model (it needs no names to be read); None for an MJCF
+    robot."""
+    description, settings = layout.source_of(name)
+    if not reader_for(description).described:
+        return None
+    return (load_robot(description, settings).model.scoped(name)
+            .in_namespace(layout.namespace_of(name)))
+
+
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, what: str) -> int:
     i = mujoco.mj_name2id(model, kind, name)
     if i < 0:

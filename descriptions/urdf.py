@@ -18,9 +18,6 @@ name or by ``wheel``, ``position``, ``velocity``, ``effort``):
 - the ``initial_value`` params of a joint's position and velocity state interfaces, where
   the joint starts (``RobotModel.control``; physics sets them at reset).
 
-The robot carries the mark of a described robot (``descriptions.robot_marker``), so a
-compiled world says which of its robots a description reader made.
-
 Sensors: a lidar and an IMU read the site of their link (an IMU gets MuJoCo gyro,
 accelerometer and framequat sensors ``LINK_gyro``, ``LINK_accel``, ``LINK_quat``), a camera
 is a MuJoCo camera named as its link, looking along the link's +x (a Gazebo camera's
@@ -41,7 +38,6 @@ import numpy as np
 from descriptions import urdf_geometry as geo
 from descriptions.description_error import DescriptionError
 from descriptions.packages import PackageResolver
-from descriptions.robot_marker import mark
 from descriptions.robot_model import (
     ActuatedJoint,
     ControlInterfaces,
@@ -127,8 +123,6 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
             _add_wheel(spec, urdf, joint, options.gains,
                        cj.limits.get("velocity", (None, None)) if cj else (None, None))
     sensors = _sensors(spec, urdf, description, options.sensors, notes)
-    imu = next((x.link for x in sensors if x.kind == "imu"), "")
-    mark(spec, urdf.root, imu)
     try:
         model = spec.compile()
     except ValueError as exc:

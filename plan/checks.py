@@ -139,10 +139,13 @@ class ScenarioChecks:
                             f"(looked for {world}).", "a path relative to the scenario file.")
         return world, (self.check_world(world) if needed else None)
 
-    def check_world_fit(self, classes: dict, params: dict, world_model) -> list[str]:
+    def check_world_fit(self, classes: dict, params: dict, world_model,
+                        layout: RobotsLayout | None = None) -> list[str]:
         """Each node's own check of the world (its robot there, start and goal placeable):
         problems are kept in ``found``; what only deserves a word (a goal its map cannot
-        reach) is returned as warnings."""
+        reach) is returned as warnings. A world node of a swarm is given its first robot's
+        model where a description reader made it (``WorldReader.described_robot``): its
+        names are the model's, not the parameters'."""
         goal = self.model.goal.model_dump() if self.model.goal else None
         with self.found.collecting():
             self.check_joint_goal(world_model)
@@ -152,8 +155,10 @@ class ScenarioChecks:
             robots = self.model.nodes[i].robots
             if robots and getattr(cls, "every_robot", False):  # each robot is checked as
                 # the first one is, under its names in the swarm world
+                described = (self.worlds.described_robot(layout, robots[0])
+                             if layout is not None else None)
                 problems = list(cls.world_problems(params[i], world_model, goal,
-                                                   robot=robots[0]))
+                                                   robot=robots[0], described=described))
             else:
                 problems = list(cls.world_problems(params[i], world_model, goal))
             if hasattr(cls, "period_problems"):

@@ -95,7 +95,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     if world_model is not None:
         fit = {i: classes[i] for i in params}  # the nodes whose class and params are right
         before = len(found.errors)
-        world_warnings = where.check_world_fit(fit, params, world_model)
+        world_warnings = where.check_world_fit(fit, params, world_model, layout)
         if len(found.errors) == before and len(params) == len(model.nodes):
             with found.collecting():  # the robot model is read by the names checked above
                 where.check_robot_needs(classes, params, world, layout, world_model)

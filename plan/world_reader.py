@@ -4,8 +4,8 @@ them (``descriptions.load.WORLDS``): plan/ itself never loads MuJoCo or USD.
 A compiled world is opaque here: plan/ hands it to the node classes' own world checks
 (``world_problems``, ``world_warnings``, ``period_problems``) and reads nothing out of it
 but the names of its joints (``ScenarioChecks.check_joint_goal``). So are the robot models
-(``robot_models``): plan/ hands each to its nodes' ``robot_problems`` and reads only its
-``name``.
+(``robot_models``, ``described_robot``): plan/ hands each to its nodes' ``robot_problems``
+and ``world_problems`` and reads only its ``name``.
 """
 
 from __future__ import annotations
@@ -43,6 +43,12 @@ class WorldReader(Protocol):
         description names ``names`` (``StepNode.description_names``, merged); none in a
         world without the robot. ``plan.errors.WorldError`` when the world does not have
         what the names name."""
+
+    def described_robot(self, layout: RobotsLayout, name: str) -> Any | None:
+        """Robot ``name`` of ``layout`` as the run gives it to its nodes, where a description
+        reader made its model (URDF, xacro, USD: its names are the model's); None for an MJCF
+        robot, whose model is read from the world by the names its nodes' parameters give
+        (``robot_models``, once those names are checked)."""
 
     def world_objects(self, world_model: Any, start: tuple[str, float, float] | None
                       ) -> WorldObjects:

@@ -422,7 +422,6 @@ NEUTRAL_DESCRIPTIONS = {
     "descriptions.robot_reader",  # the model of a robot read from a compiled world, by names
     "descriptions.robot_needs",  # what a node needs of the model, worded for the user
     "descriptions.robot_state",  # TF and joint states of a described robot, from its model
-    "descriptions.robot_marker",  # a described robot's mark in a compiled world
     "descriptions.readers",  # the registry of description readers
     "descriptions.swarm_world", "descriptions.worldfile",  # the world, with its robots
     "descriptions.world_geometry", "descriptions.world_edits",

@@ -109,6 +109,16 @@ def test_a_urdf_robot_without_an_imu_is_named_in_the_physics_params(tmp_path):
     assert exc.value.key == "nodes[0] (physics).params.imu"
 
 
+@pytest.mark.parametrize("scenario", ["nav", "swarm"])
+def test_robot_description_of_an_mjcf_robot_is_named_in_the_physics_params(scenario):
+    """An MJCF robot, alone or in a swarm, has no URDF for /robot_description: the plan
+    gives the physics node's world check no described robot model."""
+    with pytest.raises(ScenarioError, match="no URDF to publish") as exc:
+        load_scenario(ROOT / "scenarios" / f"{scenario}.yaml",
+                      {"nodes.physics.params.robot_description": True})
+    assert exc.value.key == "nodes[0] (physics).params.robot_description"
+
+
 @pytest.mark.parametrize("change,key,words", [
     (lambda d: d["robots"]["urdf"].pop("packages"), "robots.description",
      r"\$\(find mybot_description\)"),

@@ -49,7 +49,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
-from descriptions.robot_marker import described_robot_in
+from descriptions.robot_model import RobotModel
 from descriptions.world_geometry import robot_footprint_radius, static_obstacles
 from nodes.contract import StepNode, Tick
 from nodes.physics.described_rig import ROBOT_DESCRIPTION
@@ -202,19 +202,19 @@ class PhysicsNode(StepNode):
         return names
 
     @classmethod
-    def world_problems(cls, params: PhysicsParams, model, goal, robot: str = ""
-                       ) -> list[tuple[str, str, str]]:
+    def world_problems(cls, params: PhysicsParams, model, goal, robot: str = "",
+                       described: RobotModel | None = None) -> list[tuple[str, str, str]]:
         """The robot's bodies and joints exist; the start pose is inside the world, clear of
         every obstacle by the robot's footprint radius. In a swarm, robot ``robot``'s copy
-        (each is checked as the first one is)."""
-        described = described_robot_in(model, robot)
+        (each is checked as the first one is); ``described``: its model where a description
+        reader made it (the plan's, as the run gives it), whose names are the model's."""
         if params.robot_description and described is None:
             return [("params.robot_description", "the robot is not described by a URDF, "
                      "xacro or USD robot, so there is no URDF to publish.", "robot_description: "
                      "true with a robots: description that is a .urdf, .xacro, .urdf.xacro or a "
                      "USD robot (.usd, .usda, .usdc).")]
         if described is not None:  # its names are its model's, checked when it was loaded
-            if params.imu is not None and not described["imu"]:
+            if params.imu is not None and described.sensor("imu") is None:
                 return [("params.imu", "the robot has no IMU: its description hangs none on a "
                          "link.", "imu: null, or an IMU on a link: robots.urdf.sensors or "
                          "robots.usd.sensors (imu: LINK), or a Gazebo imu sensor tag.")]
