@@ -9,8 +9,11 @@ fixed-size fields with one precompiled ``struct`` format per alignment residue, 
 padding is written as zeros in the same pass. The bytes are exactly
 ``canonical_cdr(serialize_message(msg))``
 (``tests/test_cdr_encode.py`` checks every message type of the standard packages against
-rclpy). Types it does not cover (``char``, ``wchar``, ``wstring``, ``long double``) go the
-rclpy way.
+rclpy), empty primitive sequences included: rmw_fastrtps gives the bytes the length its
+size estimate says, and the estimate aligns the elements of an empty primitive sequence as
+if there were some, so such a message ends in as many zeros as a generated estimator
+(``_Estimator``, the same walk as rmw's ``get_serialized_size``) finds. Types it does not
+cover (``char``, ``wchar``, ``wstring``, ``long double``) go the rclpy way.
 """
 
 from __future__ import annotations
@@ -27,20 +30,19 @@ from rclpy.serialization import serialize_message
 from rosidl_parser import definition as d
 
 from runtime.cdr.canonical import LE_HEADER, canonical_cdr
-from runtime.cdr.codegen import SourceWriter, Unsupported, code_of, size_of
+from runtime.cdr.codegen import SourceWriter, Unsupported, code_of, run_format, size_of
 
 _ZEROS = tuple(bytes(n) for n in range(8))
 
-Encoder = Callable[[Any], "bytes | None"]
+Encoder = Callable[[Any], bytes]
 
 
 def encode(msg: Any) -> bytes:
     """Canonical CDR bytes of ``msg``: what ``canonical_cdr(serialize_message(msg))`` gives."""
     encoder = encoder_for(type(msg))
-    data = encoder(msg) if encoder is not None else None
-    if data is None:
+    if encoder is None:
         return canonical_cdr(serialize_message(msg), type(msg))
-    return data
+    return encoder(msg)
 
 
 @cache
@@ -53,7 +55,7 @@ def encoder_for(msg_class: type) -> Encoder | None:
         writer.message(msg_class, "m")
     except Unsupported:
         return None
-    return writer.compile(msg_class.__name__)
+    return writer.compile(msg_class.__name__, msg_class)
 
 
 def _align_code(align: int) -> str:
@@ -80,6 +82,7 @@ class _Writer(SourceWriter):
         super().__init__({"Z": _ZEROS, "U32": struct.Struct("<I"),
                           "P": _primitive_bytes, "HEADER": LE_HEADER})
         self.plain = True  # no string or sequence anywhere: rmw sizes it rounded up to 4
+        self.empties = False  # a primitive sequence somewhere, which may be empty
 
     def flush(self) -> None:
         """Pack the pending fixed-size fields with the format of the current residue."""
@@ -115,10 +118,14 @@ class _Writer(SourceWriter):
         self.emit(f"b += U32.pack(len({seq}))")
         if isinstance(slot.value_type, d.BasicType):
             code = code_of(slot.value_type)
-            self.emit(f"if not len({seq}):")
-            self.emit("    return None")  # see compile(): rmw sizes it apart
+            self.empties = True
+            self.emit(f"if len({seq}):")
+            self.depth += 1
             self.emit(_align_code(min(size_of(slot.value_type), 8)))
             self.emit(f"b += P({seq}, {code!r})")
+            self.depth -= 1
+            self.emit("else:")
+            self.emit("    x = True")  # see compile(): rmw sizes it apart
         else:
             self.each(slot.value_type, seq)
 
@@ -131,14 +138,83 @@ class _Writer(SourceWriter):
         self.flush()
         self.depth -= 1
 
-    def compile(self, name: str) -> Encoder:
+    def compile(self, name: str, msg_class: type) -> Encoder:
         """The encoder function. rmw_fastrtps gives the bytes the length it estimated:
         for a fixed-size type, the size rounded up to 4; otherwise the exact size, except
         that its estimate aligns the elements of an empty primitive sequence as if there
-        were some, so a message with one goes the rclpy way (the generated code returns
-        None and ``encode`` falls back)."""
+        were some: where one was met (``x``), the bytes are padded with zeros to what the
+        estimator of ``msg_class`` gives."""
         self.flush()
+        header = f"def encode_{name}(m):\n    b = bytearray(HEADER)"
         if self.plain:
             self.emit("b += Z[-len(b) & 3]")
-        return self.function(f"def encode_{name}(m):\n    b = bytearray(HEADER)",
-                             "    return bytes(b)", f"encode_{name}", "encoder")
+        if self.empties:
+            header += "\n    x = False"
+            size = self.const(estimator_for(msg_class))
+            self.emit(f"if x: b += bytes({size}(m) + {len(LE_HEADER)} - len(b))")
+        return self.function(header, "    return bytes(b)", f"encode_{name}", "encoder")
+
+
+def estimator_for(msg_class: type) -> Callable[[Any], int]:
+    """A generated function giving what rmw_fastrtps estimates as the serialised size of a
+    message of ``msg_class`` (header excluded): every field aligned as it would be written,
+    the elements of an empty primitive sequence aligned as if there were some."""
+    writer = _Estimator()
+    writer.message(msg_class, "m")
+    writer.flush()
+    name = msg_class.__name__
+    return writer.function(f"def size_{name}(m):\n    p = 0", "    return p",
+                           f"size_{name}", "size estimator")
+
+
+def _pad_code(align: int) -> str:
+    """Expression of the padding that aligns position ``p`` to ``align``."""
+    return f"(-p & {align - 1}) + " if align > 1 else ""
+
+
+class _Estimator(SourceWriter):
+    """Generates the source of one size estimator: statements advancing position ``p``."""
+
+    def __init__(self) -> None:
+        super().__init__({})
+
+    def flush(self) -> None:
+        """Advance over the pending fixed-size fields, by the residue they start at."""
+        if not self.run:
+            return
+        advances = tuple(struct.calcsize(run_format(self.run, residue)) for residue in range(8))
+        self.emit(f"p += {self.const(advances)}[p & 7]")
+        self.run.clear()
+
+    def nested(self, msg_class: type, expr: str) -> None:
+        self.message(msg_class, expr)
+
+    def string(self, expr: str) -> None:
+        self.emit(f"p += (-p & 3) + 5 + len({expr}.encode())")
+
+    def array(self, slot: d.Array, expr: str) -> None:
+        if isinstance(slot.value_type, d.BasicType):
+            size = size_of(slot.value_type)
+            self.emit(f"p += {_pad_code(min(size, 8))}{slot.size * size}")
+        else:
+            self.each(slot.value_type, expr)
+
+    def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
+        seq = self.fresh("q")
+        self.emit(f"{seq} = {expr}")
+        self.emit("p += (-p & 3) + 4")
+        if isinstance(slot.value_type, d.BasicType):
+            size = size_of(slot.value_type)
+            self.emit(f"p += {_pad_code(min(size, 8))}len({seq}) * {size}")
+        else:
+            self.each(slot.value_type, seq)
+
+    def each(self, element: Any, expr: str) -> None:
+        """A loop advancing over every element of a sequence or array of strings or
+        messages."""
+        item = self.fresh("e")
+        self.emit(f"for {item} in {expr}:")
+        self.depth += 1
+        self.field(element, item)
+        self.flush()
+        self.depth -= 1
