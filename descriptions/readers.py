@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -114,7 +114,11 @@ def load_robot(description: Path | str, settings: str):
     if reader.load is None:
         raise ValueError(f"{description}: an {reader.name} robot is read from the world, "
                          "not loaded alone")
-    return _function(reader.load)(description, settings)
+    loaded = _function(reader.load)(description, settings)
+    if loaded.model.settings != settings:  # a reader whose model does not say it (cached
+        # loads do: this copies at every call)
+        loaded = replace(loaded, model=replace(loaded.model, settings=settings))
+    return loaded
 
 
 def layout_settings(description: Path | str, section: Any, scenario_dir: Path) -> str:
@@ -155,7 +159,8 @@ def robot_spec(description: Path | str, settings: str) -> mujoco.MjSpec:
 
 def robot_description_text(description: Path | str, settings: str) -> str:
     """What /robot_description carries for a described robot (its URDF, expanded or
-    written from USD); '' for an MJCF robot."""
+    written from USD); '' for an MJCF robot. A robot model carries both arguments
+    (``RobotModel.source``, ``RobotModel.settings``)."""
     if not reader_for(description).described:
         return ""
     return load_robot(description, settings).urdf_text

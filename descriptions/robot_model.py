@@ -121,6 +121,9 @@ class RobotModel:
     links: tuple[Link, ...] = ()
     joints: tuple[Joint, ...] = ()
     source: str = ""  # the description file it came from
+    settings: str = ""  # the settings its reader read ``source`` with (a layout's JSON,
+    # descriptions.readers): with ``source``, what its reader gives again from the model
+    # alone (its URDF text: ``readers.robot_description_text``)
     base_body: str = ""
     notes: tuple[str, ...] = field(default=(), compare=False)  # what the conversion changed
     reader: str = ""  # the description reader that made it (descriptions.readers: 'urdf',

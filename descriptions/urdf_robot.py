@@ -6,6 +6,7 @@ reader)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
@@ -60,6 +61,17 @@ def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
 
 def layout_urdf_robot(description: Path | str, settings: str) -> LoadedUrdf:
     """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
-    ``layout_settings``'s JSON), loaded once per process (descriptions.readers)."""
-    spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
-    return load_robot(description, urdf_options(spec, Path("/")))
+    ``layout_settings``'s JSON), loaded once per process (descriptions.readers), keyed by
+    the JSON itself: the settings become UrdfOptions only when the file is read, and its
+    robot model carries them (``RobotModel.settings``)."""
+    path = Path(description).resolve()
+    stat = path.stat()  # an edited file is read again (a notebook, the run API)
+    key = (str(path), settings, stat.st_mtime_ns, stat.st_size)
+    if key not in _LAYOUT_CACHE:
+        spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
+        loaded = load_urdf(path, urdf_options(spec, Path("/")))
+        _LAYOUT_CACHE[key] = replace(loaded, model=replace(loaded.model, settings=settings))
+    return _LAYOUT_CACHE[key]
+
+
+_LAYOUT_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}

@@ -358,5 +358,6 @@ def layout_usd_robot(description: Path | str, settings: str) -> LoadedUrdf:
     stat = path.stat()  # an edited file is read again (a notebook, the run API)
     key = (str(path), settings, stat.st_mtime_ns, stat.st_size)
     if key not in _CACHE:
-        _CACHE[key] = load_usd(description, usd_options(json.loads(settings or "{}")))
+        loaded = load_usd(description, usd_options(json.loads(settings or "{}")))
+        _CACHE[key] = replace(loaded, model=replace(loaded.model, settings=settings))
     return _CACHE[key]

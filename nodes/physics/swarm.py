@@ -362,8 +362,10 @@ class SwarmPhysics:
         self.started = False
 
     def urdf_text(self, rig: Rig) -> str:
-        """The robot's description as URDF (/robot_description), read once per file."""
-        source = self.layout.source_of(rig.name)
+        """The robot's description as URDF (/robot_description), read once per file by the
+        reader its model names."""
+        robot = self.robot_models[rig.name]
+        source = (robot.source, robot.settings)
         if source not in self._urdf_texts:
             self._urdf_texts[source] = robot_description_text(*source)
         return self._urdf_texts[source]
