@@ -135,6 +135,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "a MoveIt or rclpy client in another shell needs it to see the run).\n"
                           "Only the tick loop waits: the digest is the unpaced one. Default:\n"
                           "as fast as it goes")
+    how.add_argument("--no-picture", action="store_true",
+                     help="draw no report.png after the run (about a CPU second saved: for\n"
+                          "suites of many short runs)")
     how.add_argument("--profile", choices=PROFILE_MODES,
                      help="write a cProfile of every cosim node into the run's logs/")
     p.add_argument("--shuffle-start", type=int, metavar="SEED", help=argparse.SUPPRESS)
@@ -153,7 +156,7 @@ def options_from(args: argparse.Namespace, on_tick=None):
                       pack=args.pack, spread=args.spread, shuffle_start=args.shuffle_start,
                       strict=args.strict,
                       live=args.live, rosbridge=args.rosbridge, twin=args.twin,
-                      real_time_factor=args.real_time_factor)
+                      real_time_factor=args.real_time_factor, picture=not args.no_picture)
 
 
 def _real_time_factor(text: str) -> float:

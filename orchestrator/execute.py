@@ -135,7 +135,7 @@ def execute(scenario: Scenario, options: RunOptions, on_tick: OnTick | None = No
             outcome.notes = _collect_notes(scenario, paths, outcome)
             outcome.bag = _write_bag_safely(scenario, outcome)
             full = outcome.status == "write_failed"  # no picture or stage on a full disk
-            if not full:
+            if options.picture and not full:
                 outcome.report = _write_picture_safely(scenario, outcome)
             if options.export_usd and not full:
                 outcome.usd = _export_usd_safely(scenario, outcome)

@@ -53,6 +53,8 @@ class RunOptions:
     twin: str | None = None  # ws://HOST:PORT of a real robot's rosbridge (a twin: scenario)
     real_time_factor: float | None = None  # pace: tick k starts no earlier than the first
     # tick's wall time + its sim time / R (orchestrator.lockstep.pace); None: unpaced
+    picture: bool = True  # report.png after the run: about a CPU second, most of a short
+    # run's cost (matplotlib's import and draw); a suite of many runs may go without
 
     def __post_init__(self) -> None:
         if self.spawn not in SPAWN_MODES:

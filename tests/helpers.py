@@ -45,12 +45,14 @@ class CliRun:
 
 
 def orchestrate(scenario: Path, out: Path, *args: str, timeout: float = 240,
-                env: dict[str, str] | None = None) -> CliRun:
-    """Run cosim-orchestrate as a real process (``env``: extra variables) and wait for it."""
+                env: dict[str, str] | None = None, picture: bool = False) -> CliRun:
+    """Run cosim-orchestrate as a real process (``env``: extra variables) and wait for it;
+    without report.png unless ``picture`` (drawing it is most of a short run's CPU)."""
     import os
 
     before = set(out.glob("*")) if out.exists() else set()
-    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
+    drawn = () if picture else ("--no-picture",)
+    proc = subprocess.run([*ORCHESTRATE, str(scenario), "--out", str(out), *args, *drawn],
                           capture_output=True, text=True, timeout=timeout, cwd=ROOT,
                           env={**os.environ, **(env or {})})
     new = sorted(set(out.glob("*")) - before) if out.exists() else []
@@ -62,8 +64,8 @@ def replayed_digest(run_dir: Path, out: Path) -> str:
     recorded requests fed back); the replay's digest, after checking it exits 0 and prints
     the digest its manifest has."""
     proc = subprocess.run([*ORCHESTRATE, "--replay", str(run_dir), "--in-process", "--quiet",
-                           "--out", str(out)], capture_output=True, text=True, timeout=240,
-                          cwd=ROOT)
+                           "--no-picture", "--out", str(out)], capture_output=True, text=True,
+                          timeout=240, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     (replay_dir,) = out.iterdir()
     digest = json.loads((replay_dir / "manifest.json").read_text())["digest"]

@@ -14,7 +14,8 @@ NAV_URDF = ROOT / "scenarios" / "nav_urdf.yaml"
 
 
 def test_one_robot_of_a_robots_section_gets_navs_report(tmp_path):
-    run = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet", "--duration", "4s")
+    run = orchestrate(NAV_URDF, tmp_path, "--in-process", "--quiet", "--duration", "4s",
+                      picture=True)
     assert run.code == 1, run.stderr  # goal not met in 4 s: the picture is what counts here
     height, width = image.imread(run.run_dir / "report.png").shape[:2]
     assert (width, height) == (15 * DPI, round(9.5 * DPI))  # nav's figure, not the swarm's

@@ -54,7 +54,7 @@ class BagContents:
 @pytest.fixture(scope="module")
 def protocol_run(tmp_path_factory):
     """One multi-process run of the protocol scenario through the real CLI."""
-    run = orchestrate(PROTOCOL, tmp_path_factory.mktemp("protocol"))
+    run = orchestrate(PROTOCOL, tmp_path_factory.mktemp("protocol"), picture=True)
     assert run.code == 0, run.stderr
     return run, load_scenario(PROTOCOL)
 
@@ -63,7 +63,7 @@ def protocol_run(tmp_path_factory):
 def nav_run(tmp_path_factory):
     """A short in-process run of the nav scenario through the real CLI."""
     run = orchestrate(NAV, tmp_path_factory.mktemp("nav"), "--in-process",
-                      "--duration", NAV_DURATION)
+                      "--duration", NAV_DURATION, picture=True)
     assert run.code in (0, 1), run.stderr
     return run, load_scenario(NAV, {"duration": NAV_DURATION})
 
@@ -303,3 +303,15 @@ def test_manifest_has_a_digest_per_topic_and_the_digest_without_rendered_topics(
     assert ("renderer" in versions) == has_camera
     if has_camera:
         assert versions["renderer"].startswith("egl: ") and "unknown" not in versions["renderer"]
+
+
+def test_no_picture_draws_none_and_says_so(tmp_path):
+    """--no-picture (a suite of many short runs): no report.png, the manifest's report is
+    null and the summary says "not drawn"; the digest is the one a drawn run has."""
+    bare = orchestrate(PROTOCOL, tmp_path / "bare", "--in-process")
+    drawn = orchestrate(PROTOCOL, tmp_path / "drawn", "--in-process", picture=True)
+    assert bare.code == drawn.code == 0, bare.stderr + drawn.stderr
+    assert not (bare.run_dir / "report.png").exists() and (drawn.run_dir / "report.png").exists()
+    assert bare.manifest["outputs"]["report"] is None
+    assert "not drawn" in bare.stdout
+    assert bare.manifest["digest"] == drawn.manifest["digest"]
