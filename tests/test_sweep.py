@@ -46,9 +46,12 @@ EIGHT_RUNS = ["--seeds", "1-4", *faulty("-1,3")]
 """Four seeds, each with a run that finishes and one whose process dies (exit code 7)."""
 
 
-def sweep(out: Path, *args: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    """Run cosim-sweep on the protocol scenario (100 ms) as a real process."""
-    proc = subprocess.run([*SWEEP, str(SCENARIO), "--out", str(out), *SHORT, *args],
+def sweep(out: Path, *args: str, timeout: float = 240, picture: bool = False
+          ) -> subprocess.CompletedProcess:
+    """Run cosim-sweep on the protocol scenario (100 ms) as a real process; its runs draw
+    no report.png unless ``picture``."""
+    drawn = () if picture else ("--no-picture",)
+    proc = subprocess.run([*SWEEP, str(SCENARIO), "--out", str(out), *SHORT, *args, *drawn],
                           cwd=ROOT, capture_output=True, text=True, timeout=timeout)
     assert not leftovers(out), f"processes left behind: {leftovers(out)}"
     return proc
@@ -203,6 +206,7 @@ def test_embedded_pool_runs_have_their_digests_alone_crashes_are_reported_and_re
         if row["digest"]:
             manifest = json.loads((out / row["run_dir"] / "manifest.json").read_text())
             assert manifest["digest"] == row["digest"]
+            assert manifest["outputs"]["report"] is None  # --no-picture
     assert (out / "summary.png").read_bytes()[:4] == b"\x89PNG"
 
     before = records(out)
@@ -226,10 +230,12 @@ def test_a_hung_run_is_stopped_at_the_timeout_and_recorded(tmp_path):
 
 def test_multi_process_runs_each_lease_a_ros_domain(tmp_path, alone):
     out = tmp_path / "sweep"
-    proc = sweep(out, "--seeds", "1-2", *faulty("-1"), "--multi-process", "--jobs", "2")
+    proc = sweep(out, "--seeds", "1-2", *faulty("-1"), "--multi-process", "--jobs", "2",
+                 picture=True)
     assert proc.returncode == 0, proc.stderr
     rows = table(out)
     assert {r["seed"]: r["digest"] for r in rows} == {1: alone[1], 2: alone[2]}
+    assert all((out / r["run_dir"] / "report.png").is_file() for r in rows)
     domains = [r["ros_domain"] for r in rows]
     assert len(set(domains)) == 2 and str(domains[0]) != os.environ["ROS_DOMAIN_ID"]
 

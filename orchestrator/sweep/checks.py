@@ -61,7 +61,8 @@ def check_sweep(args: argparse.Namespace) -> CheckedSweep:
                             "a sweep cannot wait for someone to start them.",
                             "external: false for a sweep, or in-process runs.")
     processes = 1 if in_process else len(base.nodes) + 1  # the nodes and the orchestrator
-    specs = plan_runs(args.scenario, seeds, values, args.out, in_process, processes)
+    specs = plan_runs(args.scenario, seeds, values, args.out, in_process, processes,
+                      picture=not args.no_picture)
     doc = {"scenario": str(args.scenario.resolve()), "seeds": seeds, "values": values,
            "in_process": in_process, "processes_per_run": processes,
            "backend": f"ray {args.ray}" if args.ray else "local", "runs": len(specs)}

@@ -83,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="go on with the sweep in --out: skip the runs that finished")
     p.add_argument("--retry-failed", action="store_true",
                    help="with --resume, run again the runs that failed, crashed or timed out")
+    p.add_argument("--no-picture", action="store_true",
+                   help="no report.png in each run's directory (about a CPU second a run;\n"
+                        "the sweep's summary.png is drawn all the same)")
     p.add_argument("--quiet", action="store_true", help="print only the final summary")
     return p
 

@@ -30,6 +30,7 @@ class RunSpec:
     out: Path  # absolute: the run's own directory; the run directory is made inside it
     in_process: bool = True
     processes: int = 1  # OS processes the run needs: 1 in-process, nodes + orchestrator
+    picture: bool = True  # the run's report.png (--no-picture: a CPU second a run saved)
 
     def overrides(self) -> dict[str, Any]:
         """The run's scenario overrides (its seed and values), as ``--set`` gives them."""
@@ -39,13 +40,14 @@ class RunSpec:
         """JSON-ready, for the record and for a Ray task's arguments."""
         return {"run_id": self.run_id, "scenario": str(self.scenario), "seed": self.seed,
                 "params": self.params, "out": str(self.out), "in_process": self.in_process,
-                "processes": self.processes}
+                "processes": self.processes, "picture": self.picture}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RunSpec:
         """The inverse of ``as_dict``."""
         return cls(data["run_id"], Path(data["scenario"]), data["seed"], dict(data["params"]),
-                   Path(data["out"]), data["in_process"], data["processes"])
+                   Path(data["out"]), data["in_process"], data["processes"],
+                   data.get("picture", True))
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -118,7 +120,7 @@ def combinations(values: dict[str, list[Any]]) -> list[dict[str, Any]]:
 
 
 def plan_runs(scenario: Path, seeds: list[int], values: dict[str, list[Any]], out: Path,
-              in_process: bool, processes: int) -> list[RunSpec]:
+              in_process: bool, processes: int, picture: bool = True) -> list[RunSpec]:
     """The runs of a sweep, seed-major: every value combination for seed 1, then seed 2..."""
     scenario, runs_dir = scenario.resolve(), (out / "runs").resolve()
     runs = []
@@ -126,5 +128,5 @@ def plan_runs(scenario: Path, seeds: list[int], values: dict[str, list[Any]], ou
         for params in combinations(values):
             rid = run_id(seed, params)
             runs.append(RunSpec(rid, scenario, seed, params, runs_dir / rid, in_process,
-                                processes))
+                                processes, picture))
     return runs

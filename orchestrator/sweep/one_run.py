@@ -59,18 +59,20 @@ def execute_run(spec: RunSpec) -> dict[str, Any]:
     """Run ``spec`` and return its record (status, success, digest, metrics, wall time)."""
     from orchestrator.api import run
     from orchestrator.domains import DomainLease
+    from plan.options import RunOptions
 
     record = base_record(spec)
     started = time.monotonic()
+    options = RunOptions(picture=spec.picture)
     try:
         if spec.in_process:
             result = run(spec.scenario, in_process=True, out=spec.out, check=False,
-                         overrides=spec.overrides())
+                         overrides=spec.overrides(), options=options)
         else:
             with DomainLease(wait_s=DOMAIN_WAIT_S) as domain, ros_domain(domain):
                 record["ros_domain"] = domain
                 result = run(spec.scenario, in_process=False, out=spec.out, check=False,
-                             overrides=spec.overrides())
+                             overrides=spec.overrides(), options=options)
     except Exception as exc:  # noqa: BLE001 - any failure of one run is that run's outcome
         record.update(status="error", error=f"{type(exc).__name__}: {exc}",
                       run_dir=str(find_run_dir(spec)) if find_run_dir(spec) else None)
