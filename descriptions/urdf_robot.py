@@ -1,12 +1,12 @@
 """A scenario's URDF robot, loaded once per process: the scenario's ``urdf:`` settings
-(plan.description_spec.UrdfSpec) as :class:`UrdfOptions`, the load cached by file and
-settings (every node of a process reads the same robot; descriptions.readers' URDF
-reader)."""
+(plan.description_spec.UrdfSpec) become :class:`UrdfOptions` once, when the scenario loads,
+carried by the layout as the options' JSON; the load is cached by file and that JSON (every
+node of a process reads the same robot; descriptions.readers' URDF reader)."""
 
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 from descriptions.urdf import LoadedUrdf, UrdfOptions, load_urdf
@@ -33,45 +33,35 @@ def section_options(section: dict | None, scenario_dir: Path) -> UrdfOptions:
     return urdf_options(UrdfSpec.model_validate(section or {}), scenario_dir)
 
 
-def load_robot(path: Path | str, options: UrdfOptions) -> LoadedUrdf:
-    """``load_urdf`` cached per process by the file and the options."""
-    key = json.dumps({k: v for k, v in options.__dict__.items() if k != "env"},
-                     sort_keys=True, default=list)
-    return _cached(str(Path(path).resolve()), key, options)
-
-
-_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
-
-
-def _cached(path: str, key: str, options: UrdfOptions) -> LoadedUrdf:
-    stat = Path(path).stat()  # an edited file is read again (a notebook, the run API)
-    full = (path, key, stat.st_mtime_ns, stat.st_size)
-    if full not in _CACHE:
-        _CACHE[full] = load_urdf(path, options)
-    return _CACHE[full]
-
-
 def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:
-    """A scenario's ``urdf:`` settings as the swarm layout carries them: JSON, the package
-    folders made absolute (every process reads the same robot wherever it runs from)."""
-    spec = spec or UrdfSpec()
-    packages = {k: str((scenario_dir / v).resolve()) for k, v in spec.packages.items()}
-    return spec.model_copy(update={"packages": packages}).model_dump_json()
+    """A scenario's ``urdf:`` settings as the swarm layout carries them: the UrdfOptions
+    they mean, as JSON (package folders absolute: every process reads the same robot
+    wherever it runs from), so a process reading the robot makes the options straight from
+    it (``options_of``)."""
+    options = urdf_options(spec, scenario_dir)
+    return json.dumps({f.name: getattr(options, f.name) for f in fields(options)
+                       if f.name != "env"}, sort_keys=True)
+
+
+def options_of(settings: str) -> UrdfOptions:
+    """The UrdfOptions of a layout's settings JSON (``layout_settings``; '': defaults)."""
+    given = json.loads(settings) if settings else {}
+    if given.get("wheels") is not None:
+        given["wheels"] = tuple(given["wheels"])
+    return UrdfOptions(**given)
 
 
 def layout_urdf_robot(description: Path | str, settings: str) -> LoadedUrdf:
     """The robot of a swarm layout whose description is a URDF or xacro (``settings``:
     ``layout_settings``'s JSON), loaded once per process (descriptions.readers), keyed by
-    the JSON itself: the settings become UrdfOptions only when the file is read, and its
-    robot model carries them (``RobotModel.settings``)."""
+    the JSON itself; its robot model carries them (``RobotModel.settings``)."""
     path = Path(description).resolve()
     stat = path.stat()  # an edited file is read again (a notebook, the run API)
     key = (str(path), settings, stat.st_mtime_ns, stat.st_size)
-    if key not in _LAYOUT_CACHE:
-        spec = UrdfSpec.model_validate_json(settings) if settings else UrdfSpec()
-        loaded = load_urdf(path, urdf_options(spec, Path("/")))
-        _LAYOUT_CACHE[key] = replace(loaded, model=replace(loaded.model, settings=settings))
-    return _LAYOUT_CACHE[key]
+    if key not in _CACHE:
+        loaded = load_urdf(path, options_of(settings))
+        _CACHE[key] = replace(loaded, model=replace(loaded.model, settings=settings))
+    return _CACHE[key]
 
 
-_LAYOUT_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
+_CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}

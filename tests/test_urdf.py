@@ -356,23 +356,26 @@ def test_a_world_root_link_is_the_world(tmp_path):
 
 def test_scenario_urdf_settings_become_options_and_errors_exit_2():
     from descriptions.description_error import scenario_error
-    from descriptions.urdf_robot import load_robot, urdf_options
+    from descriptions.urdf_robot import layout_settings, layout_urdf_robot, options_of, urdf_options
     from plan.description_spec import UrdfSpec
 
     spec = UrdfSpec.model_validate({
-        "args": {"lidar_samples": "180"}, "packages": {"mybot_description":
-                                                       "robots/mybot_description"},
+        "args": {"lidar_samples": 180}, "packages": {"mybot_description":
+                                                     "robots/mybot_description"},
         "wheels": ["wheel_left_joint", "wheel_right_joint"], "sensors": {"imu": "imu_link"},
         "gains": {"wheel": {"kv": 3}}})
     options = urdf_options(spec, ROOT / "scenarios")
     assert options.packages["mybot_description"] == str(ROBOTS / "mybot_description")
-    loaded = load_robot(BOT, options)
-    assert load_robot(BOT, options) is loaded  # once per process
+    settings = layout_settings(spec, ROOT / "scenarios")  # what the layout carries
+    assert options_of(settings) == options
+    loaded = layout_urdf_robot(BOT, settings)
+    assert layout_urdf_robot(BOT, settings) is loaded  # once per process
+    assert loaded.model.settings == settings
     assert dict(loaded.model.sensor("lidar").params)["samples"] == 180
     model = loaded.spec.compile()
     assert model.actuator_gainprm[0][0] == 3.0
     try:
-        load_robot(BOT, urdf_options(UrdfSpec(), ROOT / "scenarios"))
+        layout_urdf_robot(BOT, layout_settings(None, ROOT / "scenarios"))
     except DescriptionError as exc:
         err = scenario_error(exc, "nav_urdf.yaml", "robots.description")
     assert str(err).startswith("nav_urdf.yaml: robots.description: robot description ")
