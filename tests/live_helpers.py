@@ -69,7 +69,8 @@ def write(tmp_path: Path, doc: dict, name: str) -> Path:
 
 def orchestrate(scenario: Path, out: Path, *args: str) -> subprocess.Popen:
     """cosim-orchestrate as a running process."""
-    return subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), "--quiet", *args],
+    return subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), "--quiet",
+                             "--no-picture", *args],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -150,7 +150,8 @@ class SimClient:
 @contextmanager
 def orchestrate(scenario, out, *args: str):
     """A cosim-orchestrate process for the block; yields it and leaves none behind."""
-    proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--quiet", "--out", str(out), *args],
+    proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--quiet", "--out", str(out),
+                             "--no-picture", *args],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         yield proc

@@ -23,7 +23,8 @@ GONE_S = GRACE_S + 15  # the watchdog's grace, and a loaded machine's slowness
 
 
 def _start(scenario, out, *args: str, mark: str) -> subprocess.Popen:
-    return subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), "--quiet", *args],
+    return subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), "--quiet",
+                             "--no-picture", *args],
                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             env={**os.environ, RUN_MARK: mark})
 

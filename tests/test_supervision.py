@@ -26,7 +26,8 @@ class LiveRun:
     def __init__(self, scenario, out, *args: str, env: dict[str, str] | None = None,
                  preexec_fn=None):
         self.out = out
-        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out), *args],
+        self.proc = subprocess.Popen([*ORCHESTRATE, str(scenario), "--out", str(out),
+                                      "--no-picture", *args],
                                      cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env={**os.environ, **(env or {})},
                                      preexec_fn=preexec_fn)
