@@ -451,6 +451,59 @@ def test_the_format_import_check_sees_a_format_module():
         "nodes.physics.x imports descriptions.urdf_robot (a description format's module)"]
 
 
+WORLD_MARK = ("nodes", "descriptions")  # the run's code between a description and a node
+SIDE_CHANNELS = {
+    # a mark written into or read out of the compiled world (a MuJoCo custom text, as the
+    # described robot's 'cosim_urdf' JSON once was): a robot's facts are on its model
+    "add_text": ("a MuJoCo text written into the world", WORLD_MARK),
+    "mjOBJ_TEXT": ("a MuJoCo text of the compiled world", WORLD_MARK),
+    "text_data": ("a MuJoCo text's data", WORLD_MARK),
+    "text_adr": ("a MuJoCo text's address", WORLD_MARK),
+    # the robot's description and reader settings taken from the layout by a node: its
+    # model carries them (RobotModel.source, RobotModel.settings)
+    "source_of": ("the robot's description from the layout", ("nodes",)),
+}
+
+
+def robot_side_channels(files: dict[str, Path], root: Path = ROOT) -> list[str]:
+    """Every place that tells a node of a robot by another way than its robot model
+    (``NodeConfig.robots``; a node's world check gets it too): the attributes in
+    ``SIDE_CHANNELS``, in the packages each names."""
+    return sorted(f"{path.relative_to(root)}:{node.lineno}: {node.attr} "
+                  f"({SIDE_CHANNELS[node.attr][0]})"
+                  for path in files.values()
+                  for node in ast.walk(ast.parse(path.read_text()))
+                  if isinstance(node, ast.Attribute) and node.attr in SIDE_CHANNELS
+                  and path.relative_to(root).parts[0] in SIDE_CHANNELS[node.attr][1])
+
+
+def test_the_robot_reaches_nodes_by_its_model_alone():
+    # issue 47 item 1: one channel; what a node needs of the robot is on the model the plan
+    # hands it (NodeConfig.robots, world_problems' ``described``)
+    found = robot_side_channels(project_files())
+    assert not found, "\n".join(found)
+
+
+def test_the_side_channel_check_sees_a_marker_and_the_layouts_description(tmp_path):
+    text = ("import mujoco\n"
+            "def f(model, spec, layout, name):\n"
+            "    spec.add_text(name='mark', data='{}')\n"
+            "    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, 'mark')\n"
+            "    return model.text_data[model.text_adr[i]], layout.source_of(name)\n")
+    files = {}
+    for package in ("nodes", "descriptions", "plan"):
+        (tmp_path / package).mkdir()
+        files[package] = tmp_path / package / "probe.py"
+        files[package].write_text(text)
+    found = robot_side_channels(files, tmp_path)
+    assert [f.split(": ")[0] + " " + f.split(": ")[1].split(" ")[0] for f in found] == [
+        "descriptions/probe.py:3 add_text", "descriptions/probe.py:4 mjOBJ_TEXT",
+        "descriptions/probe.py:5 text_adr", "descriptions/probe.py:5 text_data",
+        "nodes/probe.py:3 add_text", "nodes/probe.py:4 mjOBJ_TEXT",
+        "nodes/probe.py:5 source_of", "nodes/probe.py:5 text_adr",
+        "nodes/probe.py:5 text_data"], found
+
+
 DESCRIPTION_SUFFIXES = {".urdf", ".xacro", ".urdf.xacro", ".usd", ".usda", ".usdc"}
 SUFFIX_CHECK_ALLOWED = {
     "descriptions/readers.py",  # the registry: where a description's format is recognised
