@@ -26,7 +26,8 @@ from orchestrator.live.attachment import LiveView
 from orchestrator.lockstep.loop_result import LoopResult, goal_reached
 from orchestrator.lockstep.supervisor import signals_ignored
 from orchestrator.outputs.manifest import write_manifest
-from orchestrator.outputs.topic_digests import RendererProbe, rendered_topics
+from orchestrator.outputs.renderer import RendererProbe
+from orchestrator.outputs.topic_digests import rendered_topics
 from orchestrator.proxies.twin import never_reached, twin_address, twin_run
 from orchestrator.run_rules import check_run
 from plan.errors import ScenarioError, SimulationError

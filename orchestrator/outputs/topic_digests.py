@@ -15,27 +15,15 @@ when a run has rendered topics. Golden files and ``--against`` name the ones tha
 from __future__ import annotations
 
 import hashlib
-import os
 import platform
 import struct
-import subprocess
-import sys
 from importlib import metadata
 from pathlib import Path
 
+from orchestrator.outputs.renderer import RendererProbe
 from plan.timeutil import Ns, tick_at_ns
 
 CLOCK_TOPIC = "/clock"
-RENDERER_PROBE_TIMEOUT_S = 60
-_PROBE = """
-import mujoco
-from OpenGL import GL
-ctx = mujoco.GLContext(1, 1)
-ctx.make_current()
-print(" | ".join(GL.glGetString(k).decode() for k in (GL.GL_VENDOR, GL.GL_RENDERER,
-                                                     GL.GL_VERSION)))
-ctx.free()
-"""
 
 
 def topic_digests(bag: Path, tick_ns: Ns) -> dict[str, str]:
@@ -77,42 +65,6 @@ def rendered_topics(scenario) -> list[str]:
             out.update(plan.output_names[own] for own in rendered(plan.params)
                        if own in plan.output_names)
     return sorted(out)
-
-
-class RendererProbe:
-    """Which GL MuJoCo renders with here (MUJOCO_GL, as the camera nodes get it): a fresh
-    interpreter makes a 1 x 1 context and reads GL_VENDOR, GL_RENDERER and GL_VERSION.
-    Started with the run (it takes ~1 s of software GL set-up, overlapping the run), read
-    when the manifest is written."""
-
-    def __init__(self) -> None:
-        env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
-        if env["MUJOCO_GL"] == "egl":
-            env.setdefault("PYOPENGL_PLATFORM", "egl")
-        self.backend = env["MUJOCO_GL"]
-        self._answer: str | None = None
-        try:
-            self._proc: subprocess.Popen | None = subprocess.Popen(
-                [sys.executable, "-c", _PROBE], stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True, env=env)
-        except OSError as exc:
-            self._proc, self._answer = None, f"unknown ({exc})"
-
-    def result(self) -> str:
-        """'egl: vendor | renderer | GL version', or 'unknown (why)'."""
-        if self._answer is None and self._proc is not None:
-            try:
-                out, err = self._proc.communicate(timeout=RENDERER_PROBE_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.communicate()
-                out, err = "", "the probe did not answer in time"
-            lines = out.strip().splitlines()
-            if self._proc.returncode or not lines:
-                self._answer = f"unknown ({(err.strip().splitlines() or ['no output'])[-1][:200]})"
-            else:
-                self._answer = f"{self.backend}: {lines[-1]}"
-        return self._answer or "unknown"
 
 
 def digest_versions(renderer: RendererProbe | None = None) -> dict[str, str]:
