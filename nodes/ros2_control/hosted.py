@@ -30,6 +30,7 @@ with it.
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Any
 
@@ -91,6 +92,10 @@ class MujocoSystem:
                         float(model.actuator_ctrlrange[a, 1]))
             for interface, a in self.actuator.items()
             if a >= 0 and model.actuator_ctrllimited[a]}
+        # 'joint/interface' -> (actuator, min, max), unbounded where no limits
+        self.targets: dict[str, tuple[int, float, float]] = {
+            interface: (a, *self.limits.get(interface, (-math.inf, math.inf)))
+            for interface, a in self.actuator.items()}
 
     def read(self, data) -> None:
         """The joints' positions, velocities and actuator efforts, now (new readings: a
@@ -118,12 +123,12 @@ class MujocoSystem:
         (the value range only; it also bounds a position step by the velocity limit, which
         cosim does not)."""
         ctrl = data.ctrl
-        limits = self.limits
+        targets = self.targets
         for interface, value in commands.items():
-            a = self.actuator.get(interface)
-            if a is not None:
-                bounds = limits.get(interface)
-                ctrl[a] = value if bounds is None else min(max(value, bounds[0]), bounds[1])
+            target = targets.get(interface)
+            if target is not None:
+                a, low, high = target
+                ctrl[a] = min(max(value, low), high)
 
 
 class RobotManager:
@@ -148,6 +153,9 @@ class RobotManager:
         self.inputs = list(subscriptions(params))
         self.graph = {t: namespaced(namespace, t) for t in [*self.inputs, *self.declared]}
         self.held = frozenset(t for t in self.inputs if self.graph[t] in held)
+        self.routes = [(t, self.graph[t]) for t in self.inputs]  # (own, physics' name)
+        self.outputs = [(t, self.graph[t], cls) for t, cls in self.declared.items()]
+        self.empty: dict[str, Any] = {}  # topic -> what it carries while not published
         self.fresh = Fresh()
         self.request, self.refused = 0, []  # the newest request handled; refused this tick
         self.first = True
@@ -160,7 +168,7 @@ class RobotManager:
         """Read, update, write; what the controllers publish into ``out`` (physics' names)."""
         system = self.system
         system.read(data)
-        mine = {t: inputs[self.graph[t]] for t in self.inputs if self.graph[t] in inputs}
+        mine = {t: msg for t, graph in self.routes if (msg := inputs.get(graph)) is not None}
         commands: dict[str, float] = {}
         if self.first:
             system.start(data)
@@ -175,13 +183,17 @@ class RobotManager:
         system.write(data, commands)
         # lockstep wants one message per declared topic and activation: an inactive
         # controller's topics carry an empty message of their type, nothing of the controller
-        for topic, cls in self.declared.items():
-            msg = done.published.get(topic)
+        # (made once: the runtime only stamps it, with the tick's time, and serialises it)
+        published = done.published
+        for topic, graph, cls in self.outputs:
+            msg = published.get(topic)
             if msg is None:
-                name, own = self.owner[topic]
-                ctrl = self.manager.controllers.get(name)
-                msg = cls() if ctrl is None else ctrl.empty_message(own)
-            out[self.graph[topic]] = msg
+                msg = self.empty.get(topic)
+                if msg is None:
+                    name, own = self.owner[topic]
+                    ctrl = self.manager.controllers.get(name)
+                    msg = self.empty[topic] = cls() if ctrl is None else ctrl.empty_message(own)
+            out[graph] = msg
 
     def _switch(self, msg) -> dict[str, float]:
         """The requests of the switch topic (``nodes.ros2_control.requests``) not handled

@@ -15,6 +15,7 @@ subscriptions' messages, and is not taken again at its activation."""
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable, Mapping
+from functools import cache
 from typing import Any
 
 from nodes.ros2_control.config import ControllersFile
@@ -27,6 +28,7 @@ from nodes.ros2_control.interface import (
 from nodes.ros2_control.registry import controller_class
 
 
+@cache  # the same few names at every update
 def resolve(controller: str, topic: str) -> str:
     """A controller's topic as the graph names it: ``~/x`` -> ``/<controller>/x``."""
     return f"/{controller}/{topic[2:]}" if topic.startswith("~/") else topic
@@ -135,6 +137,9 @@ class ControllerManager:
         self.unloaded: set[str] = set()
         self.held: dict[str, Any] = {}  # topic -> its message at the last tick
         self.unservable: dict[str, str] = {}  # controller -> what the hardware lacks for it
+        # controller -> (the controller, its subscriptions: (own name, graph name)), made
+        # at its first update and again for a controller loaded anew
+        self._routes: dict[str, tuple[ControllerInterface, tuple[tuple[str, str], ...]]] = {}
 
     def states(self) -> dict[str, str]:
         """Every loaded controller's state, in file order."""
@@ -211,16 +216,20 @@ class ControllerManager:
         for name, ctrl in self.controllers.items():
             if ctrl is None:
                 continue
-            arrived = [(topic, msg) for topic in ctrl.subscriptions()
-                       if (msg := self._arrival(resolve(name, topic), inputs, held))
-                       is not None]
+            route = self._routes.get(name)
+            if route is None or route[0] is not ctrl:
+                route = self._routes[name] = (ctrl, tuple(
+                    (topic, resolve(name, topic)) for topic in ctrl.subscriptions()))
+            arrived = [(topic, msg) for topic, graph in route[1]
+                       if (msg := self._arrival(graph, inputs, held)) is not None]
             if not ctrl.active:
                 continue
             for topic, msg in arrived:
                 out.notes += ctrl.on_message(topic, msg, time_ns)
             done = ctrl.update(time_ns, period_ns)
             out.commands.update(done.commands)
-            out.published.update({resolve(name, t): m for t, m in done.published.items()})
+            for topic, msg in done.published.items():
+                out.published[resolve(name, topic)] = msg
             out.notes += done.notes
         return out
 
@@ -230,6 +239,8 @@ class ControllerManager:
         if msg is None:
             return None
         last = self.held.get(topic)
+        if last is msg:  # the sample taken again (a slower producer's): no arrival
+            return None
         self.held[topic] = msg
         if last is None:
             return msg

@@ -57,6 +57,7 @@ class ForwardCommandController(ControllerInterface):
     def on_activate(self) -> Update:
         """Nothing commanded until a command comes."""
         self.command = None
+        self.keys = [f"{j}/{self.interface}" for j in self.params.joints]
         return Update()
 
     def on_message(self, topic: str, msg: Any, time_ns: int) -> list[str]:
@@ -77,8 +78,7 @@ class ForwardCommandController(ControllerInterface):
         """The latest command (nothing before the first)."""
         if self.command is None:
             return Update()
-        return Update(commands={f"{j}/{self.interface}": v for j, v in
-                                zip(self.params.joints, self.command, strict=True)})
+        return Update(commands=dict(zip(self.keys, self.command, strict=True)))
 
 
 class JointGroupController(ForwardCommandController):

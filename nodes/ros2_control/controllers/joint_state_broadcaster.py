@@ -56,16 +56,25 @@ class JointStateBroadcaster(ControllerInterface):
             out[self._topic("dynamic_joint_states")] = DynamicJointState
         return out
 
+    def on_activate(self) -> Update:
+        """Its joints (all the hardware's when none are named) and topics, for every
+        update until it is deactivated."""
+        self.names = list(self.params.joints) or list(self.state)
+        self.topics = (self._topic("joint_states"),
+                       self._topic("dynamic_joint_states")
+                       if self.params.publish_dynamic_joint_states else None)
+        return Update()
+
     def update(self, time_ns: int, period_ns: int) -> Update:
         """The joints' states as they are now."""
-        names = list(self.params.joints) or list(self.state)
-        readings = [self.state[n] for n in names]
+        names = self.names
+        state = self.state
+        readings = [state[n] for n in names]
         positions = [r.position for r in readings]
         velocities = [r.velocity for r in readings]
         efforts = [r.effort for r in readings]
-        out = {self._topic("joint_states"): fast.joint_state(names, positions, velocities,
-                                                             efforts)}
-        if self.params.publish_dynamic_joint_states:
-            out[self._topic("dynamic_joint_states")] = fast.dynamic_joint_state(
-                names, positions, velocities, efforts)
+        joint_states, dynamic = self.topics
+        out = {joint_states: fast.joint_state(names, positions, velocities, efforts)}
+        if dynamic is not None:
+            out[dynamic] = fast.dynamic_joint_state(names, positions, velocities, efforts)
         return Update(published=out)
