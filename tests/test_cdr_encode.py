@@ -156,3 +156,14 @@ def test_the_trajectory_controller_state_takes_the_generated_path():
     msg = JointTrajectoryControllerState(joint_names=list("abcdef"), reference=point,
                                          feedback=point, error=point, output=point)
     assert encoder_for(JointTrajectoryControllerState)(msg) == rclpy_bytes(msg)
+
+
+def test_kept_strings_give_the_same_bytes_when_the_cache_is_full(monkeypatch):
+    import runtime.cdr.encode as encoder
+    monkeypatch.setattr(encoder, "_CACHE_SIZE", 2)
+    rng = random.Random("cache")
+    for _ in range(20):
+        msg = fill(JointState(), rng)
+        assert encode(msg) == rclpy_bytes(msg)
+        assert encode(msg) == rclpy_bytes(msg)  # again, from what is kept
+    assert len(encoder._strings) <= 2 and len(encoder._string_seqs) <= 2

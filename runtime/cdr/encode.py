@@ -33,6 +33,7 @@ from runtime.cdr.canonical import LE_HEADER, canonical_cdr
 from runtime.cdr.codegen import SourceWriter, Unsupported, code_of, run_format, size_of
 
 _ZEROS = tuple(bytes(n) for n in range(8))
+_U32 = struct.Struct("<I")
 
 Encoder = Callable[[Any], bytes]
 
@@ -58,6 +59,11 @@ def encoder_for(msg_class: type) -> Encoder | None:
     return writer.compile(msg_class.__name__, msg_class)
 
 
+def _is_string(slot: Any) -> bool:
+    """Whether a field's type is a string (of bytes: wstring is not covered)."""
+    return isinstance(slot, d.AbstractString) and not isinstance(slot, d.AbstractWString)
+
+
 def _align_code(align: int) -> str:
     """Statement appending the zero padding that aligns the next field to ``align``."""
     return f"b += Z[(4 - len(b)) & {align - 1}]" if align > 1 else ""
@@ -75,12 +81,48 @@ def _primitive_bytes(value: Any, code: str) -> bytes:
     return struct.pack(f"<{len(value)}{code}", *value)
 
 
+_CACHE_SIZE = 4096  # strings and string sequences kept; all are forgotten when it is full
+_strings: dict[str, bytes] = {}
+_string_seqs: dict[tuple, bytes] = {}
+
+
+def _string_bytes(text: str) -> bytes:
+    """A string field as CDR writes it from a 4-byte boundary: its UTF-8 length with the
+    terminating zero, the bytes, the zero. Kept: names and frames come again at every tick."""
+    data = _strings.get(text)
+    if data is None:
+        raw = text.encode()
+        data = _U32.pack(len(raw) + 1) + raw + b"\0"
+        if len(_strings) >= _CACHE_SIZE:
+            _strings.clear()
+        _strings[text] = data
+    return data
+
+
+def _string_seq_bytes(seq: Any) -> bytes:
+    """A sequence of strings as CDR writes it from a 4-byte boundary (every alignment in it
+    is to 4, so the bytes do not depend on where it starts): the count, then each string at
+    its 4-byte boundary. Kept by content: joint and interface names repeat at every tick."""
+    key = tuple(seq)
+    data = _string_seqs.get(key)
+    if data is None:
+        out = bytearray(_U32.pack(len(key)))
+        for text in key:
+            out += _ZEROS[-len(out) & 3]
+            out += _string_bytes(text)
+        data = bytes(out)
+        if len(_string_seqs) >= _CACHE_SIZE:
+            _string_seqs.clear()
+        _string_seqs[key] = data
+    return data
+
+
 class _Writer(SourceWriter):
     """Generates the source of one encoder: statements appending to bytearray ``b``."""
 
     def __init__(self) -> None:
-        super().__init__({"Z": _ZEROS, "U32": struct.Struct("<I"),
-                          "P": _primitive_bytes, "HEADER": LE_HEADER})
+        super().__init__({"Z": _ZEROS, "U32": _U32, "P": _primitive_bytes,
+                          "S": _string_bytes, "SS": _string_seq_bytes, "HEADER": LE_HEADER})
         self.plain = True  # no string or sequence anywhere: rmw sizes it rounded up to 4
         self.empties = False  # a primitive sequence somewhere, which may be empty
 
@@ -98,9 +140,8 @@ class _Writer(SourceWriter):
 
     def string(self, expr: str) -> None:
         self.plain = False
-        self.emit(f"s = {expr}.encode()")
         self.emit(_align_code(4))
-        self.emit('b += U32.pack(len(s) + 1); b += s; b += b"\\0"')
+        self.emit(f"b += S({expr})")
 
     def array(self, slot: d.Array, expr: str) -> None:
         if isinstance(slot.value_type, d.BasicType):
@@ -112,6 +153,10 @@ class _Writer(SourceWriter):
 
     def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
         self.plain = False
+        if _is_string(slot.value_type):
+            self.emit(_align_code(4))
+            self.emit(f"b += SS({expr})")
+            return
         seq = self.fresh("q")
         self.emit(f"{seq} = {expr}")
         self.emit(_align_code(4))
@@ -176,7 +221,7 @@ class _Estimator(SourceWriter):
     """Generates the source of one size estimator: statements advancing position ``p``."""
 
     def __init__(self) -> None:
-        super().__init__({})
+        super().__init__({"S": _string_bytes, "SS": _string_seq_bytes})
 
     def flush(self) -> None:
         """Advance over the pending fixed-size fields, by the residue they start at."""
@@ -190,7 +235,7 @@ class _Estimator(SourceWriter):
         self.message(msg_class, expr)
 
     def string(self, expr: str) -> None:
-        self.emit(f"p += (-p & 3) + 5 + len({expr}.encode())")
+        self.emit(f"p += (-p & 3) + len(S({expr}))")
 
     def array(self, slot: d.Array, expr: str) -> None:
         if isinstance(slot.value_type, d.BasicType):
@@ -200,6 +245,9 @@ class _Estimator(SourceWriter):
             self.each(slot.value_type, expr)
 
     def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
+        if _is_string(slot.value_type):
+            self.emit(f"p += (-p & 3) + len(SS({expr}))")
+            return
         seq = self.fresh("q")
         self.emit(f"{seq} = {expr}")
         self.emit("p += (-p & 3) + 4")
