@@ -101,6 +101,8 @@ class Sensor:
     link: str
     mujoco_name: str
     params: tuple[tuple[str, float | int | str], ...] = ()
+    readings: tuple[tuple[str, str], ...] = ()  # the MuJoCo sensors that read it, by what
+    # they read: an IMU's ('gyro', NAME), ('accelerometer', NAME), ('orientation', NAME)
 
 
 @dataclass(frozen=True)
@@ -178,7 +180,8 @@ class RobotModel:
             actuated=tuple(replace(a, joint=p + a.joint, actuator=p + a.actuator)
                            for a in self.actuated),
             control=tuple(replace(c, joint=p + c.joint) for c in self.control),
-            sensors=tuple(replace(s, link=p + s.link, mujoco_name=p + s.mujoco_name)
+            sensors=tuple(replace(s, link=p + s.link, mujoco_name=p + s.mujoco_name,
+                                  readings=tuple((k, p + n) for k, n in s.readings))
                           for s in self.sensors),
             links=tuple(replace(k, name=p + k.name, body=p + k.body,
                                 site=None if k.site is None else p + k.site)

@@ -64,6 +64,9 @@ class RobotNames:
     laser_frame: str = "laser"
     imu_site: str = "imu"
     imu_frame: str = "imu_link"
+    imu_gyro: str = "imu_gyro"
+    imu_accelerometer: str = "imu_accel"
+    imu_orientation: str = "imu_quat"
     camera: str = "rgbd"
     camera_frame: str = "camera_color_optical_frame"
 
@@ -120,7 +123,9 @@ def read_robot(model: mujoco.MjModel, names: RobotNames = RobotNames(), robot: s
         sensors.append(Sensor("lidar", "lidar", names.laser_frame, names.laser_site))
     imu = mujoco.mj_name2id(model, SITE, names.imu_site)
     if imu >= 0:
-        sensors.append(Sensor("imu", "imu", names.imu_frame, names.imu_site))
+        sensors.append(Sensor("imu", "imu", names.imu_frame, names.imu_site, readings=(
+            ("gyro", names.imu_gyro), ("accelerometer", names.imu_accelerometer),
+            ("orientation", names.imu_orientation))))
     camera = mujoco.mj_name2id(model, CAMERA, names.camera)
     if camera >= 0:
         sensors.append(Sensor("camera", "camera", names.camera_frame, names.camera))

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -303,13 +303,17 @@ def _sensors(spec: mujoco.MjSpec, urdf: Urdf, description: str, named: Mapping[s
                                    "the description", link=link,
                                    fix=f"one of its links: {list(urdf.links)}")
         found.setdefault((kind, link), Sensor(kind, kind, link, link))
-    for sensor in found.values():
+    for key, sensor in list(found.items()):
         if sensor.kind == "imu":
-            for suffix, kind in (("gyro", mujoco.mjtSensor.mjSENS_GYRO),
-                                 ("accel", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
-                                 ("quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)):
+            readings = []
+            for reads, suffix, kind in (
+                    ("gyro", "gyro", mujoco.mjtSensor.mjSENS_GYRO),
+                    ("accelerometer", "accel", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
+                    ("orientation", "quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)):
                 spec.add_sensor(name=f"{sensor.link}_{suffix}", type=kind,
                                 objtype=mujoco.mjtObj.mjOBJ_SITE, objname=sensor.link)
+                readings.append((reads, f"{sensor.link}_{suffix}"))
+            found[key] = replace(sensor, readings=tuple(readings))
         elif sensor.kind == "camera":
             params = dict(sensor.params)
             optical = "optical" in sensor.link

@@ -82,6 +82,9 @@ def test_every_robot_of_a_swarm_is_the_description_scoped_to_it():
         assert robot.base_link == f"{robot.name}/base_link"
         assert robot.drive.left_joint == f"{robot.name}/left_wheel_joint"
         assert robot.sensor("lidar").mujoco_name == f"{robot.name}/laser"
+        assert dict(robot.sensor("imu").readings) == {  # what physics' IMU reads, by name
+            "gyro": f"{robot.name}/imu_gyro", "accelerometer": f"{robot.name}/imu_accel",
+            "orientation": f"{robot.name}/imu_quat"}
         # read in the swarm world under its prefixed names = the description, scoped
         assert robot == replace(alone.scoped(robot.name), source=robot.source,
                                 footprint_radius=robot.footprint_radius)
@@ -110,3 +113,26 @@ def test_a_robot_model_is_plain_data():
     assert isinstance(robot, RobotModel)
     assert pickle.loads(pickle.dumps(robot)) == robot
     assert robot.scoped("r").scoped("") == robot.scoped("r")
+
+
+def test_a_robot_reaches_physics_by_its_model_whatever_described_it():
+    # issue 47 item 1: the rig reads an MJCF robot's IMU as a described one's, off the model
+    # the plan hands it (names its physics parameters gave the MJCF reader); a URDF robot's
+    # IMU sensors are those its reader added; the settings its reader read it with are on it
+    from nodes.physics.described_rig import rig_params
+    from nodes.physics.imu import ImuParams
+
+    swarm = load_scenario(SCENARIOS / "swarm.yaml")
+    params = swarm.nodes["physics"].params.model_copy(update={"imu": ImuParams(
+        gyro="g", accelerometer="a", orientation="q")})
+    robot = read_robot(mujoco.MjModel.from_xml_path(str(swarm.robots.description)),
+                       RobotNames.of(PhysicsNode.description_names(params))).scoped("r")
+    imu = rig_params(params, robot).imu
+    assert (imu.site, imu.frame_id, imu.gyro, imu.accelerometer, imu.orientation) == (
+        "r/imu", "r/imu_link", "r/g", "r/a", "r/q")
+    urdf = load_scenario(SCENARIOS / "swarm_urdf.yaml")
+    bot = node_config(urdf, "physics").robots[1]
+    imu = rig_params(urdf.nodes["physics"].params, bot).imu
+    assert (imu.site, imu.gyro, imu.orientation) == ("bot_1/imu_link", "bot_1/imu_link_gyro",
+                                                     "bot_1/imu_link_quat")
+    assert bot.settings == urdf.robots.settings and bot.reader == "urdf"

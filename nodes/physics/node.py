@@ -191,14 +191,17 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def description_names(cls, params: PhysicsParams) -> dict[str, Any]:
-        """The robot's base, drive, position joints and IMU site as the parameters name them."""
+        """The robot's base, drive, position joints and IMU (site, frame and its sensors)
+        as the parameters name them: an MJCF robot's model is read by them."""
         names: dict[str, Any] = {
             "base_body": params.base_body, "base_frame": params.base_frame,
             "wheel_joints": params.wheel_joints, "wheel_actuators": params.wheel_actuators,
             "position_joints": tuple(params.position_joints),
             "position_actuators": tuple(params.position_actuators)}
         if params.imu is not None:
-            names.update(imu_site=params.imu.site, imu_frame=params.imu.frame_id)
+            names.update(imu_site=params.imu.site, imu_frame=params.imu.frame_id,
+                         imu_gyro=params.imu.gyro, imu_accelerometer=params.imu.accelerometer,
+                         imu_orientation=params.imu.orientation)
         return names
 
     @classmethod

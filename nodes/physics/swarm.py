@@ -34,7 +34,7 @@ from nodes.physics.batch import IMU, SwarmBook, SwarmDrives
 from nodes.physics.described_rig import (
     ROBOT_DESCRIPTION,
     DescribedRobot,
-    described_params,
+    rig_params,
     robot_description,
 )
 from nodes.physics.drive import DiffDrive
@@ -57,7 +57,8 @@ def robot_params(params, robot: str, namespace: str | None = None):
     """The physics parameters with every name of the description as robot ``robot``'s
     copy has it in the swarm world (``robot_3/base_link``), frames in its ROS
     ``namespace`` (default: its name; '' the root: ``base_link``); as they are for the
-    unnamed robot."""
+    unnamed robot. What the world check of a swarm's MJCF robot reads, before its model is
+    read by these names (a rig takes them from the model: ``rig_params``)."""
     if not robot:
         return params
     p = lambda name: prefixed(robot, name)  # noqa: E731 - one short rename, used a lot
@@ -105,11 +106,8 @@ class Rig:
         self.name = robot.name
         self.described = None  # a described robot's joint states and links (its model's)
         if robot.described:
-            odom = params.odom_frame
-            self.params = params = described_params(params, robot)
-            self.described = DescribedRobot(model, robot, odom)
-        else:
-            self.params = params = robot_params(params, robot.name, robot.namespace)
+            self.described = DescribedRobot(model, robot, params.odom_frame)
+        self.params = params = rig_params(params, robot)
         self.base = named_id(model, BODY, robot.base)
         free = model.body_jntadr[self.base]
         self.mobile = free >= 0 and model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
