@@ -117,22 +117,54 @@ def _string_seq_bytes(seq: Any) -> bytes:
     return data
 
 
+_ANY = frozenset(range(8))
+
+
+def _aligned(residues: frozenset[int], align: int) -> frozenset[int]:
+    """The residues (mod 8) after aligning to ``align`` from any of ``residues``."""
+    return frozenset((r + (-r % align)) % 8 for r in residues)
+
+
+def _advanced(residues: frozenset[int], size: int) -> frozenset[int]:
+    """The residues (mod 8) after any number of ``size``-byte elements."""
+    return frozenset((r + k * size) % 8 for r in residues for k in range(8))
+
+
 class _Writer(SourceWriter):
-    """Generates the source of one encoder: statements appending to bytearray ``b``."""
+    """Generates the source of one encoder: statements appending to bytearray ``b``.
+
+    It follows where the bytes may stand, mod 8 past the header (``res``, the residues
+    possible there), so that an alignment already given (after a sequence's count, after
+    float64 elements) is not written and a run of fixed-size fields at a known residue is
+    packed with that residue's format directly."""
 
     def __init__(self) -> None:
         super().__init__({"Z": _ZEROS, "U32": _U32, "P": _primitive_bytes,
                           "S": _string_bytes, "SS": _string_seq_bytes, "HEADER": LE_HEADER})
         self.plain = True  # no string or sequence anywhere: rmw sizes it rounded up to 4
         self.empties = False  # a primitive sequence somewhere, which may be empty
+        self.res = frozenset({0})
+
+    def align(self, align: int) -> None:
+        """Append the zero padding that aligns the next field to ``align``, where needed."""
+        if any(r % align for r in self.res):
+            self.emit(_align_code(align))
+            self.res = _aligned(self.res, align)
 
     def flush(self) -> None:
-        """Pack the pending fixed-size fields with the format of the current residue."""
+        """Pack the pending fixed-size fields with the format of the current residue (the
+        one format where every residue it may be at has the same)."""
         if not self.run:
             return
-        formats = self.run_formats()
         args = ", ".join(expr for _, _, expr in self.run)
-        self.emit(f"b += {formats}[(len(b) - 4) & 7].pack({args})")
+        formats = {run_format(self.run, r) for r in self.res}
+        if len(formats) == 1:  # one layout wherever it may start
+            packer = self.const(struct.Struct(formats.pop()))
+            self.emit(f"b += {packer}.pack({args})")
+        else:
+            self.emit(f"b += {self.run_formats()}[(len(b) - 4) & 7].pack({args})")
+        self.res = frozenset((r + struct.calcsize(run_format(self.run, r))) % 8
+                             for r in self.res)
         self.run.clear()
 
     def nested(self, msg_class: type, expr: str) -> None:
@@ -140,48 +172,65 @@ class _Writer(SourceWriter):
 
     def string(self, expr: str) -> None:
         self.plain = False
-        self.emit(_align_code(4))
+        self.align(4)
         self.emit(f"b += S({expr})")
+        self.res = _ANY
 
     def array(self, slot: d.Array, expr: str) -> None:
         if isinstance(slot.value_type, d.BasicType):
             code = code_of(slot.value_type)
-            self.emit(_align_code(min(size_of(slot.value_type), 8)))
+            size = size_of(slot.value_type)
+            self.align(min(size, 8))
             self.emit(f"b += P({expr}, {code!r})")
+            self.res = frozenset((r + slot.size * size) % 8 for r in self.res)
         else:
             self.each(slot.value_type, expr)
 
     def sequence(self, slot: d.AbstractSequence, expr: str) -> None:
         self.plain = False
+        self.align(4)
         if _is_string(slot.value_type):
-            self.emit(_align_code(4))
             self.emit(f"b += SS({expr})")
+            self.res = _ANY
             return
         seq = self.fresh("q")
         self.emit(f"{seq} = {expr}")
-        self.emit(_align_code(4))
         self.emit(f"b += U32.pack(len({seq}))")
+        self.res = frozenset((r + 4) % 8 for r in self.res)
         if isinstance(slot.value_type, d.BasicType):
             code = code_of(slot.value_type)
+            size = size_of(slot.value_type)
             self.empties = True
+            counted = self.res
             self.emit(f"if len({seq}):")
             self.depth += 1
-            self.emit(_align_code(min(size_of(slot.value_type), 8)))
+            self.align(min(size, 8))
             self.emit(f"b += P({seq}, {code!r})")
             self.depth -= 1
             self.emit("else:")
             self.emit("    x = True")  # see compile(): rmw sizes it apart
+            self.res = _advanced(self.res, size) | counted
         else:
             self.each(slot.value_type, seq)
 
     def each(self, element: Any, expr: str) -> None:
-        """A loop writing every element of a sequence or array of strings or messages."""
-        item = self.fresh("e")
-        self.emit(f"for {item} in {expr}:")
-        self.depth += 1
-        self.field(element, item)
-        self.flush()
-        self.depth -= 1
+        """A loop writing every element of a sequence or array of strings or messages: its
+        body written for every residue it may start at (those before it and those after a
+        pass), so it is written again until they stay the same."""
+        start, mark, empties = self.res, len(self.lines), self.empties
+        while True:
+            del self.lines[mark:]
+            self.res, self.empties = start, empties
+            item = self.fresh("e")
+            self.emit(f"for {item} in {expr}:")
+            self.depth += 1
+            self.field(element, item)
+            self.flush()
+            self.depth -= 1
+            if self.res <= start:
+                break
+            start = start | self.res
+        self.res = start
 
     def compile(self, name: str, msg_class: type) -> Encoder:
         """The encoder function. rmw_fastrtps gives the bytes the length it estimated:
