@@ -151,7 +151,11 @@ class StepNode:
         """What makes this node unable to work in the world ``model`` (a compiled MjModel),
         checked when the scenario loads: (key, problem, accepted) per problem, the key
         relative to the node's entry (e.g. 'params.start') or, starting with 'goal', the
-        scenario's goal. Nothing by default."""
+        scenario's goal. A world node of a swarm (``every_robot``) is also given its first
+        robot's name, ``robot``, and its model where a description reader made it,
+        ``described`` (its names are the model's, not the parameters'; None for an MJCF
+        robot, read by the parameters' names once this check has passed). Nothing by
+        default."""
         return []
 
     @classmethod
