@@ -266,7 +266,7 @@ def _attach_robot(spec: mujoco.MjSpec, stage, mount: RobotMount, path: Path) -> 
     quat = pose.GetRotation().GetQuat()
     frame = spec.worldbody.add_frame(pos=list(pose.GetTranslation()),
                                      quat=[quat.GetReal(), *quat.GetImaginary()])
-    with _quiet_empty_prefix():
+    with quiet_empty_prefix():
         spec.attach(robot, frame=frame, prefix=mount.prefix)
 
 
@@ -298,16 +298,17 @@ def _mjcf_spec(path: Path) -> mujoco.MjSpec:
 def compile_world(spec: mujoco.MjSpec, path: Path | str) -> mujoco.MjModel:
     """Compile a world spec; a :class:`WorldError` naming the prim when MuJoCo names one."""
     try:
-        with _quiet_empty_prefix():
+        with quiet_empty_prefix():
             return spec.compile()
     except (ValueError, mujoco.FatalError) as exc:
         raise _mujoco_error(Path(path), exc) from exc
 
 
 @contextmanager
-def _quiet_empty_prefix():
+def quiet_empty_prefix():
     """Drop MuJoCo's 'empty prefix' warning (printed and appended to MUJOCO_LOG.TXT in the
-    working directory): robots are attached without a prefix on purpose, to keep their names."""
+    working directory): robots, and a swarm's groups of robots (descriptions.swarm_world), are
+    attached without a prefix on purpose, to keep their names."""
     previous = mujoco.get_mju_user_warning()
 
     def handler(text: str) -> None:
