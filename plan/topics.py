@@ -3,6 +3,8 @@ producer of every topic, and each input resolved to its producer with the types 
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pydantic import BaseModel
@@ -95,21 +97,29 @@ def node_inputs(where: ScenarioChecks, i: int, spec: NodeSpec, cls: type, params
     """The node's inputs resolved to producers; every input needs a publisher. The
     problems of each input are kept in ``where.found`` (the input left out), so that all
     of them are reported."""
-    accepted = per_robot(cls.accepted_inputs(params),
-                         robot_namespaces(where.model.robots, spec.robots))
+    spaces = robot_namespaces(where.model.robots, spec.robots)
+    accepted = per_robot(cls.accepted_inputs(params), spaces)
+
+    # a world node's types under every robot's namespace: made once, not once per robot's
+    # input (a million entries at a thousand robots); made at the first input that asks, so
+    # that what input_types raises is that input's problem
+    @functools.cache
+    def types() -> dict[str, type] | None:
+        return per_robot(cls.input_types(params), spaces)
+
     plans, seen = [], set()
     for j in range(len(spec.inputs)):
         with where.found.collecting():
             plans.append(_input_plan(where, i, j, spec, cls, params, publishers, accepted,
-                                     seen))
+                                     seen, types))
     return plans
 
 
 def _input_plan(where: ScenarioChecks, i: int, j: int, spec: NodeSpec, cls: type,
                 params: BaseModel, publishers: dict[str, Producer], accepted: set[str] | None,
-                seen: set[str]) -> InputPlan:
+                seen: set[str], types: Callable[[], dict[str, type] | None]) -> InputPlan:
     """Input ``j`` of node ``i`` resolved to its producer, or the ScenarioError saying why
-    it cannot be."""
+    it cannot be; ``types``: the node's input types under its robots' namespaces."""
     inp = spec.inputs[j]
     key = where.node_key(i, f"inputs[{j}].topic")
     if inp.topic in seen:
@@ -130,17 +140,16 @@ def _input_plan(where: ScenarioChecks, i: int, j: int, spec: NodeSpec, cls: type
                          "of it can be scheduled.", "a topic published at every "
                          "activation (ROS tools and foreign programs read a latched "
                          "topic with transient-local durability).")
-    check_input_type(where, i, inp.topic, cls, params, graph, source,
-                     robot_namespaces(where.model.robots, spec.robots))
+    check_input_type(where, i, inp.topic, cls, graph, source, types())
     return InputPlan(inp.topic, graph, source.name, inp.mode, source.msg)
 
 
-def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, params: BaseModel,
-                     graph: str, source: Producer, namespaces: list[str] | None = None) -> None:
+def check_input_type(where: ScenarioChecks, i: int, topic: str, cls: type, graph: str,
+                     source: Producer, types: dict[str, type] | None) -> None:
     """The producer publishes the message type this node takes on ``topic`` (when it
-    says which; a world node's per robot in ``namespaces``), or the error names the
-    parameter that sets this node's type."""
-    wanted = per_robot(cls.input_types(params), namespaces).get(topic)
+    says which: ``types``, the node's ``input_types`` under its robots' namespaces for a
+    world node), or the error names the parameter that sets this node's type."""
+    wanted = (types or {}).get(topic)
     if wanted is None or source.msg is wanted:
         return
     own_key = cls.type_keys.get(topic)
