@@ -237,9 +237,10 @@ def test_usd_robots_of_each_layout_reach_their_goals_alone_and_in_a_swarm(tmp_pa
 
 @pytest.mark.parametrize("layout", LAYOUTS)
 def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp_path, layout):
-    """Two copies of the diff drive in each layout, placed by the seed (count:), for 1 s:
-    one digest in-process and multi-process (packed by kind: the digest does not depend on
-    the packing, and three processes start faster than five on two cores)."""
+    """Two copies of the diff drive in each layout, placed by the seed (count:), for 1 s,
+    and two copies of the arm for 0.5 s: one digest in-process and multi-process (packed by
+    kind: the digest does not depend on the packing, and three processes start faster than
+    five on two cores)."""
     overrides = {"robots.description": f"robots/usd/mybot_{layout}.usda",
                  "robots.named": None, "robots.count": 2, "robots.name_prefix": "bot",
                  "robots.region": {"x": [-3, 3], "y": [-3, 3]}}
@@ -252,6 +253,13 @@ def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp
               for t in one.last("/tf_static").transforms}
     assert {("bot_1/base_link", "bot_1/imu_link"), ("bot_0/base_link", "bot_0/base_scan")} \
         <= static
+    arms = {"robots.description": f"robots/usd/myarm_{layout}.usda", "robots.named": ARMS,
+            **ARM_COMMANDS.get(layout, {})}
+    arm_usd = ROOT / "scenarios" / "arm_usd.yaml"
+    one = run(arm_usd, in_process=True, out=tmp_path, duration="0.5s", overrides=arms)
+    many = run(arm_usd, out=tmp_path, duration="0.5s", overrides=arms,
+               options=RunOptions(pack="kind"))
+    assert one.digest == many.digest and one.last("/arm_1/joint_states").name == ARM
 
 
 def _broken(tmp_path, source: str, edit) -> str:
