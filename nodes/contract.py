@@ -20,6 +20,21 @@ from plan.events import EventSpec
 from plan.robots import RobotsLayout
 from plan.timeutil import Ns
 
+CONSTANT_MESSAGES: dict[int, Any] = {}
+"""id -> an output message its step marked constant (``constant_message``)."""
+_CONSTANT_KEPT = 1024  # marks kept; all are forgotten when it is full (then encoded anew)
+
+
+def constant_message(msg: Any) -> Any:
+    """Mark ``msg``, an output a step gives again at many activations (an inactive
+    controller's empty message), as never changed again but for its header's stamp, which
+    the runtime sets: the runtime may then serialise it once and write each stamp into
+    those bytes (``runtime.exchange.prepare_outputs``). Returns ``msg``."""
+    if len(CONSTANT_MESSAGES) >= _CONSTANT_KEPT:
+        CONSTANT_MESSAGES.clear()
+    CONSTANT_MESSAGES[id(msg)] = msg
+    return msg
+
 
 @dataclass(frozen=True)
 class Tick:

@@ -15,10 +15,10 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from tf2_msgs.msg import TFMessage
 
-from nodes.contract import Tick
+from nodes.contract import CONSTANT_MESSAGES, Tick
 from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
-from runtime.cdr.encode import encode
+from runtime.cdr.encode import encode, encode_constant
 
 
 class StepContractError(RuntimeError):
@@ -38,7 +38,8 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
     ``declared`` maps the node's own topic names to message classes and ``names`` maps them
     to graph topics (after remap). ``latched`` outputs (own names) are due at the node's
     ``first`` activation only, the others at every one. A message with a ``header`` gets
-    the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``.
+    the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``. A message its
+    step marked constant (``nodes.contract.constant_message``) is serialised once.
     """
     due = set(names) if first else set(names) - latched
     if set(outputs) != due:
@@ -60,7 +61,8 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         elif isinstance(msg, TFMessage):
             for transform in msg.transforms:
                 transform.header.stamp = when
-        items.append((names[own], encode(msg)))
+        constant = CONSTANT_MESSAGES and CONSTANT_MESSAGES.get(id(msg)) is msg
+        items.append((names[own], encode_constant(msg) if constant else encode(msg)))
     items.sort()
     return items
 

@@ -167,3 +167,24 @@ def test_kept_strings_give_the_same_bytes_when_the_cache_is_full(monkeypatch):
         assert encode(msg) == rclpy_bytes(msg)
         assert encode(msg) == rclpy_bytes(msg)  # again, from what is kept
     assert len(encoder._strings) <= 2 and len(encoder._string_seqs) <= 2
+
+
+def test_a_constant_message_gives_rclpy_bytes_at_every_stamp():
+    from builtin_interfaces.msg import Time
+    from control_msgs.msg import JointTrajectoryControllerState
+    from tf2_msgs.msg import TFMessage
+
+    import runtime.cdr.encode as encoder
+
+    msg = JointTrajectoryControllerState()
+    for sec, nanosec in ((0, 0), (3, 10_000_000), (2**31 - 1, 999_999_999)):
+        msg.header.stamp = Time(sec=sec, nanosec=nanosec)
+        assert encoder.encode_constant(msg) == rclpy_bytes(msg)
+    assert encoder._constants[id(msg)][0] is msg
+    other = JointTrajectoryControllerState(joint_names=["a"])  # another: its own bytes
+    assert encoder.encode_constant(other) == rclpy_bytes(other)
+    tf = fill(TFMessage(), random.Random("tf"))  # no header first: encoded every time
+    assert encoder.encode_constant(tf) == rclpy_bytes(tf)
+    for transform in tf.transforms:
+        transform.header.stamp = Time(sec=7)
+    assert encoder.encode_constant(tf) == rclpy_bytes(tf)

@@ -37,6 +37,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from nodes.contract import constant_message
 from nodes.ros2_control.hardware import HardwareInfo, hardware_info, unservable
 from nodes.ros2_control.interface import Fresh, JointReading
 from nodes.ros2_control.manager import ControllerManager, resolve
@@ -183,7 +184,7 @@ class RobotManager:
         system.write(data, commands)
         # lockstep wants one message per declared topic and activation: an inactive
         # controller's topics carry an empty message of their type, nothing of the controller
-        # (made once: the runtime only stamps it, with the tick's time, and serialises it)
+        # (made once, and its bytes once: the runtime only stamps it with the tick's time)
         published = done.published
         for topic, graph, cls in self.outputs:
             msg = published.get(topic)
@@ -192,7 +193,8 @@ class RobotManager:
                 if msg is None:
                     name, own = self.owner[topic]
                     ctrl = self.manager.controllers.get(name)
-                    msg = self.empty[topic] = cls() if ctrl is None else ctrl.empty_message(own)
+                    msg = self.empty[topic] = constant_message(
+                        cls() if ctrl is None else ctrl.empty_message(own))
             out[graph] = msg
 
     def _switch(self, msg) -> dict[str, float]:

@@ -46,6 +46,32 @@ def encode(msg: Any) -> bytes:
     return encoder(msg)
 
 
+_constants: dict[int, tuple[Any, bytes | None]] = {}  # id -> (message, bytes past stamp)
+_STAMP = struct.Struct("<iI")
+_CONSTANTS = 1024  # messages kept; all are forgotten when it is full
+
+
+def encode_constant(msg: Any) -> bytes:
+    """``encode(msg)`` of a message its maker promised never to change but for its
+    header's stamp (``nodes.contract.constant_message``): its bytes are made once and the
+    stamp written into them at every call. A message whose first field is not a
+    std_msgs/Header (a TFMessage's stamps lie in its transforms) is encoded every time."""
+    kept = _constants.get(id(msg))
+    if kept is None or kept[0] is not msg:
+        if len(_constants) >= _CONSTANTS:
+            _constants.clear()
+        slots = getattr(type(msg), "SLOT_TYPES", ())
+        first = slots[0] if slots else None
+        header = (isinstance(first, d.NamespacedType) and first.name == "Header"
+                  and list(first.namespaces) == ["std_msgs", "msg"])
+        tail = encode(msg)[len(LE_HEADER) + _STAMP.size:] if header else None
+        kept = _constants[id(msg)] = (msg, tail)
+    if kept[1] is None:
+        return encode(msg)
+    stamp = msg._header._stamp
+    return LE_HEADER + _STAMP.pack(stamp._sec, stamp._nanosec) + kept[1]
+
+
 @cache
 def encoder_for(msg_class: type) -> Encoder | None:
     """The generated encoder of a message class, or None when a field type is not covered."""
