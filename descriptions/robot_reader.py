@@ -18,6 +18,7 @@ measure in that world.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -134,9 +135,11 @@ def read_robot(model: mujoco.MjModel, names: RobotNames = RobotNames(), robot: s
               for s, i in zip([s for s in sensors if s.kind != "camera"],
                               [i for i in (laser, imu) if i >= 0], strict=True)]
     joints = []
-    for j in range(model.njnt):
+    # the joints of its bodies, in array code: a loop over every joint of a thousand
+    # robots' world, once a robot, was a second of the swarm's load
+    for j in np.flatnonzero(model.body_rootid[model.jnt_bodyid] == root).tolist():
         child = int(model.jnt_bodyid[j])
-        if child not in bodies or int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE):
+        if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE):
             continue
         limits = JointLimits()
         if model.jnt_limited[j]:
@@ -181,19 +184,23 @@ def world_robots(world: Path, layout, names: RobotNames) -> tuple[RobotModel, ..
         if mujoco.mj_name2id(model, BODY, names.base_body) < 0:
             return ()
         return (read_robot(model, names, source=str(world)),)
-    return tuple(_layout_robot(world, layout, names, r).in_namespace(layout.namespace_of(r))
+    # the swarm world with every robot (those that enter later too), asked of the cache
+    # once: its key hashes the whole layout, a thousand robots at a thousand robots
+    swarm = functools.cache(lambda: swarm_model(Path(world), layout.everyone))
+    return tuple(_layout_robot(layout, swarm, names, r).in_namespace(layout.namespace_of(r))
                  for r in layout.names)
 
 
-def _layout_robot(world: Path, layout, names: RobotNames, name: str) -> RobotModel:
+def _layout_robot(layout, swarm: Callable[[], mujoco.MjModel], names: RobotNames, name: str
+                  ) -> RobotModel:
     """Robot ``name`` of a swarm: a described one from its own model (links, sensors,
-    drive), an MJCF one as the swarm world with every robot has it (robots that enter
-    later too); each from its own description (an event's robot may have another)."""
+    drive), an MJCF one as the swarm world with every robot (``swarm()``) has it (robots
+    that enter later too); each from its own description (an event's robot may have
+    another)."""
     description, settings = layout.source_of(name)
     if reader_for(description).described:
         return load_robot(description, settings).model.scoped(name)
-    model = swarm_model(Path(world), layout.everyone)
-    return read_robot(model, names.scoped(name), name, str(description))
+    return read_robot(swarm(), names.scoped(name), name, str(description))
 
 
 def described_robot(layout, name: str) -> RobotModel | None:
