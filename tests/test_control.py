@@ -12,7 +12,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
 from nodes.contract import NodeConfig, Tick
-from nodes.control.follow import arc_clearance
+from nodes.control.follow import arc_clearance, arc_clearances
 from nodes.control.global_planner import Planner
 from nodes.control.grid import (
     HEURISTIC_WEIGHT,
@@ -59,6 +59,41 @@ def test_arc_clearance_stops_before_a_point_ahead():
     assert arc_clearance(pts, (0.0, 0.0, 0.0), -0.5, 0.0, 2.0, 0.3) == 2.0
     assert arc_clearance(pts, (0.0, 0.0, math.pi / 2), 0.5, 0.0, 2.0, 0.3) == 2.0
 
+
+
+def _one_arc(points, pose, v, w, horizon, radius):
+    """arc_clearance as it was written for one arc (the reference for the batched one)."""
+    if len(points) == 0 or v == 0:
+        return horizon
+    ds = 0.05
+    s = np.arange(ds, horizon + 1e-9, ds)
+    k = w / abs(v)
+    th = pose[2] + k * s
+    sign = math.copysign(1.0, v)
+    if abs(k) < 1e-6:
+        xs = pose[0] + sign * s * math.cos(pose[2])
+        ys = pose[1] + sign * s * math.sin(pose[2])
+    else:
+        xs = pose[0] + sign * (np.sin(th) - math.sin(pose[2])) / k
+        ys = pose[1] - sign * (np.cos(th) - math.cos(pose[2])) / k
+    near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1]) < horizon + radius]
+    if len(near) == 0:
+        return horizon
+    d2 = (xs[:, None] - near[None, :, 0]) ** 2 + (ys[:, None] - near[None, :, 1]) ** 2
+    hit = np.flatnonzero(d2.min(axis=1) < radius * radius)
+    return float(s[hit[0]] - ds) if hit.size else horizon
+
+
+def test_a_fan_of_arcs_at_once_is_each_arc_alone_bit_for_bit():
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        points = rng.uniform(-2, 2, (int(rng.integers(0, 120)), 2))
+        pose = tuple(rng.uniform(-1, 1, 3).tolist())
+        v = float(rng.choice([0.0, -0.1, 0.05, rng.uniform(-0.5, 0.5)]))
+        horizon, radius = float(rng.choice([1.0, 0.2, rng.uniform(0.1, 2)])), 0.27
+        ws = [v * k for k in np.linspace(-3, 3, 11).tolist() + [1e-7]]
+        assert arc_clearances(points, pose, v, ws, horizon, radius) == [
+            _one_arc(points, pose, v, w, horizon, radius) for w in ws]
 
 def odom(x: float, y: float, yaw: float) -> Odometry:
     """Odometry at a planar pose."""

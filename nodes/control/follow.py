@@ -8,6 +8,7 @@ robot slows and stops short of anything the map did not know about.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -33,31 +34,64 @@ def scan_points(ranges: np.ndarray, angle_min: float, inc: float, range_min: flo
     return np.stack([pose[0] + c * bx - s * by, pose[1] + s * bx + c * by], axis=1)
 
 
+ARC_STEP = 0.05  # m between the poses of an arc checked against the scan
+_ARC_SAMPLES: dict[float, np.ndarray] = {}  # horizon -> arc lengths of the poses checked
+
+
+def _arc_samples(horizon: float) -> np.ndarray:
+    s = _ARC_SAMPLES.get(horizon)
+    if s is None:
+        if len(_ARC_SAMPLES) > 64:
+            _ARC_SAMPLES.clear()
+        s = _ARC_SAMPLES[horizon] = np.arange(ARC_STEP, horizon + 1e-9, ARC_STEP)
+        s.flags.writeable = False
+    return s
+
+
 def arc_clearance(points: np.ndarray, pose: tuple[float, float, float], v: float, w: float,
                   horizon: float, radius: float) -> float:
     """Distance (m) the robot can drive along arc (v, w) before a point is within ``radius``.
 
     Returns ``horizon`` when the arc is clear for that distance. Works for v < 0 (backing up).
     """
-    if len(points) == 0 or v == 0:
-        return horizon
-    ds = 0.05
-    s = np.arange(ds, horizon + 1e-9, ds)
-    k = w / abs(v)
-    th = pose[2] + k * s
-    sign = math.copysign(1.0, v)
-    if abs(k) < 1e-6:
-        xs = pose[0] + sign * s * math.cos(pose[2])
-        ys = pose[1] + sign * s * math.sin(pose[2])
-    else:
-        xs = pose[0] + sign * (np.sin(th) - math.sin(pose[2])) / k
-        ys = pose[1] - sign * (np.cos(th) - math.cos(pose[2])) / k
+    return arc_clearances(points, pose, v, (w,), horizon, radius)[0]
+
+
+def arc_clearances(points: np.ndarray, pose: tuple[float, float, float], v: float,
+                   ws: Sequence[float], horizon: float, radius: float) -> list[float]:
+    """``arc_clearance`` of every arc (v, w) for w in ``ws``, at once: the scan points near
+    the robot picked once, every arc's poses and their distances to them in one array.
+
+    Each pose and each squared distance is the same IEEE operations on the same operands
+    as one arc alone (elementwise, no reduction but the exact minimum), so each result is
+    the one arc's bit for bit.
+    """
+    if len(points) == 0 or v == 0 or not ws:
+        return [horizon] * len(ws)
     near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1]) < horizon + radius]
     if len(near) == 0:
-        return horizon
-    d2 = (xs[:, None] - near[None, :, 0]) ** 2 + (ys[:, None] - near[None, :, 1]) ** 2
-    hit = np.flatnonzero(d2.min(axis=1) < radius * radius)
-    return float(s[hit[0]] - ds) if hit.size else horizon
+        return [horizon] * len(ws)
+    s = _arc_samples(horizon)
+    sign = math.copysign(1.0, v)
+    ks = [w / abs(v) for w in ws]
+    straight = [abs(k) < 1e-6 for k in ks]
+    xs = np.empty((len(ks), len(s)))
+    ys = np.empty((len(ks), len(s)))
+    if any(straight):
+        rows = np.array(straight)
+        xs[rows] = pose[0] + sign * s * math.cos(pose[2])
+        ys[rows] = pose[1] + sign * s * math.sin(pose[2])
+    if not all(straight):
+        rows = ~np.array(straight)
+        k = np.array([k for k, line in zip(ks, straight, strict=True) if not line])[:, None]
+        th = pose[2] + k * s
+        xs[rows] = pose[0] + sign * (np.sin(th) - math.sin(pose[2])) / k
+        ys[rows] = pose[1] - sign * (np.cos(th) - math.cos(pose[2])) / k
+    d2 = ((xs[:, :, None] - near[:, 0]) ** 2 + (ys[:, :, None] - near[:, 1]) ** 2).min(axis=2)
+    hit = d2 < radius * radius
+    first = hit.argmax(axis=1).tolist()
+    return [float(s[i] - ARC_STEP) if any_hit else horizon
+            for i, any_hit in zip(first, hit.any(axis=1).tolist(), strict=True)]
 
 
 def arc_end(pose: tuple[float, float, float], k: float, s: float) -> tuple[float, float]:
@@ -75,8 +109,10 @@ def escape_arc(points: np.ndarray, pose: tuple[float, float, float], target: np.
     """The curvature of the forward arc, clear of the scan by ``radius`` for ``reach`` metres,
     that ends closest to ``target``; None when every arc is blocked."""
     best, best_gap = None, math.inf
-    for k in np.linspace(-max_curvature, max_curvature, 17).tolist():
-        if arc_clearance(points, pose, speed, speed * k, reach, radius) < reach:
+    ks = np.linspace(-max_curvature, max_curvature, 17).tolist()
+    clear = arc_clearances(points, pose, speed, [speed * k for k in ks], reach, radius)
+    for k, free in zip(ks, clear, strict=True):
+        if free < reach:
             continue
         x, y = arc_end(pose, k, reach)
         gap = math.hypot(target[0] - x, target[1] - y)

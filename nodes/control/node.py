@@ -411,8 +411,9 @@ class ControlNode(StepNode):
         best_k, best_reach = curv, free
         best = gain(curv, free) + SIDESTEP_GAIN
         sharpest = min(SIDESTEP_CURVATURE, p.max_turn / v)
-        for k in np.linspace(-sharpest, sharpest, SIDESTEP_ARCS).tolist():
-            reach = f.arc_clearance(self.points, pose, v, v * k, p.horizon, radius)
+        fan = np.linspace(-sharpest, sharpest, SIDESTEP_ARCS).tolist()
+        reaches = f.arc_clearances(self.points, pose, v, [v * k for k in fan], p.horizon, radius)
+        for k, reach in zip(fan, reaches, strict=True):
             score = gain(k, reach)
             if score > best:
                 best, best_k, best_reach = score, k, reach
