@@ -106,6 +106,17 @@ class Sensor:
 
 
 @dataclass(frozen=True)
+class CameraLink:
+    """A camera's TF frames (REP-103): ``link`` at the MuJoCo camera ``camera`` with body
+    axes (x forward, z up), and its colour and depth optical frames (z forward)."""
+
+    camera: str
+    link: str
+    color_optical: str
+    depth_optical: str
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """One robot: its name and prefix, base link, drive, commanded joints, sensors, links and
     joints, and its footprint radius (metres, from its collision geometry). ``base_link`` is
@@ -132,6 +143,9 @@ class RobotModel:
     # 'usd'); '' for a robot read from a compiled MJCF or USD world by its names
     namespace: str = ""  # its ROS namespace: topics /NS/..., frames NS/...; '' the root
     control: tuple[ControlInterfaces, ...] = ()  # its <ros2_control> block's joints; () none
+    site_frames: tuple[Link, ...] = ()  # the TF frames on sites of an MJCF robot (its tool
+    # flange, its lidar), in the order /tf_static sends them; a described robot's are links
+    camera_frames: tuple[CameraLink, ...] = ()  # the TF frames of an MJCF robot's cameras
 
     @property
     def frame_prefix(self) -> str:
@@ -186,6 +200,11 @@ class RobotModel:
             links=tuple(replace(k, name=p + k.name, body=p + k.body,
                                 site=None if k.site is None else p + k.site)
                         for k in self.links),
+            site_frames=tuple(replace(k, name=p + k.name, body=p + k.body,
+                                      site=None if k.site is None else p + k.site)
+                              for k in self.site_frames),
+            camera_frames=tuple(CameraLink(p + c.camera, p + c.link, p + c.color_optical,
+                                           p + c.depth_optical) for c in self.camera_frames),
             joints=tuple(replace(j, name=p + j.name, parent=p + j.parent, child=p + j.child)
                          for j in self.joints))
 
@@ -203,4 +222,8 @@ class RobotModel:
             self, namespace=namespace, base_link=f(self.base_link), base_body=self.base,
             sensors=tuple(replace(s, link=f(s.link)) for s in self.sensors),
             links=tuple(replace(k, name=f(k.name)) for k in self.links),
-            joints=tuple(replace(j, parent=f(j.parent), child=f(j.child)) for j in self.joints))
+            joints=tuple(replace(j, parent=f(j.parent), child=f(j.child)) for j in self.joints),
+            site_frames=tuple(replace(k, name=f(k.name)) for k in self.site_frames),
+            camera_frames=tuple(replace(c, link=f(c.link), color_optical=f(c.color_optical),
+                                        depth_optical=f(c.depth_optical))
+                                for c in self.camera_frames))

@@ -4,11 +4,12 @@ world, once, for every node that needs the robot: MJCF and USD worlds both compi
 
 What is read is found by name: cosim's conventions (a root body ``base_link``, wheel joints
 ``left_wheel_joint`` and ``right_wheel_joint``, sites ``laser`` and ``imu``, a camera
-``rgbd``), each overridable by the scenario's node parameters that name them (the physics
-node's ``base_body``, ``wheel_joints``, ``position_joints``, ...; a sensor's ``site`` or
-``camera``): ``RobotNames``, which a node class contributes to with ``description_names``.
-A sensor whose site or camera the world lacks is left out of the model (a node that needs
-it says so when it is set up); the base body, and every joint and actuator named, must exist.
+``rgbd``, the sites and cameras TF hangs frames on), each overridable by the scenario's
+node parameters that name them (the physics node's ``base_body``, ``wheel_joints``,
+``position_joints``, ``tf``, ...; a sensor's ``site`` or ``camera``): ``RobotNames``,
+which a node class contributes to with ``description_names``. A sensor, TF site or camera
+the world lacks is left out of the model (a node that needs it says so when it is set up);
+the base body, and every joint and actuator named, must exist.
 
 In a swarm each robot is read from the swarm world under its prefixed names
 (``RobotNames.scoped``), so every number (wheel geometry, footprint) is the one the nodes
@@ -29,6 +30,7 @@ import numpy as np
 from descriptions.readers import load_robot, reader_for
 from descriptions.robot_model import (
     ActuatedJoint,
+    CameraLink,
     Drive,
     Joint,
     JointLimits,
@@ -70,6 +72,10 @@ class RobotNames:
     imu_orientation: str = "imu_quat"
     camera: str = "rgbd"
     camera_frame: str = "camera_color_optical_frame"
+    tf_sites: tuple[tuple[str, str], ...] = (("laser", "laser"),)  # (site, frame) on /tf
+    tf_cameras: tuple[tuple[str, str, str, str], ...] = (  # (camera, link, colour optical,
+        ("rgbd", "camera_link", "camera_color_optical_frame",  # depth optical frame)
+         "camera_depth_optical_frame"),)
 
     @classmethod
     def of(cls, overrides: dict[str, Any]) -> RobotNames:
@@ -90,7 +96,7 @@ class RobotNames:
             if value is None:
                 return None
             if isinstance(value, tuple):
-                return tuple(f"{robot}/{v}" for v in value)
+                return tuple(p(v) for v in value)
             return f"{robot}/{value}"
         return replace(self, **{f.name: p(getattr(self, f.name)) for f in fields(self)})
 
@@ -150,12 +156,19 @@ def read_robot(model: mujoco.MjModel, names: RobotNames = RobotNames(), robot: s
         joints.append(Joint(model.joint(j).name, kind,
                             model.body(int(model.body_parentid[child])).name,
                             model.body(child).name, limits))
+    # the frames TF hangs on its sites and cameras (the world check names those it lacks)
+    site_frames = [Link(frame, model.body(int(model.site_bodyid[i])).name, site)
+                   for site, frame in names.tf_sites
+                   if (i := mujoco.mj_name2id(model, SITE, site)) >= 0]
+    cameras = [CameraLink(*c) for c in names.tf_cameras
+               if mujoco.mj_name2id(model, CAMERA, c[0]) >= 0]
     return RobotModel(
         name=robot, prefix=f"{robot}/" if robot else "", namespace=robot,
         base_link=names.base_frame,
         mobile=mobile, footprint_radius=robot_footprint_radius(model, names.base_body),
         drive=drive, actuated=tuple(actuated), sensors=tuple(sensors), links=tuple(links),
-        joints=tuple(joints), source=source, base_body=names.base_body)
+        joints=tuple(joints), source=source, base_body=names.base_body,
+        site_frames=tuple(site_frames), camera_frames=tuple(cameras))
 
 
 def wheel_geometry(model: mujoco.MjModel, left_joint: str, right_joint: str

@@ -566,3 +566,44 @@ def test_no_scenario_remaps_a_cosim_topic():
                 if own.startswith("/cosim/") or graph.startswith("/cosim/"):
                     found.append(f"{path.name}: {node['name']}: {own} -> {graph}")
     assert not found, "cosim wires its own topics (plan/hardware_wiring.py):\n" + "\n".join(found)
+
+
+TF_NAME_READERS = {"description_names", "frame_problems", "robot_params"}
+"""Where nodes/ may read the physics node's ``tf.sites`` and ``tf.cameras``: naming what an
+MJCF robot's model is read by, and the world check of those names. The frames themselves
+come off the robot model (``RobotModel.site_frames``, ``camera_frames``)."""
+
+
+def tf_name_reads(files: dict[str, Path], root: Path = ROOT) -> list[str]:
+    """Every read of a ``sites`` or ``cameras`` attribute in nodes/ outside the functions
+    ``TF_NAME_READERS`` allows."""
+    found: list[str] = []
+
+    def visit(node: ast.AST, path: Path, allowed: bool) -> None:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            allowed = allowed or node.name in TF_NAME_READERS
+        if (isinstance(node, ast.Attribute) and node.attr in ("sites", "cameras")
+                and not allowed):
+            found.append(f"{path.relative_to(root)}:{node.lineno}: {node.attr}")
+        for child in ast.iter_child_nodes(node):
+            visit(child, path, allowed)
+    for path in files.values():
+        if path.relative_to(root).parts[0] == "nodes":
+            visit(ast.parse(path.read_text()), path, False)
+    return sorted(found)
+
+
+def test_every_robots_frames_come_off_its_model():
+    # issue 47 item 1: an MJCF robot's TF sites and cameras are on its model as a described
+    # robot's links are; the physics node's tf parameters only name them for its reader
+    found = tf_name_reads(project_files())
+    assert not found, "\n".join(found)
+
+
+def test_the_tf_name_check_sees_a_read(tmp_path):
+    (tmp_path / "nodes").mkdir()
+    probe = tmp_path / "nodes" / "probe.py"
+    probe.write_text("def frames(params):\n    return params.tf.sites, params.tf.cameras\n\n"
+                     "def description_names(params):\n    return params.tf.sites\n")
+    assert tf_name_reads({"nodes.probe": probe}, tmp_path) == [
+        "nodes/probe.py:2: cameras", "nodes/probe.py:2: sites"]

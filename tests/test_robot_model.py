@@ -60,6 +60,10 @@ def test_the_arm_is_read_by_the_names_its_physics_node_gives():
     assert tuple(a.joint for a in arm.actuated) == ARM_JOINTS
     assert tuple(a.actuator for a in arm.actuated) == tuple(f"{j}_servo" for j in ARM_JOINTS)
     assert arm.sensor("lidar") is None and arm.sensor("camera") is None
+    # its TF frames on sites, as its physics node's tf parameters name them (no cameras)
+    assert [(k.name, k.body, k.site) for k in arm.site_frames] == [
+        ("tool0", "wrist_3_link", "tool0")]
+    assert arm.camera_frames == ()
     assert node_config(s, "physics").robots == (arm,)
     assert node_config(s, "arm").robots == (arm,)
 
@@ -85,6 +89,10 @@ def test_every_robot_of_a_swarm_is_the_description_scoped_to_it():
         assert dict(robot.sensor("imu").readings) == {  # what physics' IMU reads, by name
             "gyro": f"{robot.name}/imu_gyro", "accelerometer": f"{robot.name}/imu_accel",
             "orientation": f"{robot.name}/imu_quat"}
+        n = robot.name
+        assert [(k.name, k.site) for k in robot.site_frames] == [(f"{n}/laser", f"{n}/laser")]
+        assert [(c.camera, c.link, c.color_optical) for c in robot.camera_frames] == [
+            (f"{n}/rgbd", f"{n}/camera_link", f"{n}/camera_color_optical_frame")]
         # read in the swarm world under its prefixed names = the description, scoped
         assert robot == replace(alone.scoped(robot.name), source=robot.source,
                                 footprint_radius=robot.footprint_radius)

@@ -15,7 +15,7 @@ from std_msgs.msg import String
 from descriptions.robot_model import RobotModel
 from descriptions.robot_state import RobotStateFrames
 from nodes.physics import messages as m
-from nodes.physics.frames import CameraFrames, MovingBody, RobotFrames, TfParams, transform
+from nodes.physics.frames import MovingBody, RobotFrames, TfParams, transform
 
 ROBOT_DESCRIPTION = "/robot_description"
 
@@ -24,31 +24,16 @@ def rig_params(params, robot: RobotModel):
     """The physics parameters as robot ``robot``'s rig reads them, whatever described it:
     every name of the robot from its model (already scoped to the robot), its IMU (site,
     frame and the MuJoCo sensors that read it; none where the model has no IMU), its odom
-    frame in its namespace; the TF sites and cameras the parameters add to an MJCF robot's
-    frames under its MuJoCo prefix and frame prefix. Base, drive and commanded joints are
-    read off the model itself (``Rig``)."""
+    frame in its namespace. Base, drive, commanded joints and the frames on its sites and
+    cameras are read off the model itself (``Rig``); of ``tf`` only map -> odom counts."""
     imu = params.imu
     sensor = robot.sensor("imu")
     if imu is not None:
         imu = None if sensor is None else imu.model_copy(update={
             "site": sensor.mujoco_name, "frame_id": sensor.link, **dict(sensor.readings)})
-    tf = params.tf
-    if tf is not None and robot.prefix:
-        def p(name: str) -> str:
-            return robot.prefix + name
-
-        def f(frame: str) -> str:
-            return robot.frame_prefix + frame
-        tf = tf.model_copy(update={
-            "sites": {p(site): f(frame) for site, frame in tf.sites.items()},
-            "cameras": [CameraFrames(camera=p(c.camera), link_frame=f(c.link_frame),
-                                     color_optical_frame=f(c.color_optical_frame),
-                                     depth_optical_frame=f(c.depth_optical_frame))
-                        for c in tf.cameras]})
     return params.model_copy(update={
         "base_body": robot.base, "base_frame": robot.base_link,
-        "odom_frame": robot.frame_prefix + params.odom_frame, "imu": imu, "tf": tf,
-        "start": None})
+        "odom_frame": robot.frame_prefix + params.odom_frame, "imu": imu, "start": None})
 
 
 def _msg(t) -> TransformStamped:

@@ -1,8 +1,9 @@
 """A robot's TF tree, the transforms of /tf and /tf_static (REP-105): one ``RobotFrames``
-for every robot, made by ``mjcf_frames`` for an MJCF robot (read from its bodies, as below)
-or by ``nodes.physics.described_rig.DescribedRobot.frames`` for a described one (URDF, xacro,
-USD: a transform per joint of its robot model, under its link names, as
-robot_state_publisher sends them). An MJCF robot's:
+for every robot, made by ``mjcf_frames`` for an MJCF robot (its bodies and the frames its
+robot model hangs on its sites and cameras, as below) or by
+``nodes.physics.described_rig.DescribedRobot.frames`` for a described one (URDF, xacro, USD:
+a transform per joint of its robot model, under its link names, as robot_state_publisher
+sends them). An MJCF robot's:
 
 - ``map -> odom``: a fixed offset (``tf.map_to_odom``, identity by default), sent on /tf at
   every tick like the transform a localization node (AMCL, slam_toolbox) publishes, so that
@@ -32,6 +33,7 @@ import numpy as np
 from geometry_msgs.msg import TransformStamped
 from pydantic import BaseModel, ConfigDict
 
+from descriptions.robot_model import CameraLink, RobotModel
 from plan.rot3 import mat_mul, mat_t_mul, mat_t_vec
 
 BODY = mujoco.mjtObj.mjOBJ_BODY
@@ -72,6 +74,8 @@ class TfParams(BaseModel):
     map_to_odom: MapToOdom = MapToOdom()
     sites: dict[str, str] = {"laser": "laser"}  # MJCF site -> frame name
     cameras: list[CameraFrames] = [CameraFrames()]
+    # sites and cameras name what an MJCF robot's model is read with (its site_frames and
+    # camera_frames: PhysicsNode.description_names); its frames are taken off the model
 
 
 @dataclass(frozen=True)
@@ -197,27 +201,28 @@ class RobotFrames:
         return out + self.links(data)
 
 
-def mjcf_frames(model: mujoco.MjModel, params: TfParams, base_body: str, base_frame: str,
-                odom_frame: str, extra_sites: dict[str, str],
-                joints: list[str] | tuple[str, ...] = (), frame_of_body=None) -> RobotFrames:
-    """The frames of an MJCF robot: under ``base_frame`` every body on the way to a sensor
-    site, a camera or a servoed joint (``joints``), named after it; ``frame_of_body``: a
-    body's MuJoCo name -> its TF frame (a robot whose frames are in a namespace other than
-    its MuJoCo prefix); default: the name. ``odom -> base`` is sent for a base fixed to the
-    world too."""
-    chain = _BodyChain(model, mujoco.mj_name2id(model, BODY, base_body), base_frame,
-                       frame_of_body or str)
-    for site, frame in {**params.sites, **extra_sites}.items():
+def mjcf_frames(model: mujoco.MjModel, params: TfParams, robot: RobotModel, odom_frame: str,
+                extra_sites: dict[str, str]) -> RobotFrames:
+    """The frames of an MJCF robot, as its model names them: under its base link every body
+    on the way to a frame on a site (its ``site_frames``, then ``extra_sites``: the IMU's,
+    site -> frame), a camera (its ``camera_frames``) or a commanded joint, each body's frame
+    named after it (``RobotModel.frame``: its MuJoCo prefix swapped for its frame prefix).
+    ``odom -> base`` is sent for a base fixed to the world too; of ``params`` only
+    map -> odom counts."""
+    chain = _BodyChain(model, mujoco.mj_name2id(model, BODY, robot.base), robot.base_link,
+                       robot.frame)
+    sites = {link.site: link.name for link in robot.site_frames}
+    for site, frame in {**sites, **extra_sites}.items():
         sid = mujoco.mj_name2id(model, SITE, site)
         body = int(model.site_bodyid[sid])
         chain.add(body)
         chain.static.append(transform(chain.frame_of(body), frame, model.site_pos[sid],
                                       model.site_quat[sid]))
-    for cam in params.cameras:
+    for cam in robot.camera_frames:
         chain.camera(cam)
-    for joint in joints:  # the links the robot's servos move (an arm's whole chain)
-        chain.add(int(model.jnt_bodyid[mujoco.mj_name2id(model, JOINT, joint)]))
-    return RobotFrames(params, odom_frame, base_frame, chain.static, chain.moving)
+    for a in robot.actuated:  # the links the robot's servos move (an arm's whole chain)
+        chain.add(int(model.jnt_bodyid[mujoco.mj_name2id(model, JOINT, a.joint)]))
+    return RobotFrames(params, odom_frame, robot.base_link, chain.static, chain.moving)
 
 
 class _BodyChain:
@@ -258,7 +263,7 @@ class _BodyChain:
                 self.static.append(transform(self.frame_of(parent), name,
                                              model.body_pos[body], model.body_quat[body]))
 
-    def camera(self, cam: CameraFrames) -> None:
+    def camera(self, cam: CameraLink) -> None:
         """Add a camera's link and optical frames (and the bodies down to it)."""
         model = self.model
         cid = mujoco.mj_name2id(model, CAMERA, cam.camera)
@@ -268,8 +273,8 @@ class _BodyChain:
         mujoco.mju_quat2Mat(cam_in_body, model.cam_quat[cid])
         link = mat_mul(cam_in_body, LINK_IN_CAMERA)
         optical = mat_t_mul(LINK_IN_CAMERA, OPTICAL_IN_CAMERA)  # the optical frame in camera_link
-        self.static.append(transform(self.frame_of(body), cam.link_frame,
+        self.static.append(transform(self.frame_of(body), cam.link,
                                      model.cam_pos[cid], quat_of(link)))
-        for frame in (cam.color_optical_frame, cam.depth_optical_frame):
-            self.static.append(transform(cam.link_frame, frame, (0.0, 0.0, 0.0),
+        for frame in (cam.color_optical, cam.depth_optical):
+            self.static.append(transform(cam.link, frame, (0.0, 0.0, 0.0),
                                          quat_of(optical)))

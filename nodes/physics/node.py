@@ -191,13 +191,19 @@ class PhysicsNode(StepNode):
 
     @classmethod
     def description_names(cls, params: PhysicsParams) -> dict[str, Any]:
-        """The robot's base, drive, position joints and IMU (site, frame and its sensors)
-        as the parameters name them: an MJCF robot's model is read by them."""
+        """The robot's base, drive, position joints, IMU (site, frame and its sensors) and
+        the sites and cameras TF hangs frames on, as the parameters name them: an MJCF
+        robot's model is read by them."""
+        tf = params.tf
         names: dict[str, Any] = {
             "base_body": params.base_body, "base_frame": params.base_frame,
             "wheel_joints": params.wheel_joints, "wheel_actuators": params.wheel_actuators,
             "position_joints": tuple(params.position_joints),
-            "position_actuators": tuple(params.position_actuators)}
+            "position_actuators": tuple(params.position_actuators),
+            "tf_sites": () if tf is None else tuple(tf.sites.items()),
+            "tf_cameras": () if tf is None else tuple(
+                (c.camera, c.link_frame, c.color_optical_frame, c.depth_optical_frame)
+                for c in tf.cameras)}
         if params.imu is not None:
             names.update(imu_site=params.imu.site, imu_frame=params.imu.frame_id,
                          imu_gyro=params.imu.gyro, imu_accelerometer=params.imu.accelerometer,

@@ -150,9 +150,7 @@ class Rig:
             self.frames = self.described.frames(params.tf)
         elif params.tf is not None:
             imu_site = {params.imu.site: params.imu.frame_id} if params.imu else {}
-            self.frames = mjcf_frames(model, params.tf, robot.base, self.base_frame,
-                                      self.odom_frame, imu_site, self.position_joints,
-                                      robot.frame)
+            self.frames = mjcf_frames(model, params.tf, robot, self.odom_frame, imu_site)
         self.goal = goal
         goal_joints = [] if joint_goal is None else [named_id(model, JOINT, j)
                                                      for j in joint_goal["positions"]]
