@@ -48,7 +48,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from descriptions.robot_model import RobotModel
 from descriptions.robot_needs import missing_sensor
 from descriptions.robot_reader import RobotNames
-from nodes.contract import StepNode, Tick
+from nodes.contract import StepNode, Tick, constant_message
 from nodes.control import follow as f
 from nodes.control.crowd import Crowd
 from nodes.control.diagnose import connected, explain_no_path
@@ -269,7 +269,8 @@ class ControlNode(StepNode):
         if self.params.enable_stamped_cmd_vel:  # stamped with the tick's time by the runtime
             cmd = TwistStamped(twist=twist)
             cmd.header.frame_id = self.params.base_frame
-        return {"/cmd_vel": cmd, "/plan": self.plan_msg}
+        # the plan changes only when replanned (a new message): encoded once, then stamped
+        return {"/cmd_vel": cmd, "/plan": constant_message(self.plan_msg)}
 
     # -- bookkeeping ------------------------------------------------------------------------
 
