@@ -61,6 +61,9 @@ class NodeConfig:
     robots: tuple[RobotModel, ...] = ()  # the robots this node serves, read once from the
     # description (descriptions.robot_reader): the world node's every robot, a robot's
     # node (NAME@ROBOT) its own, a scenario of one robot its one (unnamed) robot
+    swarm: tuple[RobotModel, ...] = ()  # every robot of a swarm's world (those that enter
+    # later too), as ``robots`` has them, for a robot's node that sees the others (its
+    # lidar: their bases); () without a swarm
     layout: RobotsLayout | None = None  # a swarm: how its world is built from ``world`` (the
     # arena) and where each robot goes; None: ``world`` is the whole world
     events: tuple[EventSpec, ...] = ()  # the scenario's events (plan.events): objects

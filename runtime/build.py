@@ -22,13 +22,14 @@ def node_config(scenario: Scenario, name: str, options: RunOptions | None = None
         goal = scenario.robots.goal_of(robot)
     joint_goal = scenario.model.joint_goal.model_dump() if scenario.model.joint_goal else None
     warm_up = (options or RunOptions()).camera_warm_up
-    robots = scenario_robots(scenario) if load_class(plan.class_ref).needs_world else ()
+    every = robots = scenario_robots(scenario) if load_class(plan.class_ref).needs_world else ()
     if robot is not None:
         robots = tuple(r for r in robots if r.name == robot)
     return NodeConfig(name=name, params=plan.params, tick_ns=scenario.tick_ns,
                       period_ns=plan.spec.period_ns, world=scenario.world, goal=goal,
                       joint_goal=joint_goal, scenario_dir=scenario.file.parent.resolve(),
-                      render_warm_up=warm_up, robots=robots, layout=scenario.robots,
+                      render_warm_up=warm_up, robots=robots,
+                      swarm=every if scenario.robots is not None else (), layout=scenario.robots,
                       events=tuple(scenario.model.events),
                       held_inputs=frozenset(inp.topic for inp in plan.inputs
                                             if inp.producer == EXTERNAL_NAME))

@@ -462,6 +462,9 @@ SIDE_CHANNELS = {
     # the robot's description and reader settings taken from the layout by a node: its
     # model carries them (RobotModel.source, RobotModel.settings)
     "source_of": ("the robot's description from the layout", ("nodes",)),
+    # a robot's base body from the layout: every robot's model is a node's
+    # (NodeConfig.swarm: a lidar's other robots); the layout carries placement
+    "base_of": ("the robot's base body from the layout", ("nodes",)),
 }
 
 
@@ -489,7 +492,8 @@ def test_the_side_channel_check_sees_a_marker_and_the_layouts_description(tmp_pa
             "def f(model, spec, layout, name):\n"
             "    spec.add_text(name='mark', data='{}')\n"
             "    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, 'mark')\n"
-            "    return model.text_data[model.text_adr[i]], layout.source_of(name)\n")
+            "    return model.text_data[model.text_adr[i]], layout.source_of(name)\n"
+            "def g(layout, name):\n    return layout.base_of(name)\n")
     files = {}
     for package in ("nodes", "descriptions", "plan"):
         (tmp_path / package).mkdir()
@@ -501,7 +505,7 @@ def test_the_side_channel_check_sees_a_marker_and_the_layouts_description(tmp_pa
         "descriptions/probe.py:5 text_adr", "descriptions/probe.py:5 text_data",
         "nodes/probe.py:3 add_text", "nodes/probe.py:4 mjOBJ_TEXT",
         "nodes/probe.py:5 source_of", "nodes/probe.py:5 text_adr",
-        "nodes/probe.py:5 text_data"], found
+        "nodes/probe.py:5 text_data", "nodes/probe.py:7 base_of"], found
 
 
 DESCRIPTION_SUFFIXES = {".urdf", ".xacro", ".urdf.xacro", ".usd", ".usda", ".usdc"}

@@ -38,6 +38,15 @@ def robots_of(config: NodeConfig, names: dict[str, Any]) -> tuple[RobotModel, ..
     return robots if own is None else tuple(r for r in robots if r.name == own)
 
 
+def swarm_of(config: NodeConfig, names: dict[str, Any]) -> tuple[RobotModel, ...]:
+    """Every robot of a swarm's world, as ``robots_of`` gives a node its own: its config's
+    (``NodeConfig.swarm``) or, for a node made outside a scenario, the world's read by
+    cosim's conventions and the node's ``names``; () without a swarm."""
+    if config.swarm or config.layout is None or config.world is None:
+        return config.swarm
+    return world_robots(Path(config.world), config.layout, RobotNames.of(names))
+
+
 def timestep_ns(model: mujoco.MjModel, world: Path | str) -> int:
     """The world's timestep as an exact number of nanoseconds, or a ValueError saying why not."""
     ns = round(model.opt.timestep * NS_PER_S)

@@ -16,7 +16,7 @@ from descriptions.robot_model import RobotModel, Sensor
 from descriptions.robot_needs import missing_sensor
 from descriptions.robot_reader import RobotNames
 from nodes.contract import StepNode, Tick
-from nodes.physics.world import robots_of
+from nodes.physics.world import robots_of, swarm_of
 from nodes.sensors.camera import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, CameraParams, RgbdCamera
 from nodes.sensors.lidar import Lidar2D, Lidar3D, LidarParams, PointCloudParams
 from nodes.sensors.mirror import WorldMirror
@@ -109,7 +109,8 @@ class SensorsNode(StepNode):
                                          self.config.events)
         others = self.arena = None
         if self.config.layout is not None and len(robots) == 1:
-            others = OtherRobots(self.mirror.model, self.config.layout, robots[0])
+            swarm = swarm_of(self.config, self.description_names(self.params))
+            others = OtherRobots(self.mirror.model, swarm, robots[0])
             if p.lidar or p.point_cloud:
                 self.arena = StaticWorld.shared(self.config.world, self.config.layout,
                                                 self.mirror.model, self.config.events)

@@ -17,6 +17,7 @@ microseconds here). Its hits are the same geoms at the same poses: the same rang
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 
 import mujoco
@@ -25,14 +26,15 @@ import numpy as np
 from descriptions.robot_model import RobotModel
 from nodes.physics.world_events import model_at
 from plan.events import EventSpec
-from plan.robots import RobotsLayout, prefixed
+from plan.robots import RobotsLayout
 
 
 class OtherRobots:
     """The other robots' bases and their footprint radius, for ray casting as cylinders."""
 
-    def __init__(self, model: mujoco.MjModel, layout: RobotsLayout, robot: RobotModel):
-        self.names = [base for r, base in _bases(layout) if r != robot.name]
+    def __init__(self, model: mujoco.MjModel, swarm: Sequence[RobotModel], robot: RobotModel):
+        """``swarm``: every robot's model (``NodeConfig.swarm``), ``robot`` this lidar's."""
+        self.names = [r.base for r in swarm if r.name != robot.name]
         self.radius = robot.footprint_radius
         self._bind(model)
 
@@ -69,22 +71,6 @@ class OtherRobots:
         if not hit.any():
             return dist
         return np.where(hit & ((dist < 0) | (t < dist)), t, dist)
-
-
-def _bases(layout: RobotsLayout) -> list[tuple[str, str]]:
-    """(robot, its base body's MuJoCo name) of every robot of ``layout``, worked out once per
-    layout of the process (every lidar of a swarm asks)."""
-    held = _BASES.get(id(layout))
-    if held is None or held[0] is not layout:
-        held = (layout, [(r, prefixed(r, layout.base_of(r))) for r in layout.names])
-        if len(_BASES) >= 4:
-            _BASES.clear()
-        _BASES[id(layout)] = held
-    return held[1]
-
-
-_BASES: dict[int, tuple[RobotsLayout, list[tuple[str, str]]]] = {}
-"""_bases by layout (kept with it, so that its id is not reused meanwhile)."""
 
 
 class StaticWorld:
