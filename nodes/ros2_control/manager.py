@@ -213,24 +213,28 @@ class ControllerManager:
         controller's over an earlier one's) and what they publish, under the graph's names.
         ``held``: the topics the external node feeds (see the module)."""
         out = Update()
+        commands, published, notes = out.commands, out.published, out.notes
+        routes = self._routes
         for name, ctrl in self.controllers.items():
             if ctrl is None:
                 continue
-            route = self._routes.get(name)
+            route = routes.get(name)
             if route is None or route[0] is not ctrl:
-                route = self._routes[name] = (ctrl, tuple(
+                route = routes[name] = (ctrl, tuple(
                     (topic, resolve(name, topic)) for topic in ctrl.subscriptions()))
             arrived = [(topic, msg) for topic, graph in route[1]
-                       if (msg := self._arrival(graph, inputs, held)) is not None]
-            if not ctrl.active:
+                       if graph in inputs
+                       and (msg := self._arrival(graph, inputs, held)) is not None]
+            if ctrl.lifecycle is not LifecycleState.ACTIVE:
                 continue
             for topic, msg in arrived:
-                out.notes += ctrl.on_message(topic, msg, time_ns)
+                notes += ctrl.on_message(topic, msg, time_ns)
             done = ctrl.update(time_ns, period_ns)
-            out.commands.update(done.commands)
+            commands.update(done.commands)
             for topic, msg in done.published.items():
-                out.published[resolve(name, topic)] = msg
-            out.notes += done.notes
+                published[resolve(name, topic)] = msg
+            if done.notes:
+                notes += done.notes
         return out
 
     def _arrival(self, topic: str, inputs: Mapping[str, Any], held: Collection[str]) -> Any:
