@@ -29,8 +29,9 @@ def urdf_options(spec: UrdfSpec | None, scenario_dir: Path) -> UrdfOptions:
 
 
 def section_options(section: dict | None, scenario_dir: Path) -> UrdfOptions:
-    """UrdfOptions from a scenario's ``robots.urdf`` section as read from its YAML."""
-    return urdf_options(UrdfSpec.model_validate(section or {}), scenario_dir)
+    """UrdfOptions from a scenario's ``robots.urdf`` section as read from its YAML
+    (cosim-describe), by the run's way: the settings JSON its layout carries, read back."""
+    return options_of(layout_settings(UrdfSpec.model_validate(section or {}), scenario_dir))
 
 
 def layout_settings(spec: UrdfSpec | None, scenario_dir: Path) -> str:

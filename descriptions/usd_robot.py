@@ -335,10 +335,14 @@ _CACHE: dict[tuple[str, str, int, int], LoadedUrdf] = {}
 
 
 def section_options(section: dict | None, scenario_dir: Path) -> UrdfOptions:
-    """UrdfOptions from a scenario's ``robots.usd`` section as read from its YAML."""
+    """UrdfOptions from a scenario's ``robots.usd`` section as read from its YAML
+    (cosim-describe), by the run's way: the settings JSON its layout carries, read back."""
+    import json
+
     from plan.description_spec import UsdSpec
 
-    return usd_options(UsdSpec.model_validate(section or {}).model_dump())
+    settings = layout_settings(UsdSpec.model_validate(section or {}), scenario_dir)
+    return usd_options(json.loads(settings))
 
 
 def layout_settings(spec, scenario_dir: Path) -> str:

@@ -4,6 +4,7 @@ small broken descriptions written here. In-process: no ROS traffic."""
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -391,6 +392,31 @@ def test_a_urdf_that_uses_xacro_is_expanded(tmp_path):
     plain = write_urdf(tmp_path, '<link name="base"/>', "plain.urdf")
     with pytest.raises(DescriptionError, match="xacro arguments given for a plain .urdf"):
         expand(plain, {"x": "1"})
+
+
+@pytest.mark.parametrize("scenario", ["nav_urdf.yaml", "nav_usd_robot.yaml"])
+def test_describe_takes_the_options_the_run_takes(scenario):
+    # one way from a scenario's robots.urdf or robots.usd section to the reader's options:
+    # the settings JSON the layout carries (its keys sorted), read back
+    from descriptions.load import load_scenario
+    from descriptions.readers import describing_reader, section_options
+    from descriptions.urdf_robot import options_of
+    from descriptions.usd_robot import usd_options
+
+    path = ROOT / "scenarios" / scenario
+    section = {"base": "free", "sensors": {"lidar": "base_scan", "imu": "base_link"},
+               "wheels": list(WHEELS)}
+    robots = (yaml.safe_load(path.read_text()) or {})["robots"]
+    key = describing_reader(ROOT / "scenarios" / robots["description"]).settings_key
+    section = {**(robots.get(key) or {}), **section}
+    layout = load_scenario(path, {f"robots.{key}": section}).robots
+    run = (options_of(layout.settings) if key == "urdf"
+           else usd_options(json.loads(layout.settings)))
+    described = section_options(layout.description, section, path.parent)
+    assert described == run
+    # in the run's order too (a URDF robot's settings JSON has its keys sorted)
+    assert [list(getattr(described, f)) for f in ("args", "sensors", "interfaces", "gains")] \
+        == [list(getattr(run, f)) for f in ("args", "sensors", "interfaces", "gains")]
 
 
 def test_describe_reads_a_scenarios_robot_as_the_run_does(tmp_path):
