@@ -213,3 +213,56 @@ def test_sensor_nodes_of_one_process_share_one_mirror_and_measure_their_own_stat
     assert nodes["lidar@robot_0"].mirror is not nodes["lidar@robot_1"].mirror
     assert shared == own
     assert shared[0] != shared[2], "robot 0 did not move"
+
+
+def _all_pairs_nearer(xpos, radius, origin, dirs, dist, range_max):
+    """OtherRobots.nearer as it was written over every (beam, robot) pair: the reference
+    for the one that computes only the pairs that may meet."""
+    centres = xpos[:, :2] - origin[:2]
+    c = centres[np.hypot(centres[:, 0], centres[:, 1]) <= range_max + radius]
+    d = dirs[:, :2]
+    a = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[:, None]
+    b = d[:, :1] * c[:, 0] + d[:, 1:2] * c[:, 1]
+    cc = (c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1])[None, :] - radius ** 2
+    disc = b * b - a * cc
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (b - np.sqrt(disc)) / a
+    t = np.where((disc >= 0) & (t > 0) & (a > 1e-12), t, np.inf).min(axis=1)
+    hit = t <= range_max
+    return np.where(hit & ((dist < 0) | (t < dist)), t, dist)
+
+
+def test_other_robots_shorten_the_beams_the_all_pairs_way_bit_for_bit():
+    from nodes.sensors.others import OtherRobots
+
+    class Data:
+        model = None
+
+    rng = np.random.default_rng(7)
+    shortened = 0
+    for trial in range(200):
+        k, n, radius = int(rng.integers(1, 60)), int(rng.choice([180, 7, 48])), 0.23
+        origin = np.array([*rng.uniform(-0.5, 0.5, 2), 0.2])
+        xpos = np.zeros((k, 3))
+        for j in range(k):  # half of them tangent to some beam (to within 1e-9)
+            distance = rng.uniform(0.2, 9.0)
+            off = rng.uniform(-math.pi, math.pi) if j % 2 else math.asin(
+                min(1.0, radius / distance)) * (1 + rng.normal(0, 1e-9))
+            heading = (int(rng.integers(n)) * 2 * math.pi / n) + off
+            xpos[j, :2] = origin[:2] + distance * np.array([math.cos(heading),
+                                                             math.sin(heading)])
+        tilt = 0.0 if trial % 2 else 0.2
+        angles = -math.pi + 2 * math.pi / n * np.arange(n) + rng.uniform(-3, 3)
+        up = rng.uniform(-tilt, tilt, n)
+        dirs = np.stack([np.cos(up) * np.cos(angles), np.cos(up) * np.sin(angles),
+                         np.sin(up)], axis=1)
+        dist = np.where(rng.random(n) < 0.3, -1.0, rng.uniform(0.0, 10.0, n))
+        others = OtherRobots.__new__(OtherRobots)
+        others.radius, others.bodies, others.model = radius, np.arange(k), None
+        data = Data()
+        data.xpos = xpos
+        got = others.nearer(data, origin, dirs, dist, 8.0)
+        want = _all_pairs_nearer(xpos, radius, origin, dirs, dist, 8.0)
+        assert np.array_equal(got, want)
+        shortened += int((want != dist).sum())
+    assert shortened > 1000

@@ -59,18 +59,53 @@ class OtherRobots:
             return dist
         c = centres[near]  # (k, 2)
         d = dirs[:, :2]  # (n, 2): the horizontal part of each beam (unit length in 3D)
-        # element by element, no matrix products: the same bits on every CPU
-        a = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[:, None]  # (n, 1)
-        b = d[:, :1] * c[:, 0] + d[:, 1:2] * c[:, 1]  # (n, k): beam . centre
-        cc = (c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1])[None, :] - self.radius ** 2
+        beams, robots = self._pairs(d, c)
+        if beams.size == 0:
+            return dist
+        # element by element, no matrix products: the same bits on every CPU; each (beam,
+        # robot) pair is computed as every pair was before the others were left out
+        a = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])[beams]
+        db, cr = d[beams], c[robots]
+        b = db[:, 0] * cr[:, 0] + db[:, 1] * cr[:, 1]  # beam . centre
+        cc = ((c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1]) - self.radius ** 2)[robots]
         disc = b * b - a * cc
         with np.errstate(invalid="ignore", divide="ignore"):
-            t = (b - np.sqrt(disc)) / a
-        t = np.where((disc >= 0) & (t > 0) & (a > 1e-12), t, np.inf).min(axis=1)
+            tt = (b - np.sqrt(disc)) / a
+        tt = np.where((disc >= 0) & (tt > 0) & (a > 1e-12), tt, np.inf)
+        t = np.full(len(d), np.inf)
+        np.minimum.at(t, beams, tt)
         hit = t <= range_max
         if not hit.any():
             return dist
         return np.where(hit & ((dist < 0) | (t < dist)), t, dist)
+
+    def _pairs(self, d: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(beam, robot) index pairs that may meet: the beams whose heading lies within the
+        robot's angular half-width asin(radius / distance) and PAIR_MARGIN of its centre's,
+        every beam for a robot within 1.001 radii. A pair left out cannot hit: its beam
+        passes the centre at least about 2 radius distance PAIR_MARGIN wider than the
+        radius (its computed discriminant is negative, rounding being some 1e-15 of
+        distance squared) or points away (b <= 0, so t <= 0)."""
+        n = len(d)
+        heading = np.arctan2(d[:, 1], d[:, 0])
+        order = np.argsort(heading, kind="stable")
+        around = heading[order]
+        around = np.concatenate([around - 2 * np.pi, around, around + 2 * np.pi])
+        distance = np.hypot(c[:, 0], c[:, 1])
+        close = distance <= 1.001 * self.radius
+        with np.errstate(invalid="ignore", divide="ignore"):
+            half = np.arcsin(np.minimum(1.0, self.radius / distance)) + PAIR_MARGIN
+        centre = np.arctan2(c[:, 1], c[:, 0])
+        lo = np.searchsorted(around, centre - half, "left")
+        hi = np.searchsorted(around, centre + half, "right")
+        lo[close], hi[close] = n, 2 * n
+        counts = hi - lo
+        robots = np.repeat(np.arange(len(c)), counts)
+        starts = np.repeat(lo - (np.cumsum(counts) - counts), counts)
+        return order[(np.arange(len(robots)) + starts) % n], robots
+
+
+PAIR_MARGIN = 1e-3  # rad of heading around a robot's disc whose beams are computed
 
 
 class StaticWorld:
