@@ -295,3 +295,24 @@ def test_steps_aside_from_an_unmapped_robot_without_replanning(tmp_path, centre,
     out = node.step(Tick(1, 100_000_000), {"/odom": here, "/scan": empty_scan(ranges)})
     assert out["/cmd_vel"].linear.x > 0.2 and out["/cmd_vel"].angular.z * turn > 0.3  # away
     assert node.path is plan and node.recoveries == 0  # the plan is kept
+
+
+def test_the_plan_built_into_slots_is_the_constructors_message():
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Path
+
+    from nodes.control.global_planner import path_message
+    from runtime.cdr.encode import encode
+
+    path = np.random.default_rng(2).uniform(-5, 5, (40, 2))
+    want = Path()
+    want.header.frame_id = "r7/odom"
+    yaws = [math.atan2(dy, dx) for dx, dy in np.diff(path, axis=0).tolist()] + [0.7]
+    for (x, y), yaw in zip(path.tolist(), yaws, strict=True):
+        ps = PoseStamped()
+        ps.header.frame_id = "r7/odom"
+        ps.pose.position.x, ps.pose.position.y = x, y
+        ps.pose.orientation.z, ps.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        want.poses.append(ps)
+    got = path_message(path, "r7/odom", 0.7)
+    assert got == want and encode(got) == encode(want)
