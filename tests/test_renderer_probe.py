@@ -33,6 +33,13 @@ def test_another_gl_set_up_probes_again(fresh_cache, monkeypatch):
     assert renderer.cached_answer(key) == "egl: kept"
     assert renderer.renderer_key({"MUJOCO_GL": "egl", "MESA_GL_VERSION_OVERRIDE": "3.3"}) != key
     assert renderer.renderer_key({"MUJOCO_GL": "osmesa"}) != key
+    assert renderer.renderer_key({"MUJOCO_GL": "egl", "DRI_PRIME": "1"}) != key
+    monkeypatch.setattr(renderer, "this_boot", lambda: "another host or boot")
+    assert renderer.renderer_key({"MUJOCO_GL": "egl"}) != key
+    monkeypatch.undo()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(fresh_cache.parent.parent))
+    monkeypatch.setattr(renderer, "_answers", {})
+    assert renderer.renderer_key({"MUJOCO_GL": "egl"}) == key
     assert renderer.renderer_key({"MUJOCO_GL": "egl", "HOME": "/elsewhere"}) == key
     libraries = renderer.gl_libraries()
     assert libraries and any(name.startswith("libEGL") for name, *_ in libraries)

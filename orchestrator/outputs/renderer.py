@@ -3,11 +3,14 @@
 A fresh interpreter makes a 1 x 1 MuJoCo GL context (``MUJOCO_GL``, as the camera nodes get
 it) and reads GL_VENDOR, GL_RENDERER and GL_VERSION: about 0.4 CPU s of software GL set-up,
 which was paid again at every run with a camera. The answer depends only on the GL libraries
-the dynamic loader finds and the environment that chooses among them, so it is kept per user,
-keyed by those: the libraries' paths, sizes and modification times (``ldconfig -p``), the
-variables that pick a GL (MUJOCO_GL, PYOPENGL_PLATFORM, Mesa's, EGL's, the library path) and
-the mujoco version. An upgraded Mesa or driver, or another backend, probes again. Where the
-key cannot be made (no ldconfig), every run probes, as before.
+the dynamic loader finds, the drivers they load and the environment that chooses among them,
+so it is kept per user, keyed by those: the paths, sizes and modification times of the GL and
+LLVM libraries (``ldconfig -p``) and of Mesa's DRI drivers, the variables that pick a GL
+(MUJOCO_GL, PYOPENGL_PLATFORM, Mesa's, EGL's, DRI_PRIME, the display, the library path), the
+mujoco version, and this boot of this host (``boot_id``: llvmpipe's string names the CPU's
+vector width, and a home shared between hosts must not share answers). An upgraded Mesa,
+LLVM or driver, another backend or a reboot probes again. Where the key cannot be made (no
+ldconfig), every run probes, as before.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import functools
 import hashlib
 import json
 import os
+import platform
 import re
 import shutil
 import subprocess
@@ -33,9 +37,12 @@ print(" | ".join(GL.glGetString(k).decode() for k in (GL.GL_VENDOR, GL.GL_RENDER
                                                      GL.GL_VERSION)))
 ctx.free()
 """
-GL_LIBRARY = re.compile(r"^\s*(lib(?:EGL|GL|gallium|glapi|OSMesa|nvidia)\S*)\s.*=>\s*(\S+)\s*$")
+GL_LIBRARY = re.compile(
+    r"^\s*(lib(?:EGL|GL|gallium|glapi|OSMesa|nvidia|LLVM)\S*)\s.*=>\s*(\S+)\s*$")
 GL_VARIABLES = re.compile(r"^(MUJOCO_|PYOPENGL_|MESA_|LIBGL_|GALLIUM_|EGL_|__EGL|__GLX|LP_|"
-                          r"LD_LIBRARY_PATH$|LD_PRELOAD$)")
+                          r"DRI_|DISPLAY$|WAYLAND_DISPLAY$|LD_LIBRARY_PATH$|LD_PRELOAD$)")
+DRI_FOLDERS = ("/usr/lib/x86_64-linux-gnu/dri", "/usr/lib64/dri", "/usr/lib/dri")
+BOOT_ID = Path("/proc/sys/kernel/random/boot_id")
 _answers: dict[str, str] = {}  # this process's probes, by key (a sweep's worker runs many)
 
 
@@ -89,7 +96,9 @@ def renderer_key(env: dict[str, str]) -> str | None:
     except metadata.PackageNotFoundError:
         mujoco_version = "not installed"
     variables = {k: v for k, v in sorted(env.items()) if GL_VARIABLES.match(k)}
-    text = json.dumps([libraries, variables, mujoco_version, sys.executable])
+    folders = [*env.get("LIBGL_DRIVERS_PATH", "").split(os.pathsep), *DRI_FOLDERS]
+    text = json.dumps([libraries, dri_drivers(tuple(f for f in folders if f)), variables,
+                       mujoco_version, sys.executable, this_boot()])
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
@@ -117,6 +126,33 @@ def gl_libraries() -> list[tuple[str, str, int, int]] | None:
                 continue
             found.append((match.group(1), path, stat.st_size, stat.st_mtime_ns))
     return sorted(found)
+
+
+@functools.lru_cache(maxsize=4)
+def dri_drivers(folders: tuple[str, ...]) -> list[tuple[str, int, int]]:
+    """(file, size, mtime ns) of the DRI drivers in ``folders`` (Mesa's renderers)."""
+    found = []
+    for folder in folders:
+        try:
+            entries = sorted(os.scandir(folder), key=lambda e: e.name)
+        except OSError:
+            continue
+        for entry in entries:
+            if entry.name.endswith(".so"):
+                try:
+                    stat = entry.stat()
+                except OSError:
+                    continue
+                found.append((entry.path, stat.st_size, stat.st_mtime_ns))
+    return found
+
+
+def this_boot() -> str:
+    """This host and boot: the kernel's boot id, else the host name."""
+    try:
+        return BOOT_ID.read_text().strip()
+    except OSError:
+        return platform.node()
 
 
 def _cache_file(key: str) -> Path:
