@@ -60,7 +60,6 @@ def test_arc_clearance_stops_before_a_point_ahead():
     assert arc_clearance(pts, (0.0, 0.0, math.pi / 2), 0.5, 0.0, 2.0, 0.3) == 2.0
 
 
-
 def _one_arc(points, pose, v, w, horizon, radius):
     """arc_clearance as it was written for one arc (the reference for the batched one)."""
     if len(points) == 0 or v == 0:
@@ -94,6 +93,7 @@ def test_a_fan_of_arcs_at_once_is_each_arc_alone_bit_for_bit():
         ws = [v * k for k in np.linspace(-3, 3, 11).tolist() + [1e-7]]
         assert arc_clearances(points, pose, v, ws, horizon, radius) == [
             _one_arc(points, pose, v, w, horizon, radius) for w in ws]
+
 
 def odom(x: float, y: float, yaw: float) -> Odometry:
     """Odometry at a planar pose."""

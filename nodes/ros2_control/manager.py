@@ -251,7 +251,6 @@ class ControllerManager:
         same = same_message(last, msg) if topic in held else last == msg
         return None if same else msg
 
-
     def metrics(self) -> dict[str, float]:
         """``active:<name>`` (1 or 0) of every controller, then each one's own
         (``<metric>:<name>``)."""
