@@ -63,8 +63,9 @@ def arena_xml(half: float) -> str:
 """
 
 
-def scenario(n: int, seconds: float, directory: Path) -> Path:
-    """The N-robot scenario, its arena written beside it."""
+def scenario(n: int, seconds: float, directory: Path, physics_threads: int = 1) -> Path:
+    """The N-robot scenario, its arena written beside it; the physics node steps with
+    ``physics_threads`` threads of MuJoCo's engine pool (the same digest at any count)."""
     # room for n robots CLEARANCE apart with seeded draws: about 3 x their packed area
     half = max(3.0, math.sqrt(3.0 * n) * CLEARANCE / 2 + 0.6)
     world = directory / f"arena_{n}.xml"
@@ -78,7 +79,8 @@ def scenario(n: int, seconds: float, directory: Path) -> Path:
         "success": {"reach_goal": False, "max_collisions": 1_000_000, "stop_on_goal": False},
         "deadlines": {"start": "600s", "tick": "120s"},
         "nodes": [
-            {"name": "physics", "kind": "physics", "rate": 50, "params": {"imu": None},
+            {"name": "physics", "kind": "physics", "rate": 50,
+             "params": {"imu": None, "threads": physics_threads},
              "inputs": [{"topic": "/cmd_vel", "mode": "delayed"}]},
             {"name": "lidar", "kind": "sensors", "for_each": "robot", "rate": 10,
              "params": {"lidar": {"beams": 180, "range_max": 8.0}},
@@ -191,6 +193,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--packings", nargs="+", default=list(PACKINGS), choices=PACKINGS)
     parser.add_argument("--spread", type=int, default=SPREAD,
                         help="spread: the processes for the lidars, and for the controllers")
+    parser.add_argument("--physics-threads", type=int, default=1,
+                        help="MuJoCo engine threads of the physics node (params.threads): "
+                             "the step of one world on more cores, the same digest")
     parser.add_argument("--max-processes", type=int, default=70,
                         help="skip a packing that would start more node processes")
     parser.add_argument("--out", type=Path, help="write every row as JSON here")
@@ -199,7 +204,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     with tempfile.TemporaryDirectory(prefix="cosim-bench-swarm-") as tmp:
         tmp = Path(tmp)
         for n in a.robots:
-            path = scenario(n, a.seconds, tmp)
+            path = scenario(n, a.seconds, tmp, a.physics_threads)
             order = ["in-process", *[p for p in a.packings if p != "in-process"]]
             reference = None
             for packing in order:
