@@ -20,20 +20,30 @@ from plan.events import EventSpec
 from plan.robots import RobotsLayout
 from plan.timeutil import Ns
 
-CONSTANT_MESSAGES: dict[int, Any] = {}
-"""id -> an output message its step marked constant (``constant_message``)."""
-_CONSTANT_KEPT = 1024  # marks kept; all are forgotten when it is full (then encoded anew)
+_MARKED: dict[int, Any] = {}  # id -> a message marked since the runtime last took the
+# marks: the message itself is held, so that an id cannot be reused while it is marked
 
 
 def constant_message(msg: Any) -> Any:
-    """Mark ``msg``, an output a step gives again at many activations (an inactive
-    controller's empty message), as never changed again but for its header's stamp, which
-    the runtime sets: the runtime may then serialise it once and write each stamp into
-    those bytes (``runtime.exchange.prepare_outputs``). Returns ``msg``."""
-    if len(CONSTANT_MESSAGES) >= _CONSTANT_KEPT:
-        CONSTANT_MESSAGES.clear()
-    CONSTANT_MESSAGES[id(msg)] = msg
+    """Mark ``msg``, an output of the step now running that it gives again, the same
+    object, at many activations (an inactive controller's empty message, a plan until the
+    next replan), as never changed again but for its header's stamp, which the runtime
+    sets: the runtime may then serialise it once and write each stamp into those bytes
+    (``runtime.exchange.prepare_outputs``). A mark holds for the step that makes it: mark
+    the message at every step that returns it. Returns ``msg``."""
+    _MARKED[id(msg)] = msg
     return msg
+
+
+def take_constant_marks() -> dict[int, Any] | None:
+    """The messages marked (``constant_message``) since the last call, by id, forgotten
+    here: the runtime takes them right after each step, so the marks held are one step's
+    (None when there are none)."""
+    if not _MARKED:
+        return None
+    marks = dict(_MARKED)
+    _MARKED.clear()
+    return marks
 
 
 @dataclass(frozen=True)

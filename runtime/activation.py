@@ -9,8 +9,9 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from nodes.contract import StepNode, Tick
+from nodes.contract import StepNode, Tick, take_constant_marks
 from nodes.live_params import ParamsInput
+from runtime.cdr.encode import ConstantTails
 from runtime.exchange import prepare_outputs
 from runtime.notes import Note
 
@@ -30,6 +31,7 @@ class Activation:
         self.params_input = params_input  # parameter changes from outside, applied first
         self.first = True  # the next activation is the first since the start or a restart
         self.stepped_ns = 0  # perf_counter when the last step returned: the time split only
+        self.tails = ConstantTails()  # its constant outputs' bytes (prepare_outputs)
 
     def __call__(self, tick: Tick, inputs: dict[str, Any]) -> list[tuple[str, bytes]]:
         """Step at ``tick`` on ``inputs`` and return the outputs ready to publish."""
@@ -38,6 +40,9 @@ class Activation:
         try:
             outputs = self.node.step(tick, inputs)
             self.stepped_ns = time.perf_counter_ns()
+        except BaseException:
+            take_constant_marks()  # a failed step's marks are no later step's
+            raise
         finally:
             for text in self.node.take_notes():
                 if self.on_note is not None:
@@ -49,7 +54,7 @@ class Activation:
             if getattr(self.node, "holds_outputs", False):  # it holds every topic: the due
                 outputs = {own: msg for own, msg in outputs.items() if own in names}
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs, names, tick,
-                                outputs, latched, first)
+                                outputs, latched, first, self.tails)
         self.first = False
         return items
 

@@ -15,10 +15,10 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from tf2_msgs.msg import TFMessage
 
-from nodes.contract import CONSTANT_MESSAGES, Tick
+from nodes.contract import Tick, take_constant_marks
 from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
-from runtime.cdr.encode import encode, encode_constant
+from runtime.cdr.encode import ConstantTails, encode
 
 
 class StepContractError(RuntimeError):
@@ -32,15 +32,19 @@ def stamp(tick: Tick) -> Time:
 
 def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str], tick: Tick,
                     outputs: dict[str, Any], latched: frozenset[str] = frozenset(),
-                    first: bool = False) -> list[tuple[str, bytes]]:
+                    first: bool = False,
+                    tails: ConstantTails | None = None) -> list[tuple[str, bytes]]:
     """Check, stamp and serialise a step's outputs: [(graph topic, CDR bytes)] sorted by topic.
 
     ``declared`` maps the node's own topic names to message classes and ``names`` maps them
     to graph topics (after remap). ``latched`` outputs (own names) are due at the node's
     ``first`` activation only, the others at every one. A message with a ``header`` gets
     the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``. A message its
-    step marked constant (``nodes.contract.constant_message``) is serialised once.
+    step marked constant (``nodes.contract.constant_message``) is serialised once into the
+    node's ``tails`` while the step gives the same object (encoded every time without
+    ``tails``). Call it right after the step: it takes the step's marks.
     """
+    marks = take_constant_marks()
     due = set(names) if first else set(names) - latched
     if set(outputs) != due:
         missing = sorted(due - set(outputs))
@@ -61,8 +65,10 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         elif isinstance(msg, TFMessage):
             for transform in msg.transforms:
                 transform.header.stamp = when
-        constant = CONSTANT_MESSAGES and CONSTANT_MESSAGES.get(id(msg)) is msg
-        items.append((names[own], encode_constant(msg) if constant else encode(msg)))
+        if marks is not None and tails is not None and marks.get(id(msg)) is msg:
+            items.append((names[own], tails.encode(own, msg)))
+        else:
+            items.append((names[own], encode(msg)))
     items.sort()
     return items
 

@@ -174,17 +174,59 @@ def test_a_constant_message_gives_rclpy_bytes_at_every_stamp():
     from control_msgs.msg import JointTrajectoryControllerState
     from tf2_msgs.msg import TFMessage
 
-    import runtime.cdr.encode as encoder
+    from runtime.cdr.encode import ConstantTails
 
+    tails = ConstantTails()
+    stamps = ((0, 0), (3, 10_000_000), (2**31 - 1, 999_999_999), (5, 1))
     msg = JointTrajectoryControllerState()
-    for sec, nanosec in ((0, 0), (3, 10_000_000), (2**31 - 1, 999_999_999)):
+    for sec, nanosec in stamps:
         msg.header.stamp = Time(sec=sec, nanosec=nanosec)
-        assert encoder.encode_constant(msg) == rclpy_bytes(msg)
-    assert encoder._constants[id(msg)][0] is msg
+        assert tails.encode("/state", msg) == rclpy_bytes(msg)
+    assert tails._last["/state"][0] is msg
     other = JointTrajectoryControllerState(joint_names=["a"])  # another: its own bytes
-    assert encoder.encode_constant(other) == rclpy_bytes(other)
+    assert tails.encode("/state", other) == rclpy_bytes(other)
+    assert tails._last["/state"][0] is other  # the last one only is held
+    # the controller's plan (nodes.control.node: /plan), and its replan under the same key
+    for path in (np.cumsum(np.full((60, 2), 0.1), axis=0), np.array([[0.0, 0.0], [1.0, 2.0]]),
+                 None):
+        plan = path_message(path, "map", 0.25)
+        for sec, nanosec in stamps:
+            plan.header.stamp = Time(sec=sec, nanosec=nanosec)
+            assert tails.encode("/plan", plan) == rclpy_bytes(plan)
+        assert tails._last["/plan"][0] is plan
+    assert sorted(tails._last) == ["/plan", "/state"]
     tf = fill(TFMessage(), random.Random("tf"))  # no header first: encoded every time
-    assert encoder.encode_constant(tf) == rclpy_bytes(tf)
+    assert tails.encode("/tf", tf) == rclpy_bytes(tf)
     for transform in tf.transforms:
         transform.header.stamp = Time(sec=7)
-    assert encoder.encode_constant(tf) == rclpy_bytes(tf)
+    assert tails.encode("/tf", tf) == rclpy_bytes(tf)
+    assert "/tf" not in tails._last
+
+
+def test_the_marks_are_the_steps_own_and_a_replan_replaces_the_kept_plan():
+    from builtin_interfaces.msg import Time
+
+    from nodes.contract import Tick, constant_message, take_constant_marks
+    from runtime.cdr.encode import ConstantTails
+    from runtime.exchange import prepare_outputs
+
+    take_constant_marks()
+    tails = ConstantTails()
+    args = ("control", {"/plan": Path}, {"/plan": "/r1/plan"})
+    plan = path_message(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 1.5]]), "map", 0.0)
+    for k in range(3):  # marked at every step: encoded once, then stamped
+        items = prepare_outputs(*args, Tick(k, k * 100_000_000), {"/plan": constant_message(plan)},
+                                tails=tails)
+        assert take_constant_marks() is None  # taken by prepare_outputs
+        plan_bytes = rclpy_bytes(plan)
+        assert plan.header.stamp == Time(sec=0, nanosec=k * 100_000_000)
+        assert items == [("/r1/plan", plan_bytes)]
+        assert tails._last["/plan"][0] is plan
+    plan.poses.pop()  # not marked at this step: encoded anew, whatever is kept
+    items = prepare_outputs(*args, Tick(3, 300_000_000), {"/plan": plan}, tails=tails)
+    assert items == [("/r1/plan", rclpy_bytes(plan))]
+    replan = path_message(np.array([[5.0, 5.0], [6.0, 6.0]]), "map", 1.0)
+    items = prepare_outputs(*args, Tick(4, 400_000_000), {"/plan": constant_message(replan)},
+                            tails=tails)
+    assert items == [("/r1/plan", rclpy_bytes(replan))]
+    assert len(tails._last) == 1 and tails._last["/plan"][0] is replan  # the old plan let go

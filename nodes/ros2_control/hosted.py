@@ -193,8 +193,9 @@ class RobotManager:
                 if msg is None:
                     name, own = self.owner[topic]
                     ctrl = self.manager.controllers.get(name)
-                    msg = self.empty[topic] = constant_message(
-                        cls() if ctrl is None else ctrl.empty_message(own))
+                    msg = self.empty[topic] = (cls() if ctrl is None
+                                               else ctrl.empty_message(own))
+                constant_message(msg)
             out[graph] = msg
 
     def _switch(self, msg) -> dict[str, float]:

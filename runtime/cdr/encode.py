@@ -46,30 +46,42 @@ def encode(msg: Any) -> bytes:
     return encoder(msg)
 
 
-_constants: dict[int, tuple[Any, bytes | None]] = {}  # id -> (message, bytes past stamp)
 _STAMP = struct.Struct("<iI")
-_CONSTANTS = 1024  # messages kept; all are forgotten when it is full
 
 
-def encode_constant(msg: Any) -> bytes:
-    """``encode(msg)`` of a message its maker promised never to change but for its
-    header's stamp (``nodes.contract.constant_message``): its bytes are made once and the
-    stamp written into them at every call. A message whose first field is not a
-    std_msgs/Header (a TFMessage's stamps lie in its transforms) is encoded every time."""
-    kept = _constants.get(id(msg))
-    if kept is None or kept[0] is not msg:
-        if len(_constants) >= _CONSTANTS:
-            _constants.clear()
-        slots = getattr(type(msg), "SLOT_TYPES", ())
-        first = slots[0] if slots else None
-        header = (isinstance(first, d.NamespacedType) and first.name == "Header"
-                  and list(first.namespaces) == ["std_msgs", "msg"])
-        tail = encode(msg)[len(LE_HEADER) + _STAMP.size:] if header else None
-        kept = _constants[id(msg)] = (msg, tail)
-    if kept[1] is None:
-        return encode(msg)
-    stamp = msg._header._stamp
-    return LE_HEADER + _STAMP.pack(stamp._sec, stamp._nanosec) + kept[1]
+@cache
+def _header_first(msg_class: type) -> bool:
+    """Whether a message class's first field is a std_msgs/Header."""
+    slots = getattr(msg_class, "SLOT_TYPES", ())
+    first = slots[0] if slots else None
+    return (isinstance(first, d.NamespacedType) and first.name == "Header"
+            and list(first.namespaces) == ["std_msgs", "msg"])
+
+
+class ConstantTails:
+    """``encode`` of messages their makers promised never to change but for their header's
+    stamp (``nodes.contract.constant_message``): under each key (a node's output topic)
+    the last such message is kept with its bytes past the stamp, and while the same object
+    comes again only the stamp is written in front of them. What is held is one message
+    and its bytes per key, whatever the run's length: a new message (a replan) replaces
+    the last. A message whose first field is not a std_msgs/Header (a TFMessage's stamps
+    lie in its transforms) is encoded every time."""
+
+    def __init__(self) -> None:
+        self._last: dict[Any, tuple[Any, bytes]] = {}  # key -> (message, bytes past stamp)
+
+    def encode(self, key: Any, msg: Any) -> bytes:
+        """``encode(msg)``, from the bytes kept under ``key`` when ``msg`` is the message
+        kept there."""
+        last = self._last.get(key)
+        if last is None or last[0] is not msg:
+            if not _header_first(type(msg)):
+                return encode(msg)
+            data = encode(msg)
+            self._last[key] = (msg, data[len(LE_HEADER) + _STAMP.size:])
+            return data
+        stamp = msg._header._stamp
+        return LE_HEADER + _STAMP.pack(stamp._sec, stamp._nanosec) + last[1]
 
 
 @cache
