@@ -87,11 +87,41 @@ def arc_clearances(points: np.ndarray, pose: tuple[float, float, float], v: floa
         th = pose[2] + k * s
         xs[rows] = pose[0] + sign * (np.sin(th) - math.sin(pose[2])) / k
         ys[rows] = pose[1] - sign * (np.cos(th) - math.cos(pose[2])) / k
-    d2 = ((xs[:, :, None] - near[:, 0]) ** 2 + (ys[:, :, None] - near[:, 1]) ** 2).min(axis=2)
-    hit = d2 < radius * radius
+    hit = _hits(xs, ys, near, radius)
     first = hit.argmax(axis=1).tolist()
     return [float(s[i] - ARC_STEP) if any_hit else horizon
             for i, any_hit in zip(first, hit.any(axis=1).tolist(), strict=True)]
+
+
+BOX_MARGIN = 1e-6  # m added to the radius around an arc's poses: far above any rounding
+
+
+def _hits(xs: np.ndarray, ys: np.ndarray, near: np.ndarray, radius: float) -> np.ndarray:
+    """(arcs, poses): whether a point of ``near`` is closer than ``radius`` to each pose,
+    as ``min((x - px) ** 2 + (y - py) ** 2) < radius ** 2`` over every point decides it.
+
+    A point outside an arc's bounding box of poses widened by radius + BOX_MARGIN is
+    farther than the radius from each of them in x or in y by more than rounding, so its
+    computed squared distance is at least radius ** 2 and cannot change the minimum's
+    comparison: only the pairs of an arc and a point in its box are computed (the same
+    operations on the same operands). One arc, short arcs (the box costs more than it
+    saves) and points that are not all finite take every pair."""
+    r2 = radius * radius
+    if len(xs) == 1 or xs.shape[1] < 8 or not np.isfinite(near).all():  # few: all pairs
+        return ((xs[:, :, None] - near[:, 0]) ** 2
+                + (ys[:, :, None] - near[:, 1]) ** 2).min(axis=2) < r2
+    px, py = near[:, 0], near[:, 1]
+    wide = radius + BOX_MARGIN
+    inside = ((px >= (xs.min(axis=1) - wide)[:, None]) & (px <= (xs.max(axis=1) + wide)[:, None])
+              & (py >= (ys.min(axis=1) - wide)[:, None]) & (py <= (ys.max(axis=1) + wide)[:, None]))
+    arcs, points = np.nonzero(inside)  # arcs ascending
+    hit = np.zeros(xs.shape, dtype=bool)
+    if arcs.size == 0:
+        return hit
+    d2 = (xs[arcs] - px[points, None]) ** 2 + (ys[arcs] - py[points, None]) ** 2
+    starts = np.flatnonzero(np.r_[True, arcs[1:] != arcs[:-1]])
+    hit[arcs[starts]] = np.minimum.reduceat(d2, starts, axis=0) < r2
+    return hit
 
 
 def arc_end(pose: tuple[float, float, float], k: float, s: float) -> tuple[float, float]:
