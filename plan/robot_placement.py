@@ -162,6 +162,7 @@ def _placed(where: _Where, spec: RobotsSpec, obstacles, footprint: float, seed: 
     centre = (sum(region.x) / 2, sum(region.y) / 2)
     starts: list[tuple[float, float]] = []
     goals: list[tuple[float, float]] = []
+    apart_starts, apart_goals = _Apart(spec.clearance), _Apart(spec.clearance)
     for _ in range(spec.count * PLACEMENT_TRIES):
         if len(starts) == spec.count:
             break
@@ -171,11 +172,13 @@ def _placed(where: _Where, spec: RobotsSpec, obstacles, footprint: float, seed: 
         else:
             goal = (float(rng.uniform(*spec.goal_region.x)),
                     float(rng.uniform(*spec.goal_region.y)))
-        if _fits(start, starts, spec.clearance) and _fits(goal, goals, spec.clearance) and not (
+        if apart_starts.fits(start) and apart_goals.fits(goal) and not (
                 place_problem(obstacles, *start, footprint)
                 or place_problem(obstacles, *goal, footprint)):
             starts.append(start)
             goals.append(goal)
+            apart_starts.add(start)
+            apart_goals.add(goal)
     if len(starts) < spec.count:
         raise where.fail("robots.count", f"only {len(starts)} of {spec.count} robots fit in "
                          f"the region {spec.clearance:g} m apart and clear of obstacles (at "
@@ -189,8 +192,29 @@ def _placed(where: _Where, spec: RobotsSpec, obstacles, footprint: float, seed: 
     return robots
 
 
-def _fits(point: tuple[float, float], placed: list[tuple[float, float]], gap: float) -> bool:
-    return all(math.hypot(point[0] - x, point[1] - y) >= gap for x, y in placed)
+class _Apart:
+    """Points kept at least ``gap`` apart. A point is measured against those in the 5 x 5
+    cells of side ``gap`` around its own: one in any other cell is more than ``gap`` away
+    on one axis, so it could not fail the test (every point was measured against every
+    other: a million distances at 1,000 robots). The same distances decide as before."""
+
+    def __init__(self, gap: float):
+        self.gap = gap
+        self.cells: dict[tuple[int, int], list[tuple[float, float]]] = {}
+
+    def _cell(self, point: tuple[float, float]) -> tuple[int, int]:
+        return math.floor(point[0] / self.gap), math.floor(point[1] / self.gap)
+
+    def fits(self, point: tuple[float, float]) -> bool:
+        """Whether ``point`` is at least ``gap`` from every point added."""
+        cx, cy = self._cell(point)
+        return all(math.hypot(point[0] - x, point[1] - y) >= self.gap
+                   for i in range(cx - 2, cx + 3) for j in range(cy - 2, cy + 3)
+                   for x, y in self.cells.get((i, j), ()))
+
+    def add(self, point: tuple[float, float]) -> None:
+        """Keep ``point`` (it fits)."""
+        self.cells.setdefault(self._cell(point), []).append(point)
 
 
 def _seed(scenario_seed: int) -> int:
