@@ -114,12 +114,15 @@ def _hits(xs: np.ndarray, ys: np.ndarray, near: np.ndarray, radius: float) -> np
     wide = radius + BOX_MARGIN
     inside = ((px >= (xs.min(axis=1) - wide)[:, None]) & (px <= (xs.max(axis=1) + wide)[:, None])
               & (py >= (ys.min(axis=1) - wide)[:, None]) & (py <= (ys.max(axis=1) + wide)[:, None]))
-    arcs, points = np.nonzero(inside)  # arcs ascending
+    arcs, points = inside.nonzero()  # arcs ascending
     hit = np.zeros(xs.shape, dtype=bool)
     if arcs.size == 0:
         return hit
     d2 = (xs[arcs] - px[points, None]) ** 2 + (ys[arcs] - py[points, None]) ** 2
-    starts = np.flatnonzero(np.r_[True, arcs[1:] != arcs[:-1]])
+    first = np.empty(len(arcs), dtype=bool)  # an arc's first pair
+    first[0] = True
+    np.not_equal(arcs[1:], arcs[:-1], out=first[1:])
+    starts = first.nonzero()[0]
     hit[arcs[starts]] = np.minimum.reduceat(d2, starts, axis=0) < r2
     return hit
 
