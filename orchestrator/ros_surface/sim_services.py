@@ -102,7 +102,7 @@ class SimServices:
         finally:
             self._built.set()
         try:
-            self.executor.spin()
+            self.executor.spin_until_future_complete(self._stop)
         except ExternalShutdownException:
             pass
 
@@ -180,6 +180,9 @@ class SimServices:
         self.parameters = []
         for params in parameter_nodes(self.context, scenario, arrivals, self.control):
             self.parameters.append(params)
+        from rclpy.task import Future
+
+        self._stop = Future()  # done at close: the spin ends (and wakes to see it)
         executor = MultiThreadedExecutor(num_threads=THREADS, context=self.context)
         for node in [self.node, *(p.node for p in self.parameters)]:
             executor.add_node(node)
@@ -210,8 +213,19 @@ class SimServices:
         while (time.monotonic() - self.last_answer < FLUSH_S
                and time.monotonic() - closing < FLUSH_MAX_S):
             time.sleep(0.05)
-        self.executor.shutdown(timeout_sec=5.0)
+        # The spin ends first, then the callbacks it handed to the executor's threads finish,
+        # and only then are the executor's guard condition and the nodes destroyed: rclpy
+        # (Jazzy) Executor.shutdown does not wait for those callbacks (it skips its own
+        # wait), and one that runs later (a controller_state message taken for feedback)
+        # triggers the destroyed guard or takes from a destroyed subscription: "The
+        # following exception was never retrieved: cannot use Destroyable".
+        self._stop.set_result(None)
         self.thread.join(timeout=5.0)
+        with self._idle:
+            idle = self._busy == 0
+        if not self.thread.is_alive() and idle:  # no request left that could block it
+            _drain(self.executor)
+        self.executor.shutdown(timeout_sec=5.0)
         self._remove_servers()
 
     def _answering(self, handler):
@@ -453,6 +467,17 @@ class SimServices:
 
 _NO_EDITS = ("cannot spawn or delete: the scenario is not interactive (set interactive: true), "
              "has no world, or this run replays recorded inputs.")
+
+
+def _drain(executor) -> None:
+    """Wait until every callback a stopped MultiThreadedExecutor handed to its threads has
+    finished (rclpy keeps them in its thread pool, ``_executor``; an executor without one
+    runs its callbacks in the spinning thread, which has ended)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = getattr(executor, "_executor", None)
+    if isinstance(pool, ThreadPoolExecutor):
+        pool.shutdown(wait=True)
 
 
 def service_prefix(namespace: str) -> str:
