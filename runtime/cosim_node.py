@@ -143,22 +143,26 @@ def main(argv: list[str] | None = None) -> int:
 def checked_plan(path: Path, scenario_file: Path) -> Scenario:
     """The scenario its orchestrator checked and wrote for this run (``--plan``), which must
     be of the file given with ``--scenario``: the whole plan is checked once, before any
-    process starts, and a process it starts need not check it again."""
+    process starts, and a process it starts need not check it again (nor compile the swarm
+    world: its models come with the plan)."""
     import pickle
 
+    from descriptions.swarm_world import take_over
     from plan.load import make_importable
     from plan.scenario import Scenario
 
     make_importable(scenario_file.parent, Path.cwd())  # its module: nodes, as loading does
     try:
-        scenario = pickle.loads(path.read_bytes())
-    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
+        scenario, models = pickle.loads(path.read_bytes())
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError,
+            TypeError, ValueError) as exc:  # the last two: not a (plan, models) pair
         raise ValueError(f"--plan {path}: cannot read the orchestrator's checked plan "
                          f"({exc}); leave --plan out to load {scenario_file}") from None
     if not isinstance(scenario, Scenario) or (Path(scenario.file).resolve()
                                               != scenario_file.resolve()):
         raise ValueError(f"--plan {path} is not the checked plan of {scenario_file}; leave "
                          "--plan out to load the scenario")
+    take_over(models)  # the swarm world as the orchestrator compiled it, not compiled again
     return scenario
 
 

@@ -366,15 +366,20 @@ def node_argv(scenario_file: Path, kind: str, names: list[str], run_dir: Path | 
 def write_checked_plan(scenario, path: Path) -> Path | None:
     """The checked scenario pickled at ``path`` (once per run: kept if already there) for the
     node processes this orchestrator execs: a process that loads the file itself checks the
-    whole plan again (seconds at hundreds of robots, in every process). None where it cannot
-    be written (the processes then load the file)."""
+    whole plan again (seconds at hundreds of robots, in every process). With it go the swarm
+    world's models compiled here (``descriptions.swarm_world.hand_over``), which the process
+    would otherwise build and compile again. None where it cannot be written (the processes
+    then load the file)."""
     import pickle
+
+    from descriptions.swarm_world import hand_over
 
     if path.exists():
         return path
     try:
         part = path.with_suffix(".part")
-        part.write_bytes(pickle.dumps(scenario, protocol=pickle.HIGHEST_PROTOCOL))
+        models = hand_over(scenario.world) if scenario.world is not None else []
+        part.write_bytes(pickle.dumps((scenario, models), protocol=pickle.HIGHEST_PROTOCOL))
         part.replace(path)
     except (OSError, pickle.PicklingError, TypeError, AttributeError):
         return None
