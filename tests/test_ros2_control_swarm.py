@@ -56,7 +56,8 @@ def control(*args: str) -> str:
     import sys
 
     done = subprocess.run([sys.executable, "-m", "orchestrator.ros2cli", "control", *args,
-                           "-c", "/robot_2/controller_manager"], capture_output=True,
+                           "-c", "/robot_2/controller_manager", "--service-timeout", "40"],
+                          capture_output=True,
                           text=True, timeout=60, cwd=ROOT, env=_plain_output())
     assert done.returncode == 0, done.stderr
     return done.stdout
