@@ -34,15 +34,18 @@ class OtherRobots:
 
     def __init__(self, model: mujoco.MjModel, swarm: Sequence[RobotModel], robot: RobotModel):
         """``swarm``: every robot's model (``NodeConfig.swarm``), ``robot`` this lidar's."""
-        self.names = [r.base for r in swarm if r.name != robot.name]
+        self.swarm, self.own = swarm, robot.name
         self.radius = robot.footprint_radius
         self._bind(model)
 
     def _bind(self, model: mujoco.MjModel) -> None:
         """The other robots' base bodies in ``model``: those in the world now (robots enter
         and leave a run; their ids move with every change)."""
-        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in self.names]
-        self.bodies = np.array([i for i in ids if i >= 0], dtype=np.int64)
+        ids, index = _bases_in(model, self.swarm)
+        keep = ids >= 0
+        if (own := index.get(self.own)) is not None:
+            keep[own] = False
+        self.bodies = ids[keep]
         self.model = model
 
     def nearer(self, data: mujoco.MjData, origin: np.ndarray, dirs: np.ndarray,
@@ -106,6 +109,28 @@ class OtherRobots:
 
 
 PAIR_MARGIN = 1e-3  # rad of heading around a robot's disc whose beams are computed
+
+
+def _bases_in(model: mujoco.MjModel, swarm: Sequence[RobotModel]
+              ) -> tuple[np.ndarray, dict[str, int]]:
+    """(the base body id in ``model`` of every robot of ``swarm``, in its order, -1 for one
+    not in the world now; each robot's place in it by name), looked up once per model and
+    swarm of the process: every lidar asks (a thousand lidars looked up a million names)."""
+    key = (id(model), id(swarm))
+    held = _BASE_IDS.get(key)
+    if held is None or held[0] is not model or held[1] is not swarm:
+        ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, r.base)
+                        for r in swarm], dtype=np.int64)
+        held = (model, swarm, ids, {r.name: i for i, r in enumerate(swarm)})
+        if len(_BASE_IDS) >= 4:
+            _BASE_IDS.clear()
+        _BASE_IDS[key] = held
+    return held[2], held[3]
+
+
+_BASE_IDS: dict[tuple[int, int], tuple] = {}
+"""_bases_in by (model, swarm) id, each kept with its model and swarm (their ids are not
+reused meanwhile)."""
 
 
 class StaticWorld:
