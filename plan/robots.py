@@ -76,14 +76,14 @@ class RobotsLayout:
         """The robots' names in order (those that enter during the run too)."""
         return [r.name for r in self.robots]
 
-    @property
+    @functools.cached_property  # made once: every robot's node asks (a walk of every robot)
     def at_start(self) -> RobotsLayout:
         """The layout of the robots in the world at time 0 (the world the run starts with)."""
         if all(r.enter_ns == 0 for r in self.robots):
             return self
         return replace(self, robots=tuple(r for r in self.robots if r.enter_ns == 0))
 
-    @property
+    @functools.cached_property  # made once, as at_start
     def everyone(self) -> RobotsLayout:
         """The layout with every robot at time 0 (to read each robot's names from)."""
         if all(r.enter_ns == 0 and r.leave_ns is None for r in self.robots):
@@ -108,8 +108,10 @@ class RobotsLayout:
 
     def __getstate__(self) -> dict:
         """What a pickle keeps: not the hash, which is of this process (str hashes are
-        salted per process) and is worked out again where it is unpickled."""
-        return {k: v for k, v in self.__dict__.items() if k != "_hash"}
+        salted per process) and is worked out again where it is unpickled, nor the layouts
+        made from this one (made again where asked)."""
+        return {k: v for k, v in self.__dict__.items()
+                if k not in ("_hash", "at_start", "everyone")}
 
     @functools.cached_property
     def _by_name(self) -> dict[str, RobotPlacement]:
