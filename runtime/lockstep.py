@@ -41,6 +41,7 @@ from runtime.protocol import (
     Command,
     CommandMessage,
     Done,
+    MetricChanges,
     Status,
     decode_clock,
     decode_command,
@@ -130,6 +131,7 @@ class LockstepRuntime:
         self.step_delay_s = (self.plan.spec.debug.step_delay or 0) / 1e9
         self.clocks: deque[int] = deque()  # ticks announced, by /clock or by a driving input
         self.unreported: list[Done] = []  # activations served since the last 'done' report
+        self.metric_changes = MetricChanges()
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
         self._last_start_report = -STATUS_PERIOD_S
@@ -300,6 +302,7 @@ class LockstepRuntime:
             for topic, channel in self.inputs.items():
                 channel.rebase(message.sent.get(topic, 0))
             self.clocks.clear()
+            self.metric_changes.restart()
             self.activation.restart(self.scenario.model.seed)
             if self.recorder:
                 self.recorder.truncate()
@@ -378,8 +381,9 @@ class LockstepRuntime:
             now = self.timing.add("record", now)
         digest = output_digest(tick.index, items).hex()
         self.timing.add("digest", now)
-        self.unreported.append(Done(self.name, tick.index, digest, step_ns,
-                                    {k: float(v) for k, v in self.node.metrics().items()}))
+        metrics, full = self.metric_changes.report(
+            {k: float(v) for k, v in self.node.metrics().items()})
+        self.unreported.append(Done(self.name, tick.index, digest, step_ns, metrics, full))
         if len(self.unreported) >= MAX_BATCH:
             self.report_done()
 

@@ -10,7 +10,9 @@
   starting (``waiting`` with the unmatched topics, then ``ready``), after its activations
   (``done``: the ticks it served since its last report, space-separated and aligned: ``ticks``,
   ``digests`` of what it published, ``step_ns``, and one ``metric.<name>`` per metric, ``-``
-  where a tick did not report it; one report covers every tick served in one wake-up), and
+  where a tick did not report it; ``changed`` marks with 1 the ticks that carry only the
+  metrics changed since the node's previous activation (``MetricChanges``), the others carry
+  them all (no ``changed``: all do); one report covers every tick served in one wake-up), and
   on failure (``error`` with the exception and a traceback excerpt).
 """
 
@@ -20,6 +22,7 @@ import json
 import struct
 from dataclasses import dataclass, field
 from enum import Enum
+from math import copysign
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.serialization import deserialize_message, serialize_message
@@ -99,13 +102,16 @@ def decode_clock(data: bytes) -> int:
 
 @dataclass(slots=True)
 class Done:
-    """One activation a node reports as done: its tick, output digest, step time, metrics."""
+    """One activation a node reports as done: its tick, output digest, step time, metrics
+    (on the wire, with ``full`` false, only those changed since the node's previous
+    activation; ``MetricBook`` completes them where they are read)."""
 
     node: str
     tick: int
     digest: str
     step_ns: int = 0
     metrics: dict[str, float] = field(default_factory=dict)
+    full: bool = True
 
 
 @dataclass
@@ -126,6 +132,8 @@ def done_status(node: str, done: list[Done]) -> Status:
     values = {"ticks": " ".join(str(d.tick) for d in done),
               "digests": " ".join(d.digest for d in done),
               "step_ns": " ".join(str(d.step_ns) for d in done)}
+    if not all(d.full for d in done):
+        values["changed"] = " ".join("0" if d.full else "1" for d in done)
     names = sorted({key for d in done for key in d.metrics})
     for key in names:
         values[f"metric.{key}"] = " ".join(repr(float(d.metrics[key])) if key in d.metrics
@@ -139,6 +147,9 @@ def _parse_done(status: Status) -> list[Done]:
     digests = values.get("digests", "").split()
     steps = values.get("step_ns", "").split()
     done = [Done(node, int(t), d, int(s)) for t, d, s in zip(ticks, digests, steps, strict=True)]
+    if "changed" in values:
+        for entry, flag in zip(done, values["changed"].split(), strict=True):
+            entry.full = flag == "0"
     for key, column in values.items():
         if key.startswith("metric."):
             name = key[7:]
@@ -146,6 +157,50 @@ def _parse_done(status: Status) -> list[Done]:
                 if value != "-":
                     entry.metrics[name] = float(value)
     return done
+
+
+class MetricChanges:
+    """A node's side of its metric reports: each activation reports only the metrics that
+    changed since the previous one (a swarm's physics node has hundreds, most of them the
+    same from tick to tick: encoding and decoding them all cost more than its step's share);
+    all of them at the first activation, after a restart and when one went away."""
+
+    def __init__(self) -> None:
+        self.last: dict[str, float] | None = None
+
+    def restart(self) -> None:
+        """The node starts over: the next activation reports every metric."""
+        self.last = None
+
+    def report(self, metrics: dict[str, float]) -> tuple[dict[str, float], bool]:
+        """What to report of this activation's ``metrics``, and whether it is all of them."""
+        last, self.last = self.last, metrics
+        if last is None or not last.keys() <= metrics.keys():
+            return metrics, True
+        return {k: v for k, v in metrics.items()
+                if (old := last.get(k)) is None or old != v
+                or (v == 0.0 and copysign(1.0, v) != copysign(1.0, old))}, False  # -0.0
+
+
+class MetricBook:
+    """The orchestrator's side: puts each reported activation's whole set of metrics back
+    into ``Done.metrics`` from the node's previous set (reports of one node arrive in the
+    order it sent them)."""
+
+    def __init__(self) -> None:
+        self.last: dict[str, dict[str, float]] = {}
+
+    def complete(self, status: Status) -> None:
+        """Make every activation of a ``done`` report carry all of its node's metrics."""
+        for done in status.done:
+            if done.full:
+                self.last[done.node] = done.metrics
+                continue
+            last = self.last.get(done.node, {})
+            if done.metrics:
+                last = {**last, **done.metrics}
+                self.last[done.node] = last
+            done.metrics, done.full = last, True
 
 
 def encode_status(status: Status) -> bytes:

@@ -7,7 +7,15 @@ import math
 
 import pytest
 
-from runtime.protocol import DONE, Done, decode_status, done_status, encode_status
+from runtime.protocol import (
+    DONE,
+    Done,
+    MetricBook,
+    MetricChanges,
+    decode_status,
+    done_status,
+    encode_status,
+)
 from tests.helpers import SCENARIOS, orchestrate
 
 PROTOCOL = SCENARIOS / "protocol.yaml"
@@ -21,6 +29,26 @@ def test_a_batch_of_done_reports_round_trips_through_diagnostic_status_bytes():
     assert decoded.state == DONE and decoded.node == "lidar" and decoded.tick == 15
     assert decoded.done == batch  # metrics absent at a tick stay absent, floats exact
     assert decoded.values["ticks"] == "5 10 15"  # readable with ROS tools
+
+
+def test_reports_carry_the_metrics_that_changed_and_the_orchestrator_completes_them():
+    steps = [{"a": 1.0, "b": 2.0}, {"a": 1.0, "b": 2.5}, {"a": 1.0, "b": 2.5, "c": 0.0},
+             {"a": 1.0, "b": 2.5, "c": -0.0}, {"a": math.nan, "b": 2.5, "c": -0.0},
+             {"b": 2.5}, {"b": 2.5}]  # 'a' and 'c' went away: all of them again
+    changes, book, sent = MetricChanges(), MetricBook(), []
+    for tick, metrics in enumerate(steps):
+        values, full = changes.report(dict(metrics))
+        sent.append(Done("p", tick, "ab" * 32, 1, values, full))
+    assert [len(d.metrics) for d in sent] == [2, 1, 1, 1, 1, 1, 0]
+    assert [d.full for d in sent] == [True, False, False, False, False, True, False]
+    for batch in (sent[:3], sent[3:4], sent[4:]):  # batches as reports of wake-ups
+        status = decode_status(encode_status(done_status("p", batch)))
+        book.complete(status)
+        for done, metrics in zip(status.done, steps[batch[0].tick:], strict=False):
+            assert done.full and {k: repr(v) for k, v in done.metrics.items()} == {
+                k: repr(v) for k, v in metrics.items()}
+    changes.restart()  # after a reset the first report carries them all
+    assert changes.report({"b": 2.5}) == ({"b": 2.5}, True)
 
 
 def test_status_bytes_are_what_rclpy_writes_and_read_back_from_rclpy_bytes():

@@ -41,6 +41,7 @@ from runtime.protocol import (
     Command,
     CommandMessage,
     Done,
+    MetricBook,
     Status,
     decode_status,
     encode_clock,
@@ -92,6 +93,7 @@ class LockstepMaster:
         self.status_sub = transport.subscription(STATUS_TOPIC, DiagnosticStatus, 10_000)
         self.stats = {name: NodeStats() for name in scenario.nodes}
         self.last_status: dict[str, Status] = {}
+        self.metric_book = MetricBook()  # reports carry the metrics that changed: all of them
         self.tick = -1
         self.participants = participants
         self.reader_of = {t: p for p in participants.values() for t in p.topics}
@@ -376,6 +378,7 @@ class LockstepMaster:
         for rec in self.transport.wait(wait_ns):
             if rec.topic == STATUS_TOPIC:
                 status = decode_status(rec.data)
+                self.metric_book.complete(status)
                 self.last_status[status.node] = status
                 if status.node in self.participants:
                     self.participants[status.node].see(status)
