@@ -119,6 +119,10 @@ class StepNode:
     """Top-level keys of ``Params`` that may change while the run goes (the node reads them
     from ``self.params`` at every step); the others are fixed once the node is set up."""
     type_keys: ClassVar[dict[str, str]] = {}  # topic -> the parameter that sets its type
+    shares_inputs: ClassVar[bool] = False
+    """Its step only reads the input messages it is given (never changes one, returns one as
+    an output or keeps one to change later): the nodes of one process that read the same
+    sample then get one decoded message between them (``runtime.exchange.SharedDecoder``)."""
     every_robot: ClassVar[bool] = False
     """The world node: one instance steps every robot of a swarm. It declares its topics for
     one robot; the plan publishes and feeds each robot's under the robot's namespace

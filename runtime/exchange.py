@@ -100,14 +100,41 @@ class RunDigest:
         return self._hash.hexdigest()
 
 
+class SharedDecoder:
+    """One decoded message per sample for the consumers in one process that share inputs
+    (``StepNode.shares_inputs``): every history of a topic is handed the very bytes object
+    that arrived (``runtime.shared_transport``, the in-process loop), so those bytes name the
+    sample; the newest few are kept with their message (keeping the bytes keeps their id)."""
+
+    KEEP = 8
+
+    def __init__(self) -> None:
+        self._recent: dict[int, tuple[bytes, type, Any]] = {}
+
+    def decode(self, data: bytes, msg_type: type) -> Any:
+        """The message of ``data``, decoded once while it is among the newest samples."""
+        hit = self._recent.get(id(data))
+        if hit is not None and hit[0] is data and hit[1] is msg_type:
+            return hit[2]
+        msg = decode(data, msg_type)
+        self._recent[id(data)] = (data, msg_type, msg)
+        if len(self._recent) > self.KEEP:
+            del self._recent[next(iter(self._recent))]
+        return msg
+
+
+SHARED_DECODER = SharedDecoder()  # this process's
+
+
 class InputHistory:
     """Samples of one input (producer tick, message), from which the schedule's pick is made."""
 
-    def __init__(self, topic: str, msg_type: type):
+    def __init__(self, topic: str, msg_type: type, shared: SharedDecoder | None = None):
         self.topic = topic
         self.msg_type = msg_type
         self.samples: deque[tuple[int, Any]] = deque()
         self._wanted = None  # () -> Schedule.wanted_samples of a windowed consumer's edge
+        self.shared = shared  # where a consumer that only reads its inputs decodes
 
     def keep_for(self, schedule, edge) -> None:
         """Keep only what the consumer of ``edge`` can still take in its window
@@ -157,6 +184,7 @@ class InputHistory:
             raise LookupError(f"{self.topic}: no sample of tick {tick} (have {have})")
         sample = self.samples[0][1]
         if isinstance(sample, bytes):  # the same bytes every transport delivers
-            sample = decode(sample, self.msg_type)
+            sample = (decode(sample, self.msg_type) if self.shared is None
+                      else self.shared.decode(sample, self.msg_type))
             self.samples[0] = (tick, sample)
         return sample

@@ -25,7 +25,7 @@ from nodes.live_params import ParamsInput
 from plan.gates import ack_topic
 from runtime.activation import Activation
 from runtime.disk import WriteFailed
-from runtime.exchange import InputHistory, output_digest
+from runtime.exchange import SHARED_DECODER, InputHistory, output_digest
 from runtime.gated_output import ACK_TYPE, GatedChannel, SequenceError, decode_ack
 from runtime.intruders import explain_gap
 from runtime.notes import Note, NoteWriter
@@ -146,6 +146,15 @@ class LockstepRuntime:
     def node(self, node: StepNode | None) -> None:
         self.activation = (Activation(self.plan, node, self.write_note, ParamsInput.of(self.plan))
                            if node is not None else None)
+        self._share_inputs()
+
+    def _share_inputs(self) -> None:
+        """A node that only reads its inputs decodes each sample in the process's shared
+        decoder: the nodes packed with it that read the same sample get the same message."""
+        node = self.activation.node if self.activation is not None else None
+        shared = SHARED_DECODER if node is not None and node.shares_inputs else None
+        for channel in getattr(self, "inputs", {}).values():
+            channel.history.shared = shared
 
     def _wire(self) -> None:
         sched, plan = self.sched, self.plan
@@ -187,6 +196,7 @@ class LockstepRuntime:
         self.command_sub = self.transport.subscription(COMMAND_TOPIC, String, 10)
         self.sent = {t: 0 for t in self.publishers}
         self.status_pub = self.transport.publisher(STATUS_TOPIC, DiagnosticStatus, 1000)
+        self._share_inputs()
 
     # -- start ---------------------------------------------------------------------------
 

@@ -118,3 +118,22 @@ def test_a_bad_spread_is_refused_with_exit_2(tmp_path, args):
     done = orchestrate(PROTOCOL, tmp_path, *args, "--quiet")
     assert done.code == 2 and "spread" in done.stderr and "pack kind" in done.stderr
     assert done.run_dir is None
+
+
+def test_nodes_that_only_read_their_inputs_share_one_decoded_sample():
+    from std_msgs.msg import Float64MultiArray
+
+    from runtime.cdr.encode import encode
+    from runtime.exchange import InputHistory, SharedDecoder
+
+    shared = SharedDecoder()
+    data = encode(Float64MultiArray(data=[1.0, 2.0]))
+    readers = [InputHistory("/w", Float64MultiArray, shared) for _ in range(3)]
+    own = InputHistory("/w", Float64MultiArray)  # a node that may change its inputs
+    for history in [*readers, own]:
+        history.push_bytes(0, data)
+    taken = [h.take(0) for h in readers]
+    assert taken[0] is taken[1] is taken[2] and list(taken[0].data) == [1.0, 2.0]
+    assert own.take(0) is not taken[0]
+    other = bytearray(data)  # equal bytes of another sample: decoded on their own
+    assert shared.decode(bytes(other), Float64MultiArray) is not taken[0]

@@ -118,6 +118,7 @@ class ControlNode(StepNode):
 
     Params = ControlParams
     needs_world = True
+    shares_inputs = True
     runtime_params = frozenset({
         "max_speed", "min_speed", "max_turn", "lookahead", "min_turn_radius",
         "rotate_threshold", "turn_gain", "approach_gain", "stop_time", "horizon",

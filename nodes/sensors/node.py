@@ -45,6 +45,7 @@ class SensorsNode(StepNode):
 
     Params = SensorsParams
     needs_world = True
+    shares_inputs = True  # the world state 64 lidars of a process read: decoded once
 
     @classmethod
     def outputs(cls, params: SensorsParams) -> dict[str, type]:

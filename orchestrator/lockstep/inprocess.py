@@ -14,7 +14,7 @@ from plan.roles import NodeRole
 from plan.scenario import Scenario
 from runtime.activation import Activation
 from runtime.build import make_node
-from runtime.exchange import InputHistory, RunDigest, output_digest
+from runtime.exchange import InputHistory, RunDigest, SharedDecoder, output_digest
 from runtime.notes import Note
 
 Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
@@ -34,7 +34,10 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     activations = {name: Activation(scenario.nodes[name], nodes[name], notes.append,
                                     ParamsInput.of(scenario.nodes[name]))
                    for name in sched.order}
-    histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type)
+    shared = SharedDecoder()  # one message per sample for the nodes that only read theirs
+    readers = {name for name, node in nodes.items() if node.shares_inputs}
+    histories = {(plan.name, inp.topic): InputHistory(inp.graph_topic, inp.msg_type,
+                                                      shared if plan.name in readers else None)
                  for plan in scenario.nodes.values() for inp in plan.inputs}
     for plan in scenario.nodes.values():  # a dormant node keeps no samples
         for edge, inp in zip(sched.inputs_of[plan.name], plan.inputs, strict=True):
