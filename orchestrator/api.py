@@ -204,7 +204,8 @@ def load(scenario: str | Path | Scenario, *, events: list[Event] | None = None,
 def run(scenario: str | Path | Scenario, *, in_process: bool = False,
         out: str | Path = "runs", check: bool = True, options: RunOptions | None = None,
         external: Arrivals | Replay | None = None, real_time_factor: float | None = None,
-        events: list[Event] | None = None, **overrides: Any) -> FinishedRun:
+        events: list[Event] | None = None, picture: bool | None = None,
+        **overrides: Any) -> FinishedRun:
     """Run a scenario (a file or a loaded Scenario) and return its FinishedRun.
 
     ``in_process=True`` steps every node in this process with no transport (the reference,
@@ -221,11 +222,15 @@ def run(scenario: str | Path | Scenario, *, in_process: bool = False,
     time; ``RunOptions.real_time_factor``): the same digest, in sim time / R of wall time.
     ``events`` (``spawn_robot``, ``spawn_robot_swarm``, ``spawn_object``, ``delete``) are
     added to the scenario's own: each happens at its tick, the same in every driver.
+    ``picture=False`` leaves report.png out (``RunOptions.picture``: about a CPU second a
+    run, for programs that run many).
     """
     loaded = load(scenario, events=events, **overrides)
     chosen = (options or RunOptions()).with_(out=Path(out), in_process=in_process)
     if real_time_factor is not None:
         chosen = chosen.with_(real_time_factor=real_time_factor)
+    if picture is not None:
+        chosen = chosen.with_(picture=picture)
     outcome = execute(loaded, chosen, external=external)
     for text in outcome.warnings:
         warnings.warn(text, ScenarioWarning, stacklevel=2)

@@ -24,7 +24,7 @@ PROTOCOL = SCENARIOS / "protocol.yaml"
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> FinishedRun:
     """One in-process run of the protocol scenario with seed 3."""
-    return run(PROTOCOL, in_process=True, seed=3, out=tmp_path_factory.mktemp("ref"))
+    return run(PROTOCOL, in_process=True, seed=3, out=tmp_path_factory.mktemp("ref"), picture=False)
 
 
 def test_overrides_for_turns_keywords_into_dotted_keys():
@@ -64,7 +64,7 @@ def test_run_result_has_status_digest_metrics_and_typed_messages(reference):
 
 def test_multi_process_run_gives_the_in_process_digest(reference, tmp_path):
     """Every node its own process, lockstep over ROS 2: the same digest as in-process."""
-    result = run(PROTOCOL, seed=3, out=tmp_path)
+    result = run(PROTOCOL, seed=3, out=tmp_path, picture=False)
     assert result.status == "success" and result.digest == reference.digest
     assert result.manifest["transport"] == "ros2"
 
@@ -72,14 +72,16 @@ def test_multi_process_run_gives_the_in_process_digest(reference, tmp_path):
 def test_errors_are_the_cli_exceptions(tmp_path):
     """Bad input is ScenarioError (nothing written); a failing node is SimulationError."""
     with pytest.raises(ScenarioError, match="nodes.nope"):
-        run(PROTOCOL, in_process=True, out=tmp_path, overrides={"nodes.nope.rate": 10})
+        run(PROTOCOL, in_process=True, out=tmp_path, overrides={"nodes.nope.rate": 10},
+            picture=False)
     with pytest.raises(ScenarioError, match="foreign programs"):
-        run(ROOT / "scenarios" / "nav_foreign.yaml", in_process=True, out=tmp_path)
+        run(ROOT / "scenarios" / "nav_foreign.yaml", in_process=True, out=tmp_path, picture=False)
     assert not list(tmp_path.iterdir())
     faulty = {"nodes.sink.kind": "faulty", "nodes.sink.params.fail_at": 5}
     with pytest.raises(SimulationError, match="sink"):
-        run(PROTOCOL, in_process=True, out=tmp_path, overrides=faulty)
-    failed = run(PROTOCOL, in_process=True, out=tmp_path, check=False, overrides=faulty)
+        run(PROTOCOL, in_process=True, out=tmp_path, overrides=faulty, picture=False)
+    failed = run(PROTOCOL, in_process=True, out=tmp_path, check=False, overrides=faulty,
+                 picture=False)
     assert failed.status == "failed" and failed.exit_code == EXIT_CODES["failed"] == 3
     assert failed.digest is None and "sink" in failed.error
 
@@ -98,13 +100,13 @@ def test_first_difference_names_topic_and_tick(reference, tmp_path):
     assert first_difference(entries, entries) is None
     assert first_difference(fingerprint_entries(fingerprint(entries)), entries) is None
     changed = run(PROTOCOL, in_process=True, seed=3, out=tmp_path,
-                  params={"sink": {"noise": 5}})
+                  params={"sink": {"noise": 5}}, picture=False)
     other, _ = run_dir_entries(changed.run_dir)
     diff = first_difference(entries, other, tick_ns)
     assert (diff.topic, diff.kind) == ("/sink", "differs")
     assert diff == first_difference(fingerprint_entries(fingerprint(entries)), other, tick_ns)
     assert f"topic /sink at tick {diff.tick}" in diff.describe()
-    shorter = run(PROTOCOL, in_process=True, seed=3, out=tmp_path, duration="0.5s")
+    shorter = run(PROTOCOL, in_process=True, seed=3, out=tmp_path, duration="0.5s", picture=False)
     cut, _ = run_dir_entries(shorter.run_dir)
     assert first_difference(entries, cut).describe() == (
         "topic /middle at tick 51: the reference run has a message here, this run has none")
@@ -184,3 +186,12 @@ def test_cli_rendered_psnr_floor_compares_the_images_frame_by_frame(nav_referenc
     assert "/camera/color/image_raw: 3 frames, all identical" in depth.stderr
     assert "/camera/depth/image_rect: lowest " in depth.stderr
     assert main([str(NAV), "--out", str(tmp_path), "--rendered-psnr", "40"]) == 2
+
+
+def test_run_without_its_picture(tmp_path):
+    """``run(picture=False)``: no report.png (RunOptions.picture), the same digest."""
+    bare = run(SCENARIOS / "protocol.yaml", in_process=True, out=tmp_path / "bare",
+               picture=False)
+    drawn = run(SCENARIOS / "protocol.yaml", in_process=True, out=tmp_path / "drawn")
+    assert not (bare.run_dir / "report.png").exists()
+    assert (drawn.run_dir / "report.png").exists() and bare.digest == drawn.digest

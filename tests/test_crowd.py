@@ -42,7 +42,7 @@ def closest_approach(run_dir) -> float:
 def crowd_run(scenario, tmp_path, **overrides):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return run(scenario, in_process=True, out=tmp_path, check=True, **overrides)
+        return run(scenario, in_process=True, out=tmp_path, check=True, **overrides, picture=False)
 
 
 @pytest.mark.parametrize("scenario", [DOOR, PLAZA], ids=["door_swap", "plaza"])
@@ -136,7 +136,7 @@ def test_robots_that_enter_are_seen_by_the_crowd(monkeypatch, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         done = run(DOOR, in_process=True, events=[late], duration="2s", check=True,
-                   out=tmp_path)
+                   out=tmp_path, picture=False)
     assert done.status in ("success", "goal_not_met")
     assert views[("robot_0", 0)] == {8} and views[("robot_0", 1)] == {9}
     assert views[("late", 1)] == {9} and ("late", 0) not in views

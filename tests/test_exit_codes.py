@@ -105,7 +105,7 @@ def test_every_front_end_refuses_out_naming_a_file_before_anything(tmp_path):
     file = tmp_path / "taken"
     file.write_text("mine")
     with pytest.raises(ValueError, match="is a file"):
-        run(tiny(tmp_path), in_process=True, out=file)
+        run(tiny(tmp_path), in_process=True, out=file, picture=False)
     assert file.read_text() == "mine"
 
 

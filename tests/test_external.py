@@ -45,9 +45,9 @@ def replay(tick: int) -> dict:
 
 def test_the_same_arrivals_give_one_digest_multi_and_in_process(tmp_path):
     path = nav_with_goal_input(tmp_path)
-    multi = run(path, out=tmp_path / "m", external=replay, check=True)
-    inproc = run(path, in_process=True, out=tmp_path / "i", external=replay)
-    plain = run(path, in_process=True, out=tmp_path / "p")
+    multi = run(path, out=tmp_path / "m", external=replay, check=True, picture=False)
+    inproc = run(path, in_process=True, out=tmp_path / "i", external=replay, picture=False)
+    plain = run(path, in_process=True, out=tmp_path / "p", picture=False)
     assert multi.digest == inproc.digest != plain.digest
     goals = [(stamp, msg.header.frame_id, msg.pose.position.x)
              for stamp, msg in multi.messages("/goal_pose")]
@@ -95,7 +95,7 @@ def test_live_arrivals_mid_run_enter_at_that_tick_and_replay(tmp_path):
     arrivals = SentMidRun(scenario.nodes["external"].outputs, at=scenario.schedule.last_tick // 2)
     sender = threading.Thread(target=client, args=(arrivals,), daemon=True)
     sender.start()
-    live = run(scenario, out=tmp_path / "live", external=arrivals)
+    live = run(scenario, out=tmp_path / "live", external=arrivals, picture=False)
     sender.join(timeout=120)
     assert arrivals.reached_tick is not None and arrivals.reached_tick > 0
     published = [(stamp // scenario.tick_ns, msg.header.frame_id)
@@ -109,14 +109,15 @@ def test_live_arrivals_mid_run_enter_at_that_tick_and_replay(tmp_path):
     def again(tick: int) -> dict:
         return {"/goal_pose": goal(-3.0, 0.5)} if tick == entered[0] else {}
 
-    replayed = run(scenario, in_process=True, out=tmp_path / "again", external=again)
+    replayed = run(scenario, in_process=True, out=tmp_path / "again", external=again, picture=False)
     assert replayed.digest == live.digest
     # and from the run directory alone: the arrivals it recorded, as they arrived
     again_dir = api.replay(live.run_dir, in_process=True, out=tmp_path / "replay")
     assert again_dir.digest == live.digest
     period = scenario.nodes["external"].period_ticks
     earlier = run(scenario, in_process=True, out=tmp_path / "earlier",
-                  external=lambda tick: again(tick + period))  # one external tick early
+                  external=lambda tick: again(tick + period),
+                  picture=False)  # one external tick early
     assert earlier.digest != live.digest  # the tick it entered at is part of the run
 
 

@@ -70,7 +70,7 @@ def test_foxglove_client_follows_nav_and_the_digest_is_unchanged(tmp_path):
     assert not [e for e in got["errors"] if "opcode" not in e]  # 5: playback state, newer
     live = manifest(tmp_path / "runs")
     assert live["live"]["foxglove"]["clients"] == 1
-    reference = run(scenario, in_process=True, out=tmp_path / "reference")
+    reference = run(scenario, in_process=True, out=tmp_path / "reference", picture=False)
     assert live["digest"] == reference.digest
 
 
@@ -123,7 +123,7 @@ def test_three_image_clients_one_stuck_change_nothing(tmp_path):
     # The peak depends on the machine's load (245 MB alone on a 2-core machine, 779 MB with the
     # test suite's two workers and other jobs beside it: the clients' threads and buffers)
     assert ran["orchestrator"]["peak_rss_mb"] < 1500
-    reference = run(scenario, in_process=True, out=tmp_path / "reference")
+    reference = run(scenario, in_process=True, out=tmp_path / "reference", picture=False)
     assert ran["digest"] == reference.digest
 
 

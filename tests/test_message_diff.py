@@ -93,7 +93,8 @@ def test_two_bags_that_differ_in_one_field(tmp_path):
 
 
 def test_against_names_the_field_and_both_values_end_to_end(tmp_path):
-    reference = run(PROTOCOL, in_process=True, seed=3, duration="0.1s", out=tmp_path / "ref")
+    reference = run(PROTOCOL, in_process=True, seed=3, duration="0.1s", out=tmp_path / "ref",
+                    picture=False)
     other = orchestrate(PROTOCOL, tmp_path / "other", "--in-process", "--seed", "4",
                         "--duration", "0.1s", "--quiet", "--against", str(reference.run_dir))
     assert other.code == 4, other.stderr

@@ -105,7 +105,7 @@ def test_the_scenario_warns_at_load_naming_the_obstacles(pen_nav):
 
 def test_in_process_run_notes_and_warns_and_strict_refuses(pen_nav, tmp_path):
     with pytest.warns(ScenarioWarning, match="no way to the goal"):
-        result = run(NAV, in_process=True, out=tmp_path / "runs", overrides=pen_nav)
+        result = run(NAV, in_process=True, out=tmp_path / "runs", overrides=pen_nav, picture=False)
     assert result.status == "goal_not_met"
     [note] = result.notes
     assert (note.node, note.tick) == ("control", 0) and "closing the way" in note.text
@@ -114,7 +114,7 @@ def test_in_process_run_notes_and_warns_and_strict_refuses(pen_nav, tmp_path):
     assert "note: control at tick 0 (0.000 s): no path from (-3.00, -3.00)" in log
     with pytest.raises(ScenarioError, match="refused by --strict") as refused:
         run(NAV, in_process=True, out=tmp_path / "strict", overrides=pen_nav,
-            options=RunOptions(strict=True))
+            options=RunOptions(strict=True), picture=False)
     assert refused.value.key == "goal" and not (tmp_path / "strict").exists()
 
 

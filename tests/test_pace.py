@@ -71,7 +71,7 @@ def test_a_paced_multi_process_run_holds_back_clock_and_gives_the_unpaced_digest
 def test_the_run_api_paces_and_records_the_factor(tmp_path):
     started = time.monotonic()
     result = run(PROTOCOL, in_process=True, out=tmp_path, real_time_factor=4.0,
-                 duration="0.5s")
+                 duration="0.5s", picture=False)
     assert time.monotonic() - started >= 0.5 / 4.0
     assert result.manifest["options"]["real_time_factor"] == 4.0
     assert result.manifest["loop_real_time_factor"] <= 4.0 * 1.05

@@ -170,7 +170,7 @@ def test_the_mesh_robot_runs_and_describe_draws_its_colours(tmp_path):
 
     from orchestrator.api import run
 
-    result = run(MESHBOT_RUN, in_process=True, out=tmp_path)
+    result = run(MESHBOT_RUN, in_process=True, out=tmp_path, picture=False)
     assert result.success, result.error
     assert list(result.last("/joint_states").position) == pytest.approx([0.8], abs=0.05)
     png = tmp_path / "meshbot.png"

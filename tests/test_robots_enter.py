@@ -67,13 +67,14 @@ def test_a_robots_nodes_act_only_while_it_is_in_the_world(counted):
 def test_one_digest_in_process_multi_process_and_packed_by_kind(counted, tmp_path):
     """Independent runs of the same 2 s: every node its own process, and packed by kind."""
     _, _, _, reference = counted
-    separate = run(SCENARIO, out=tmp_path, duration="2s")
-    packed = run(SCENARIO, out=tmp_path, duration="2s", options=RunOptions(pack="kind"))
+    separate = run(SCENARIO, out=tmp_path, duration="2s", picture=False)
+    packed = run(SCENARIO, out=tmp_path, duration="2s", options=RunOptions(pack="kind"),
+                 picture=False)
     assert separate.digest == packed.digest == reference
 
 
 def test_the_robot_that_entered_reaches_its_goal(tmp_path):
-    result = run(SCENARIO, in_process=True, out=tmp_path, duration="4s")
+    result = run(SCENARIO, in_process=True, out=tmp_path, duration="4s", picture=False)
     metrics = result.metrics
     assert metrics["late/arrived"] == 1.0, metrics
     assert 1.0 < metrics["late/time_to_goal"] < 4.0
@@ -162,7 +163,7 @@ def test_events_from_python_are_those_of_the_file(counted, tmp_path):
                           description=robots / "usd/mybot_isaac.usda",
                           usd={"wheels": wheels, "sensors": {"lidar": "base_scan"}}),
               delete("gone", at="1200ms")]
-    result = run(bare, in_process=True, out=tmp_path, duration="2s", events=events)
+    result = run(bare, in_process=True, out=tmp_path, duration="2s", events=events, picture=False)
     assert result.digest == counted[3]
 
 

@@ -37,7 +37,8 @@ FROM_START = ("robot_0", "robot_1")
 @pytest.fixture(scope="module")
 def entered(tmp_path_factory):
     """The scenario over 4 s in-process."""
-    return run(SCENARIO, in_process=True, out=tmp_path_factory.mktemp("runs"), duration="4s")
+    return run(SCENARIO, in_process=True, out=tmp_path_factory.mktemp("runs"), duration="4s",
+               picture=False)
 
 
 def test_a_robot_that_enters_reaches_its_goal_through_its_own_diff_drive_controller(entered):
@@ -65,7 +66,7 @@ def test_the_robots_there_from_the_start_drive_as_without_the_events(entered, tm
     """Up to late's enter tick (gone entered before it), bit for bit: a robot entering
     rebinds the others' hardware to the recompiled world and changes nothing of theirs."""
     alone = run(load_scenario(SCENARIO, {"events": []}), in_process=True, out=tmp_path,
-                duration="1s")
+                duration="1s", picture=False)
     for robot in FROM_START:
         for topic in (f"/{robot}/odom", f"/{robot}/{DDC}/odom"):
             reference = list(alone.messages(topic))
@@ -75,8 +76,8 @@ def test_the_robots_there_from_the_start_drive_as_without_the_events(entered, tm
 
 def test_one_digest_in_process_and_multi_process(tmp_path):
     """Independent runs of the same 2 s (both robots enter, one leaves)."""
-    reference = run(SCENARIO, in_process=True, out=tmp_path, duration="2s")
-    separate = run(SCENARIO, out=tmp_path, duration="2s")
+    reference = run(SCENARIO, in_process=True, out=tmp_path, duration="2s", picture=False)
+    separate = run(SCENARIO, out=tmp_path, duration="2s", picture=False)
     assert separate.digest == reference.digest
 
 

@@ -352,7 +352,7 @@ def test_the_nav_controller_reaches_the_goal_through_a_diff_drive_controller(
     the ground truth; one digest in-process and multi-process."""
     from orchestrator.api import run
 
-    done = run(ROOT / "scenarios" / scenario, in_process=True, out=tmp_path / "a")
+    done = run(ROOT / "scenarios" / scenario, in_process=True, out=tmp_path / "a", picture=False)
     assert done.success
     with BagReader(done.run_dir / "bag") as bag:
         odom = message_class("nav_msgs/msg/Odometry")
@@ -373,6 +373,6 @@ def test_the_nav_controller_reaches_the_goal_through_a_diff_drive_controller(
     travelled = math.hypot(wx, wy)
     assert abs(travelled - math.hypot(tx - sx, ty - sy)) < 0.3, (travelled, tx, ty)
     short = run(ROOT / "scenarios" / scenario, in_process=True, out=tmp_path / "b",
-                duration="4s")
-    multi = run(ROOT / "scenarios" / scenario, out=tmp_path / "c", duration="4s")
+                duration="4s", picture=False)
+    multi = run(ROOT / "scenarios" / scenario, out=tmp_path / "c", duration="4s", picture=False)
     assert multi.digest == short.digest

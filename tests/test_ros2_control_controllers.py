@@ -190,7 +190,7 @@ def test_group_controllers_drive_position_velocity_and_effort_joints(tmp_path):
                 "/spin/commands": Float64MultiArray(data=[1.0]),
                 "/push/commands": Float64MultiArray(data=[0.5])}
     done = run(arm_scenario(tmp_path), in_process=True, out=tmp_path / "runs",
-               external=lambda k: commands if k >= 1 else {})
+               external=lambda k: commands if k >= 1 else {}, picture=False)
     with BagReader(done.run_dir / "bag") as bag:
         states = [m for _, m in bag.messages("/joint_states",
                                              message_class("sensor_msgs/msg/JointState"))]

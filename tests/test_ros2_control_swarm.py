@@ -27,7 +27,7 @@ def test_four_urdf_robots_reach_their_goals_through_their_own_diff_drive_control
     for robot in ROBOTS:
         assert graph[f"/{robot}/controller_manager/cosim/switch"] == "external"
         assert graph[f"/{robot}/diff_drive_controller/cmd_vel"] == f"control@{robot}"
-    done = run(SWARM, in_process=True, out=tmp_path / "a")
+    done = run(SWARM, in_process=True, out=tmp_path / "a", picture=False)
     assert done.success
     metrics = done.outcome.result.metrics
     assert metrics["physics"]["robots_arrived"] == 4.0

@@ -97,7 +97,7 @@ def test_roslibjs_and_roslibpy_drive_a_lockstep_run_that_replays(tmp_path):
     assert speeds[0] == 0.0 and speeds[-1] == 0.5
     replayed = run(loaded, in_process=True, out=tmp_path / "replay",
                    external=replay_of(run_dir(tmp_path / "runs") / "bag", "/cmd_vel",
-                                      loaded.tick_ns))
+                                      loaded.tick_ns), picture=False)
     assert replayed.digest == first["digest"]
     # --replay from the run directory alone: the client publishes recorded as they arrived
     again = api.replay(run_dir(tmp_path / "runs"), in_process=True, out=tmp_path / "again")

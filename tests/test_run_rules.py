@@ -69,15 +69,16 @@ def test_cli_prints_the_scenario_warnings(tmp_path):
 
 def test_api_refuses_what_the_cli_refuses(tmp_path):
     with pytest.raises(ScenarioError, match="foreign ROS 2 programs"):
-        run(variant(tmp_path, ECHO, transport="zenoh"), out=tmp_path / "a")
+        run(variant(tmp_path, ECHO, transport="zenoh"), out=tmp_path / "a", picture=False)
     with pytest.raises(ScenarioError, match="in-process runs step classes only"):
-        run(ECHO, in_process=True, out=tmp_path / "b")
+        run(ECHO, in_process=True, out=tmp_path / "b", picture=False)
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
 def test_api_issues_the_scenario_warnings(tmp_path):
     with pytest.warns(ScenarioWarning, match="/slow_unread"):
-        result = run(with_unread_remap(tmp_path), in_process=True, out=tmp_path / "runs")
+        result = run(with_unread_remap(tmp_path), in_process=True, out=tmp_path / "runs",
+                     picture=False)
     assert result.manifest["warnings"] and "/slow_unread" in result.manifest["warnings"][0]
 
 
@@ -86,7 +87,7 @@ def test_api_applies_the_scenarios_zenoh_section(tmp_path, busy_port):
     # listen on a free port and succeed
     path = variant(tmp_path, PROTOCOL, transport="zenoh", duration="100ms",
                    zenoh={"listen": [f"tcp/127.0.0.1:{busy_port}"]})
-    result = run(path, out=tmp_path / "runs", check=False)
+    result = run(path, out=tmp_path / "runs", check=False, picture=False)
     assert result.status == "failed" and str(busy_port) in (result.error or ""), result.error
 
 
@@ -135,7 +136,7 @@ def test_a_program_is_gated_when_a_gate_serves_it(tmp_path, monkeypatch):
     assert (cat.gate, cat.role, cat.role.is_gated) == (None, NodeRole.UNGATED, False)
     with pytest.raises(ScenarioError, match="the RMW gate that serves other languages is not "
                                             "built"):
-        run(path, out=tmp_path / "r")
+        run(path, out=tmp_path / "r", picture=False)
     assert not (tmp_path / "r").exists()
     # the Python gate needs no build
     assert load_scenario(python).nodes["fusion"].role is NodeRole.PYTHON_GATE

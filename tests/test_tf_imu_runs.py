@@ -190,7 +190,7 @@ def test_every_frame_the_sensors_stamp_is_in_the_tf_tree(watched):
 
 
 def test_multi_process_digest_equals_in_process(watched, tmp_path):
-    reference = run(NAV, in_process=True, out=tmp_path, duration="1s")
+    reference = run(NAV, in_process=True, out=tmp_path, duration="1s", picture=False)
     assert watched.digest == reference.digest
 
 
@@ -271,7 +271,7 @@ def raw_messages(run_dir: Path, topic: str) -> list[bytes]:
 
 def test_imu_at_rest_in_the_bag_reads_gravity_and_its_noise_is_seeded(tmp_path):
     still = still_scenario(tmp_path)
-    runs = [run(still, in_process=True, out=tmp_path / str(i), seed=seed)
+    runs = [run(still, in_process=True, out=tmp_path / str(i), seed=seed, picture=False)
             for i, seed in enumerate((1, 1, 2))]
     imu = [raw_messages(r.run_dir, "/imu") for r in runs]
     assert len(imu[0]) == 101 and imu[0] == imu[1] and imu[0] != imu[2]
@@ -308,7 +308,7 @@ def test_twist_stamped_drives_the_robot_across_processes(tmp_path):
     reference = run(load_scenario(NAV, {
         "duration": "4s", "nodes.physics.params.enable_stamped_cmd_vel": True,
         "nodes.control.params.enable_stamped_cmd_vel": True}), in_process=True,
-        out=tmp_path / "in")
+        out=tmp_path / "in", picture=False)
     assert cli.manifest["digest"] == reference.digest
 
 
@@ -340,7 +340,7 @@ def test_a_reset_latches_tf_static_again_and_equals_a_fresh_run(tmp_path, ros_no
             proc.communicate()
     assert proc.returncode in (0, 1), err
     run_dir = next((tmp_path / "runs").glob("nav-*"))
-    reference = run(NAV, in_process=True, out=tmp_path / "in", duration="1s")
+    reference = run(NAV, in_process=True, out=tmp_path / "in", duration="1s", picture=False)
     assert reference.digest in out
     assert len(raw_messages(run_dir, "/tf_static")) == 1
     assert raw_messages(run_dir, "/tf_static") == raw_messages(reference.run_dir, "/tf_static")

@@ -214,7 +214,7 @@ def test_usd_robots_of_each_layout_reach_their_goals_alone_and_in_a_swarm(tmp_pa
     robots.description=robots/usd/..._LAYOUT.usda`` a user would give), in-process: the diff
     drive reaches nav's goal, the arm (alone, at the root, and two copies) its third target."""
     nav = run(ROOT / "scenarios" / "nav_usd_robot.yaml", in_process=True, out=tmp_path,
-              overrides={"robots.description": f"robots/usd/mybot_{layout}.usda"})
+              overrides={"robots.description": f"robots/usd/mybot_{layout}.usda"}, picture=False)
     assert nav.success and nav.metrics["mybot/arrived"] == 1.0
     assert nav.last("/joint_states").name == list(WHEELS)  # a lone robot: at the root
     description = nav.last("/robot_description").data
@@ -223,12 +223,13 @@ def test_usd_robots_of_each_layout_reach_their_goals_alone_and_in_a_swarm(tmp_pa
     arm_usd = ROOT / "scenarios" / "arm_usd.yaml"
     arm = {"robots.description": f"robots/usd/myarm_{layout}.usda",
            **ARM_COMMANDS.get(layout, {})}
-    alone = run(arm_usd, in_process=True, out=tmp_path, overrides=arm)
+    alone = run(arm_usd, in_process=True, out=tmp_path, overrides=arm, picture=False)
     assert alone.metrics["target"] == 2.0  # the third of three reached
     states = alone.last("/joint_states")
     assert states.name == ARM
     assert list(states.position) == pytest.approx(LAST_TARGET, abs=0.05)
-    swarm = run(arm_usd, in_process=True, out=tmp_path, overrides={**arm, "robots.named": ARMS})
+    swarm = run(arm_usd, in_process=True, out=tmp_path, overrides={**arm, "robots.named": ARMS},
+                picture=False)
     for name in ("arm_0", "arm_1"):
         assert swarm.metrics_by_node[f"arm@{name}"]["target"] == 2.0, name
         assert list(swarm.last(f"/{name}/joint_states").position) == pytest.approx(
@@ -245,9 +246,10 @@ def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp
                  "robots.named": None, "robots.count": 2, "robots.name_prefix": "bot",
                  "robots.region": {"x": [-3, 3], "y": [-3, 3]}}
     nav_usd = ROOT / "scenarios" / "nav_usd_robot.yaml"
-    one = run(nav_usd, in_process=True, out=tmp_path, duration="1s", overrides=overrides)
+    one = run(nav_usd, in_process=True, out=tmp_path, duration="1s", overrides=overrides,
+              picture=False)
     many = run(nav_usd, out=tmp_path, duration="1s", overrides=overrides,
-               options=RunOptions(pack="kind"))
+               options=RunOptions(pack="kind"), picture=False)
     assert one.digest == many.digest and one.ticks == 51
     static = {(t.header.frame_id, t.child_frame_id)
               for t in one.last("/tf_static").transforms}
@@ -256,9 +258,10 @@ def test_a_swarm_of_usd_robots_gives_one_digest_in_process_and_multi_process(tmp
     arms = {"robots.description": f"robots/usd/myarm_{layout}.usda", "robots.named": ARMS,
             **ARM_COMMANDS.get(layout, {})}
     arm_usd = ROOT / "scenarios" / "arm_usd.yaml"
-    one = run(arm_usd, in_process=True, out=tmp_path, duration="0.5s", overrides=arms)
+    one = run(arm_usd, in_process=True, out=tmp_path, duration="0.5s", overrides=arms,
+              picture=False)
     many = run(arm_usd, out=tmp_path, duration="0.5s", overrides=arms,
-               options=RunOptions(pack="kind"))
+               options=RunOptions(pack="kind"), picture=False)
     assert one.digest == many.digest and one.last("/arm_1/joint_states").name == ARM
 
 
@@ -431,7 +434,7 @@ def test_a_stage_referencing_a_usd_robot_runs_one_copy_per_prim(tmp_path):
     assert mujoco.mj_name2id(swarm, mujoco.mjtObj.mjOBJ_JOINT, "robot_7/wheel_left_joint") >= 0
     assert not [swarm.body(b).name for b in range(swarm.nbody)
                 if swarm.body(b).name.startswith("/World/Robots")]  # not imported by MuJoCo
-    result = run(scenario, in_process=True, out=tmp_path, duration="0.2s")
+    result = run(scenario, in_process=True, out=tmp_path, duration="0.2s", picture=False)
     assert result.ticks == 11 and result.last("/robot_3/odom") is not None
     doc = yaml.safe_load(scenario.read_text())
     doc.pop("robots")

@@ -170,7 +170,7 @@ def _rerun(tmp_path, scenario: str, exported, usd: dict | None):
     doc["world"] = str(SCENARIOS / doc["world"])
     path = tmp_path / f"exported_{scenario}"
     path.write_text(yaml.safe_dump(doc))
-    return run(path, in_process=True, out=tmp_path, duration="2s")
+    return run(path, in_process=True, out=tmp_path, duration="2s", picture=False)
 
 
 def _positions(done, topic: str) -> np.ndarray:
@@ -188,7 +188,7 @@ def _odometry(done, topic: str) -> np.ndarray:
 def test_export_usd_of_a_urdf_robot_runs_again_as_the_same_robot(tmp_path, scenario, robot,
                                                                   usd):
     first = run(SCENARIOS / scenario, in_process=True, out=tmp_path, duration="2s",
-                options=RunOptions(export_usd=True))
+                options=RunOptions(export_usd=True), picture=False)
     exported = first.run_dir / "robots" / f"{robot}.usda"
     assert (first.run_dir / "run.usda").is_file() and exported.is_file()
     again = _rerun(tmp_path, scenario, exported, usd)
@@ -235,7 +235,7 @@ def test_a_swarm_exports_one_robot_file_and_every_robot_in_run_usda(tmp_path):
 
     done = run(SCENARIOS / "swarm_urdf.yaml", in_process=True, out=tmp_path, duration="0.1s",
                options=RunOptions(export_usd=True), check=False,
-               overrides={"robots.count": 2})
+               overrides={"robots.count": 2}, picture=False)
     assert sorted(p.name for p in (done.run_dir / "robots").iterdir()) == ["mybot.usda"]
     stage = Usd.Stage.Open(str(done.run_dir / "run.usda"))
     bases = [UsdGeom.Xformable(stage.GetPrimAtPath(f"/World/bot_{i}/base_footprint"))

@@ -35,14 +35,14 @@ S = 1_000_000_000
 def short_run(tmp_path_factory):
     """spawn_short in-process: ball at 0.2 s, post at 0.4 s, ball deleted at 0.6 s."""
     result = run(SCENARIOS / "spawn_short.yaml", in_process=True,
-                 out=tmp_path_factory.mktemp("runs"))
+                 out=tmp_path_factory.mktemp("runs"), picture=False)
     assert result.success, result.error
     return result
 
 
 def test_a_box_spawned_in_front_of_the_nav_robot_is_driven_around(tmp_path):
     box = np.array([-0.3, -2.05])
-    result = run(SCENARIOS / "nav_spawn.yaml", in_process=True, out=tmp_path)
+    result = run(SCENARIOS / "nav_spawn.yaml", in_process=True, out=tmp_path, picture=False)
     assert result.success, result.error
     assert result.metrics["collisions"] == 0
     assert result.metrics["goal_reached"] == 1.0
@@ -187,7 +187,7 @@ def test_a_swarm_robots_lidar_sees_an_object_spawned_before_it(tmp_path):
                                                "size": [0.1, 1.0],
                                                "pose": {"x": ahead[0], "y": ahead[1]}}}]
     path.write_text(yaml.safe_dump(doc))
-    result = run(path, in_process=True, out=tmp_path / "runs")
+    result = run(path, in_process=True, out=tmp_path / "runs", picture=False)
     assert result.success, result.error
     scans = {t: np.frombuffer(m.ranges, dtype=np.float32)
              for t, m in result.messages("/robot_0/scan")}

@@ -80,6 +80,7 @@ def test_the_grid_search_needs_a_gap_wider_than_the_robot():
 
 def test_the_controller_drives_a_generated_world_to_its_goal(tmp_path):
     world = generate(5)  # rooms joined by doors
-    result = run(world.write(tmp_path / "world"), in_process=True, out=tmp_path / "runs")
+    result = run(world.write(tmp_path / "world"), in_process=True, out=tmp_path / "runs",
+                 picture=False)
     assert result.success, result.summary()
     assert result.metrics["collisions"] == 0 and result.notes == []
