@@ -59,7 +59,9 @@ if TYPE_CHECKING:
 POLL_NS = 100_000_000  # how often a waiting node checks for signals and its parent
 MAX_BATCH = 64  # activations per 'done' report, at most
 REPORT_LATEST_S = 0.05  # a step running this long first reports the activations before it
-STATUS_PERIOD_S = 0.05
+STATUS_PERIOD_S = 0.05  # how often a starting node checks its discovery
+HEARTBEAT_S = 1.0  # a starting node repeats an unchanged report this often: one sent before
+# the orchestrator's reader matched its publisher may be lost, and only changes are sent
 
 
 class NodeFailure(RuntimeError):
@@ -134,7 +136,9 @@ class LockstepRuntime:
         self.metric_changes = MetricChanges()
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
-        self._last_start_report = -STATUS_PERIOD_S
+        self._start_report: tuple[str, str] | None = None  # (state, unmatched) last sent
+        self._next_start_check = 0.0
+        self._next_heartbeat = 0.0
         self._wire()
 
     @property
@@ -285,14 +289,22 @@ class LockstepRuntime:
         """Nothing is announced and every publisher this node listens to has gone."""
         return not self.clocks and self.upstream_gone()
 
-    def report_start(self, now: float) -> None:
-        """Before the first tick: report waiting (naming what is unmatched) or ready, at
-        most every STATUS_PERIOD_S."""
-        if now - self._last_start_report >= STATUS_PERIOD_S:
+    def report_start(self, now: float, period: float = STATUS_PERIOD_S) -> None:
+        """Before the first tick: check discovery every ``period`` and report waiting
+        (naming what is unmatched) or ready when that changed, or HEARTBEAT_S after the
+        last report. Once ready it checks no more: the orchestrator counts a node ready
+        from its first 'ready' report."""
+        if now < self._next_start_check:
+            return
+        self._next_start_check = now + period
+        report = self._start_report
+        if report is None or report[0] != READY:
             missing = self.unmatched()
-            self.report(Status(self.name, WAITING if missing else READY,
-                               detail="; ".join(missing)))
-            self._last_start_report = now
+            report = (WAITING if missing else READY, "; ".join(missing))
+        if report != self._start_report or now >= self._next_heartbeat:
+            self.report(Status(self.name, report[0], detail=report[1]))
+            self._start_report = report
+            self._next_heartbeat = now + HEARTBEAT_S
 
     def on_command(self, message: CommandMessage) -> None:
         """Handle the orchestrator's reset handshake (see runtime.protocol)."""

@@ -12,8 +12,10 @@ from __future__ import annotations
 import signal
 import time
 
-from runtime.lockstep import POLL_NS, LockstepRuntime
+from runtime.lockstep import POLL_NS, STATUS_PERIOD_S, LockstepRuntime
 from runtime.shared_transport import SharedTransport
+
+START_CHECKS = 64  # discovery checks of starting runtimes per STATUS_PERIOD_S, at most
 
 
 class PackedRuntimes:
@@ -30,10 +32,14 @@ class PackedRuntimes:
         try:
             while not self.stop_requested:
                 now = time.monotonic()
+                # a thousand starting nodes checking every topic's matches each period kept
+                # the process busy: they share a budget of checks instead
+                starting = len(self.runtimes) - len(self._started)
+                period = STATUS_PERIOD_S * max(1.0, starting / START_CHECKS)
                 for rt in self.runtimes:
                     if rt.name not in self._started:
                         if not rt.clocks:
-                            rt.report_start(now)
+                            rt.report_start(now, period)
                             continue
                         self._started.add(rt.name)
                         rt.timing.start()
