@@ -136,6 +136,7 @@ class LockstepRuntime:
         self.metric_changes = MetricChanges()
         self.alarm = False  # SIGALRM reports them during a slow step (install_stop_handlers)
         self.timing = TimeSplit()  # wall time per part of the loop, for the manifest
+        self.batch = None  # a packed process's DoneBatch: its nodes' reports in one message
         self._start_report: tuple[str, str] | None = None  # (state, unmatched) last sent
         self._next_start_check = 0.0
         self._next_heartbeat = 0.0
@@ -419,11 +420,16 @@ class LockstepRuntime:
         """Report the activations served since the last report, in one message. Also the
         SIGALRM handler of a slow step."""
         batch, self.unreported = self.unreported, []
-        if batch:
+        if batch and self.batch is not None:
+            self.batch.add(batch)
+        elif batch:
             self.report(done_status(self.name, batch))
 
     def report(self, status: Status) -> None:
-        """Publish a status message."""
+        """Publish a status message (after the process's batched done reports: the
+        orchestrator reads each node's reports in the order they were made)."""
+        if self.batch is not None:
+            self.batch.flush()
         start = time.perf_counter_ns()
         self.status_pub.publish(encode_status(status))
         self.timing.add("report", start)

@@ -13,9 +13,33 @@ import signal
 import time
 
 from runtime.lockstep import POLL_NS, STATUS_PERIOD_S, LockstepRuntime
+from runtime.protocol import Done, done_status, encode_status
 from runtime.shared_transport import SharedTransport
 
 START_CHECKS = 64  # discovery checks of starting runtimes per STATUS_PERIOD_S, at most
+
+
+class DoneBatch:
+    """The activations a packed process's nodes served in one wake-up, reported in one
+    ``done`` message (64 lidars each sending their own cost each process ~5 % of its time,
+    and the orchestrator a decode per node and tick)."""
+
+    def __init__(self, runtimes: list[LockstepRuntime]):
+        self.runtimes = runtimes
+        self.done: list[Done] = []
+
+    def add(self, done: list[Done]) -> None:
+        """A runtime's activations since its last report, in its tick order."""
+        self.done += done
+
+    def flush(self) -> None:
+        """Send what was added, if anything (the time counted as the first runtime's)."""
+        done, self.done = self.done, []
+        if done:
+            start = time.perf_counter_ns()
+            rt = self.runtimes[0]
+            rt.status_pub.publish(encode_status(done_status(done[0].node, done)))
+            rt.timing.add("report", start)
 
 
 class PackedRuntimes:
@@ -26,6 +50,9 @@ class PackedRuntimes:
         self.shared = shared
         self.stop_requested = False
         self._started: set[str] = set()
+        self.batch = DoneBatch(runtimes)
+        for rt in runtimes:
+            rt.batch = self.batch
 
     def run(self) -> None:
         """Serve every runtime until stopped or every one of them is finished."""
@@ -44,6 +71,7 @@ class PackedRuntimes:
                         self._started.add(rt.name)
                         rt.timing.start()
                     rt.serve_announced()
+                self.batch.flush()
                 if self.stop_requested:
                     break
                 self.shared.pump(POLL_NS)
@@ -73,6 +101,7 @@ class PackedRuntimes:
         """SIGALRM during a slow step: every runtime reports what it served before it."""
         for rt in self.runtimes:
             rt.report_done()
+        self.batch.flush()
 
 
 def install_packed_stop_handlers(packed: PackedRuntimes) -> None:

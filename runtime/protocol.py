@@ -12,7 +12,8 @@
   ``digests`` of what it published, ``step_ns``, and one ``metric.<name>`` per metric, ``-``
   where a tick did not report it; ``changed`` marks with 1 the ticks that carry only the
   metrics changed since the node's previous activation (``MetricChanges``), the others carry
-  them all (no ``changed``: all do); one report covers every tick served in one wake-up), and
+  them all (no ``changed``: all do); one report covers every tick served in one wake-up; a
+  packed process sends one for all its nodes, naming each tick's node in ``nodes``), and
   on failure (``error`` with the exception and a traceback excerpt).
 """
 
@@ -128,10 +129,13 @@ class Status:
 
 
 def done_status(node: str, done: list[Done]) -> Status:
-    """The ``done`` report of a batch of activations (in tick order)."""
+    """The ``done`` report of a batch of activations (each node's in tick order); a batch of
+    several nodes (a packed process's wake-up) names each activation's node in ``nodes``."""
     values = {"ticks": " ".join(str(d.tick) for d in done),
               "digests": " ".join(d.digest for d in done),
               "step_ns": " ".join(str(d.step_ns) for d in done)}
+    if any(d.node != node for d in done):
+        values["nodes"] = " ".join(d.node for d in done)
     if not all(d.full for d in done):
         values["changed"] = " ".join("0" if d.full else "1" for d in done)
     names = sorted({key for d in done for key in d.metrics})
@@ -146,7 +150,9 @@ def _parse_done(status: Status) -> list[Done]:
     ticks = values.get("ticks", "").split()
     digests = values.get("digests", "").split()
     steps = values.get("step_ns", "").split()
-    done = [Done(node, int(t), d, int(s)) for t, d, s in zip(ticks, digests, steps, strict=True)]
+    nodes = values["nodes"].split() if "nodes" in values else [node] * len(ticks)
+    done = [Done(n, int(t), d, int(s))
+            for n, t, d, s in zip(nodes, ticks, digests, steps, strict=True)]
     if "changed" in values:
         for entry, flag in zip(done, values["changed"].split(), strict=True):
             entry.full = flag == "0"

@@ -9,6 +9,7 @@ each runtime then takes what arrived for it without blocking.
 
 from __future__ import annotations
 
+from runtime.protocol import STATUS_TOPIC
 from runtime.transport.base import Publisher, Received, Subscription, Transport
 
 SHARED_DEPTH = 1000  # one reader serves consumers of different rates: keep enough for all
@@ -21,6 +22,7 @@ class SharedTransport:
         self.base = base
         self._subs: dict[str, Subscription] = {}
         self._views: dict[str, list[TransportView]] = {}
+        self._status: Publisher | None = None
 
     def view(self) -> TransportView:
         """A transport for one packed runtime."""
@@ -56,8 +58,13 @@ class TransportView(Transport):
 
     def publisher(self, topic: str, msg_type: type, depth: int,
                   latched: bool = False) -> Publisher:
-        """A publisher of the shared session."""
-        return self.shared.base.publisher(topic, msg_type, depth, latched)
+        """A publisher of the shared session; the packed runtimes share one on
+        /cosim/status (one DDS writer, not one per node, and their reports in one order)."""
+        if topic != STATUS_TOPIC:
+            return self.shared.base.publisher(topic, msg_type, depth, latched)
+        if self.shared._status is None:
+            self.shared._status = self.shared.base.publisher(topic, msg_type, depth, latched)
+        return self.shared._status
 
     def subscription(self, topic: str, msg_type: type, depth: int,
                      latched: bool = False) -> Subscription:

@@ -31,6 +31,19 @@ def test_a_batch_of_done_reports_round_trips_through_diagnostic_status_bytes():
     assert decoded.values["ticks"] == "5 10 15"  # readable with ROS tools
 
 
+def test_a_packed_process_reports_its_nodes_activations_in_one_message():
+    a0, a1 = MetricChanges(), MetricChanges()
+    batch = [Done("lidar@r0", 5, "ab" * 32, 10, *a0.report({"m": 1.0})),
+             Done("lidar@r0", 10, "cd" * 32, 11, *a0.report({"m": 1.0})),
+             Done("lidar@r1", 5, "ef" * 32, 12, *a1.report({"m": 2.0, "k": 3.0}))]
+    decoded = decode_status(encode_status(done_status("lidar@r0", batch)))
+    assert decoded.values["nodes"] == "lidar@r0 lidar@r0 lidar@r1"
+    assert decoded.done == batch
+    MetricBook().complete(decoded)  # each node's metrics completed from its own previous
+    assert [d.metrics for d in decoded.done] == [{"m": 1.0}, {"m": 1.0}, {"m": 2.0, "k": 3.0}]
+    assert "nodes" not in done_status("lidar@r0", batch[:2]).values  # one node: as before
+
+
 def test_reports_carry_the_metrics_that_changed_and_the_orchestrator_completes_them():
     steps = [{"a": 1.0, "b": 2.0}, {"a": 1.0, "b": 2.5}, {"a": 1.0, "b": 2.5, "c": 0.0},
              {"a": 1.0, "b": 2.5, "c": -0.0}, {"a": math.nan, "b": 2.5, "c": -0.0},
