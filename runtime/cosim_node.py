@@ -278,6 +278,7 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options,
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
+    from runtime.collector import hold_for_loop
     from runtime.lockstep import LockstepRuntime, NodeFailure, install_stop_handlers
     from runtime.notes import NoteWriter
     from runtime.recording import PartWriter
@@ -294,7 +295,7 @@ def run_lockstep(scenario: Scenario, name: str, run_dir: Path | None, options,
     install_stop_handlers(runtime)
     try:
         runtime.node = _built(make_node, scenario, name, options)
-        _freeze_what_was_built()
+        hold_for_loop()  # runtime.collector: for the rest of the process
         _run_maybe_profiled(runtime, paths, name, options.profile)
         return EXIT_OK
     except KeyboardInterrupt:  # a step cut short by the orchestrator's stop is a clean end
@@ -318,6 +319,7 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
     from plan.options import RunOptions
     from plan.run_paths import RunPaths
     from runtime.build import make_node
+    from runtime.collector import hold_for_loop
     from runtime.lockstep import LockstepRuntime, NodeFailure
     from runtime.notes import NoteWriter
     from runtime.packed import PackedRuntimes, install_packed_stop_handlers
@@ -340,7 +342,7 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
             failed = rt
             rt.node = _built(make_node, scenario, rt.name, options)
         failed = None
-        _freeze_what_was_built()
+        hold_for_loop()  # runtime.collector: for the rest of the process
         packed.run()
         return EXIT_OK
     except KeyboardInterrupt:
@@ -356,16 +358,6 @@ def run_packed(scenario: Scenario, names: list[str], run_dir: Path | None, optio
             if writer:
                 writer.close()
         shared.close()
-
-
-def _freeze_what_was_built() -> None:
-    """Keep what the process holds before its first tick (modules, the plan, the built nodes,
-    and for a fork the orchestrator's heap) out of the garbage collector's full passes, each
-    of which walked all of it (in-process, 64 robots: 7 passes in 5 simulated s, 0.35 s):
-    it lives until the process ends. No output depends on when the collector runs."""
-    import gc
-
-    gc.freeze()
 
 
 def _open_transport(scenario: Scenario, options, participant: str):

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gc
 import time
 from collections.abc import Callable
 
@@ -15,11 +14,9 @@ from plan.roles import NodeRole
 from plan.scenario import Scenario
 from runtime.activation import Activation
 from runtime.build import make_node
+from runtime.collector import hold_for_loop, release_after_loop
 from runtime.exchange import InputHistory, RunDigest, SharedDecoder, output_digest
 from runtime.notes import Note
-
-YOUNG_OBJECTS = 10_000
-"""The collector's threshold for the youngest generation during the loop."""
 
 Observer = Callable[[int, str, list[tuple[str, bytes]]], None]
 """Called after each activation with (tick, node, [(topic, bytes)])."""
@@ -53,15 +50,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
     digest = RunDigest()
     cost: dict[str, list[int]] = {}
     stop = scenario.model.success.stop_on_goal and scenario.model.has_goal
-    # what exists before the first tick (the world, the nodes, the imported libraries)
-    # lives all run: kept out of the collector's full passes, each of which walked all of it
-    # (issue 50: 64 robots, 7 passes in 5 simulated s, 0.35 s); nothing the run computes
-    # depends on when the collector runs. A tick's messages live until taken: at the usual
-    # 700 new objects a young pass ran every few activations and walked them (64 robots, 5
-    # simulated s: 978 passes, 0.08 s); at 10,000, 4 passes, 0.005 s
-    gc.freeze()
-    threshold = gc.get_threshold()
-    gc.set_threshold(YOUNG_OBJECTS, *threshold[1:])
+    before = hold_for_loop()  # what exists now lives all run; a tick's messages till taken
     try:
         for k in range(sched.n_ticks):
             tick = Tick(k, sched.time_ns(k))
@@ -96,8 +85,7 @@ def run_in_process(scenario: Scenario, observer: Observer | None = None,
                 return LoopResult(digest.hexdigest(), k + 1, _metrics(nodes), True, cost, notes)
         return LoopResult(digest.hexdigest(), sched.n_ticks, _metrics(nodes), False, cost, notes)
     finally:
-        gc.set_threshold(*threshold)
-        gc.unfreeze()
+        release_after_loop(before)
 
 
 def _account(entry: list[int], step_ns: int) -> None:
