@@ -37,6 +37,7 @@ and wheels.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from fractions import Fraction
 from typing import Any
@@ -148,19 +149,13 @@ class PhysicsNode(StepNode):
         """The outputs published at a period of their own (topic -> ns): the controllers'
         topics, at the controller manager's update_rate (physics' rate / n: every n-th
         activation, ``plan.schedule``)."""
-        if params.controller_manager is None:
-            return {}
-        period = hosted.manager_period_ns(params.controller_manager, None)
-        return {topic: period for topic in hosted.publications(params.controller_manager)}
+        return _at_manager_rate(params, hosted.publications)
 
     @classmethod
     def input_periods(cls, params: PhysicsParams) -> dict[str, Any]:
         """The inputs taken at a period of their own (topic -> ns): the controller manager's
         (its switch topic, its controllers' commands and goals), at its updates only."""
-        if params.controller_manager is None:
-            return {}
-        period = hosted.manager_period_ns(params.controller_manager, None)
-        return {topic: period for topic in hosted.subscriptions(params.controller_manager)}
+        return _at_manager_rate(params, hosted.subscriptions)
 
     @classmethod
     def latched_outputs(cls, params: PhysicsParams) -> dict[str, type]:
@@ -364,3 +359,13 @@ class PhysicsNode(StepNode):
         (a swarm: per robot, and the swarm's totals); a controller manager's
         (``controller_manager/...``, ``ROBOT/controller_manager/...`` in a swarm)."""
         return self.swarm.metrics()
+
+
+def _at_manager_rate(params: PhysicsParams, topics_of: Callable[[Any], Any]) -> dict[str, Any]:
+    """topic -> the hosted controller manager's update period (ns), for each of the
+    topics ``topics_of`` finds in its settings (its publications or its subscriptions);
+    {} without a manager."""
+    if params.controller_manager is None:
+        return {}
+    period = hosted.manager_period_ns(params.controller_manager, None)
+    return {topic: period for topic in topics_of(params.controller_manager)}
