@@ -143,7 +143,9 @@ class FoxgloveLive:
     def _forward(self) -> None:
         next_state = next_time = 0.0
         sent_ns = -1
-        while not self._queue.closed:
+        while True:
+            # what was offered before the close is sent too: read closed, then take all
+            closed = self._queue.closed
             items = self._queue.take(timeout_s=0.1)
             for i, (topic, data) in enumerate(items):
                 if i % YIELD_EVERY == YIELD_EVERY - 1:
@@ -168,6 +170,8 @@ class FoxgloveLive:
             if self.end_ns and now >= next_state:
                 next_state = now + STATE_PERIOD_S
                 self._server.broadcast_playback_state(self._state(None))
+            if closed:
+                break
         if self._clock_ns != sent_ns:  # the run's last time
             self._server.broadcast_time(self._clock_ns)
 
