@@ -31,6 +31,7 @@ A type cosim does not serve loads without parameters (``ControllerEntry.params``
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -95,18 +96,41 @@ def node_name(key: str) -> str:
     return key.rstrip("/").rsplit("/", 1)[-1]
 
 
-def read_controllers_file(path: Path | str) -> ControllersFile:
-    """Read and check a controllers file; ControllersFileError naming what is wrong."""
-    path = Path(path)
-    keys = _node_keys(path)
-    manager = _parameters(path, keys, MANAGER)
+def read_controllers_file(path: Path | str, *more: Path | str) -> ControllersFile:
+    """Read and check a controllers file; ControllersFileError naming what is wrong.
+    Several files are merged in order, a later file's parameter over an earlier's, as
+    ros2_control_node merges the ``--params-file`` files it is given (and gz_ros2_control
+    its plugin's ``<parameters>`` tags). Read once per content: the plan's checks, the
+    physics node and the orchestrator's services each ask for the file, and get the
+    same reading while each file's bytes are the same; an edited file is read again
+    (a sweep, a notebook)."""
+    paths = [Path(p) for p in (path, *more)]
+    texts = [_text(p) for p in paths]
+    key = tuple((str(p.resolve()), hashlib.sha256(t.encode()).hexdigest())
+                for p, t in zip(paths, texts, strict=True))
+    if key not in _READ:
+        if len(_READ) >= _READ_KEPT:
+            del _READ[next(iter(_READ))]
+        _READ[key] = _read(paths, texts)
+    return _READ[key]
+
+
+_READ: dict[tuple[tuple[str, str], ...], ControllersFile] = {}
+_READ_KEPT = 16  # files a process keeps read (a sweep's variants, a swarm's robots)
+
+
+def _read(paths: list[Path], texts: list[str]) -> ControllersFile:
+    """The files' controllers, read and checked (``read_controllers_file``)."""
+    path = paths[0]
+    files = [(p, _node_keys(p, t)) for p, t in zip(paths, texts, strict=True)]
+    manager = _parameters(files, MANAGER)
     if manager is None:
-        raise ControllersFileError(path, MANAGER, "the file has no controller_manager block.",
-                                   f"{MANAGER}: {{{PARAMS}: {{update_rate: 100, <name>: "
-                                   "{type: <package>/<Type>}}}}.")
+        raise ControllersFileError(_named(paths), MANAGER, "the file has no controller_manager "
+                                   "block.", f"{MANAGER}: {{{PARAMS}: {{update_rate: 100, "
+                                   "<name>: {type: <package>/<Type>}}}}.")
     rate = manager.get("update_rate", 100)
     if not isinstance(rate, int) or isinstance(rate, bool) or rate <= 0:
-        raise ControllersFileError(path, f"{MANAGER}.{PARAMS}.update_rate",
+        raise ControllersFileError(_named(paths), f"{MANAGER}.{PARAMS}.update_rate",
                                    f"{rate!r} is not a rate.", "a whole number of Hz, e.g. 100.")
     controllers = []
     for name, entry in manager.items():
@@ -116,24 +140,36 @@ def read_controllers_file(path: Path | str) -> ControllersFile:
         cls = controller_class(kind) if isinstance(kind, str) else None
         params = None
         if cls is not None:
-            params = check_params(path, name, cls.Params, _parameters(path, keys, name) or {})
+            params = check_params(_named(paths), name, cls.Params,
+                                  _parameters(files, name) or {})
         controllers.append(ControllerEntry(name, str(kind), params))
     if not controllers:
-        raise ControllersFileError(path, f"{MANAGER}.{PARAMS}", "names no controller.",
+        raise ControllersFileError(_named(paths), f"{MANAGER}.{PARAMS}", "names no controller.",
                                    "<name>: {type: <package>/<Type>} entries, e.g. "
                                    "joint_state_broadcaster: {type: "
                                    f"{served_types()[0]}}}.")
     return ControllersFile(path, rate, tuple(controllers))
 
 
-def _node_keys(path: Path) -> dict[str, list[str]]:
-    """node name -> the file's keys that name it, in file order (``/**`` under itself)."""
+def _named(paths: list[Path]) -> str:
+    """The file, or the files merged, as an error names them."""
+    return " + ".join(str(p) for p in paths)
+
+
+def _text(path: Path) -> str:
+    """The file's text; ControllersFileError where it cannot be read."""
     try:
-        raw = yaml.safe_load(path.read_text())
+        return path.read_text()
     except OSError as exc:
         raise ControllersFileError(path, "(file)", f"cannot be read: {exc.strerror}.",
                                    "the path of a ros2_control controllers YAML file, relative "
                                    "to the scenario.") from None
+
+
+def _node_keys(path: Path, text: str) -> dict[str, list[str]]:
+    """node name -> the file's keys that name it, in file order (``/**`` under itself)."""
+    try:
+        raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ControllersFileError(path, "(file)", f"is not YAML: {exc}",
                                    "a YAML file as ros2_control's controller manager takes it."
@@ -150,12 +186,36 @@ def _node_keys(path: Path) -> dict[str, list[str]]:
     return keys
 
 
-def _parameters(path: Path, keys: dict[str, list[str]], node: str) -> dict[str, Any] | None:
-    """The parameters the node ``node`` gets from the file (``/**`` first, then its own
-    blocks in file order), nested again at their dots; None when no block names it."""
-    own = keys.get(node)
-    if not own:
+def _parameters(files: list[tuple[Path, dict[str, list[str]]]], node: str
+                ) -> dict[str, Any] | None:
+    """The parameters the node ``node`` gets from the files (each file's ``/**`` first,
+    then its own blocks in file order; a later file's parameter over an earlier's), nested
+    again at their dots; None when no block names it."""
+    flat: dict[str, Any] = {}
+    named = False
+    for path, keys in files:
+        own = keys.get(node)
+        if own:
+            named = True
+            flat.update(_flat_parameters(path, own))
+    if not named:
         return None
+    nested: dict[str, Any] = {}
+    for dotted, value in flat.items():
+        *parents, leaf = dotted.split(".")
+        where = nested
+        for part in parents:
+            where = where.setdefault(part, {})
+            if not isinstance(where, dict):
+                raise ControllersFileError(_named([p for p, _ in files]),
+                                           f"{node}.{PARAMS}.{dotted}", "is both a value and "
+                                           "a group of parameters.", "one of the two.")
+        where[leaf] = value
+    return nested
+
+
+def _flat_parameters(path: Path, own: list[str]) -> dict[str, Any]:
+    """The dotted parameters of the file's blocks ``own`` (with ``/**``), by rclpy's reader."""
     # rclpy only here: importing it loads its native library, and an orchestrator that has
     # it loaded may no longer fork its node processes (supervisor.fork_is_safe)
     from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
@@ -165,20 +225,10 @@ def _parameters(path: Path, keys: dict[str, list[str]], node: str) -> dict[str, 
     except (RuntimeError, TypeError, ValueError) as exc:
         raise ControllersFileError(path, own[0], f"is not a ROS parameter block: {exc}",
                                    f"{own[0]}: {{{PARAMS}: {{name: value, ...}}}}.") from None
-    nested: dict[str, Any] = {}
-    for dotted, msg in flat.items():
-        *parents, leaf = dotted.split(".")
-        where = nested
-        for part in parents:
-            where = where.setdefault(part, {})
-            if not isinstance(where, dict):
-                raise ControllersFileError(path, f"{node}.{PARAMS}.{dotted}", "is both a value "
-                                           "and a group of parameters.", "one of the two.")
-        where[leaf] = parameter_value_to_python(msg.value)
-    return nested
+    return {dotted: parameter_value_to_python(msg.value) for dotted, msg in flat.items()}
 
 
-def check_params(path: Path, name: str, model: type[ControllerParams], raw: dict[str, Any]
+def check_params(path: Path | str, name: str, model: type[ControllerParams], raw: dict[str, Any]
                  ) -> ControllerParams:
     """``raw`` checked against the controller type's parameter model."""
     try:

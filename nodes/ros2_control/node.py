@@ -26,7 +26,6 @@ from.
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 from typing import Any
 
@@ -48,9 +47,10 @@ class ControllerManagerParams(BaseModel):
     """The controllers file and the joints the physics node takes commands for."""
 
     model_config = ConfigDict(extra="forbid")
-    controllers: str = Field(description="the ros2_control controllers YAML file "
-                             "(controller_manager: ros__parameters: ...), relative to the "
-                             "scenario file")
+    controllers: str | list[str] = Field(
+        description="the ros2_control controllers YAML file (controller_manager: "
+        "ros__parameters: ...), relative to the scenario file; a list: files merged in order, "
+        "a later file's parameter over an earlier's (as ros2_control_node's --params-file)")
     command_joints: list[str] | None = Field(
         None, description="the joints whose actuators the controllers may command, in "
         "order; default: the robot's commanded joints, in its order")
@@ -59,11 +59,19 @@ class ControllerManagerParams(BaseModel):
 
     @field_validator("controllers")
     @classmethod
-    def _resolve(cls, value: str, info: ValidationInfo) -> str:
+    def _resolve(cls, value: str | list[str], info: ValidationInfo) -> str | list[str]:
         base = Path((info.context or {}).get("scenario_dir", "."))
-        path = (base / value).resolve()
-        c.read_controllers_file(path)  # a ControllersFileError says what is wrong
-        return str(path)
+        paths = [str((base / v).resolve()) for v in ([value] if isinstance(value, str)
+                                                     else value)]
+        if not paths:
+            raise ValueError("no controllers file given")
+        c.read_controllers_file(*paths)  # a ControllersFileError says what is wrong
+        return paths[0] if isinstance(value, str) else paths
+
+    @property
+    def files(self) -> list[str]:
+        """The controllers files, in the order they are merged."""
+        return [self.controllers] if isinstance(self.controllers, str) else self.controllers
 
 
 class HostedManagerParams(ControllerManagerParams):
@@ -86,17 +94,9 @@ def takes_hardware(params: ControllerManagerParams) -> tuple[bool, bool]:
 
 
 def read(params: ControllerManagerParams) -> c.ControllersFile:
-    """The node's controllers file, read and checked (once per process and file)."""
-    try:
-        stat = Path(params.controllers).stat()
-    except OSError:
-        return c.read_controllers_file(params.controllers)  # says the file cannot be read
-    return _read(params.controllers, stat.st_mtime_ns, stat.st_size)
-
-
-@functools.lru_cache(maxsize=8)
-def _read(path: str, mtime_ns: int, size: int) -> c.ControllersFile:
-    return c.read_controllers_file(path)
+    """The node's controllers file (its files merged), read and checked (once per process
+    and content: ``config.read_controllers_file``)."""
+    return c.read_controllers_file(*params.files)
 
 
 def message_type_name(cls: type) -> str:
