@@ -20,8 +20,9 @@ from plan.events import EventSpec
 from plan.robots import RobotsLayout
 from plan.timeutil import Ns
 
-_MARKED: dict[int, Any] = {}  # id -> a message marked since the runtime last took the
-# marks: the message itself is held, so that an id cannot be reused while it is marked
+_MARKED: dict[int, tuple[Any, bytes | None]] = {}  # id -> (a message marked since the
+# runtime last took the marks, its bytes past the stamp or None): the message itself is held,
+# so that an id cannot be reused while it is marked
 
 
 def constant_message(msg: Any) -> Any:
@@ -31,14 +32,26 @@ def constant_message(msg: Any) -> Any:
     sets: the runtime may then serialise it once and write each stamp into those bytes
     (``runtime.exchange.prepare_outputs``). A mark holds for the step that makes it: mark
     the message at every step that returns it. Returns ``msg``."""
-    _MARKED[id(msg)] = msg
+    _MARKED[id(msg)] = (msg, None)
     return msg
 
 
-def take_constant_marks() -> dict[int, Any] | None:
-    """The messages marked (``constant_message``) since the last call, by id, forgotten
-    here: the runtime takes them right after each step, so the marks held are one step's
-    (None when there are none)."""
+def encoded_message(msg: Any, tail: bytes) -> Any:
+    """Mark ``msg``, an output of the step now running whose first field is a
+    std_msgs/Header, as serialising to ``tail`` past its header's stamp (CDR, as
+    ``runtime.cdr.encode.encode`` writes it): a step that packs a message of a fixed layout
+    at once hands the bytes with it, and the runtime only writes the tick's stamp in front
+    of them. The maker answers for the bytes (a test compares them with ``encode``). A mark
+    holds for the step that makes it. Returns ``msg``."""
+    _MARKED[id(msg)] = (msg, tail)
+    return msg
+
+
+def take_output_marks() -> dict[int, tuple[Any, bytes | None]] | None:
+    """The messages marked (``constant_message``, ``encoded_message``) since the last
+    call, by id, with their bytes past the stamp (None for a constant one), forgotten here:
+    the runtime takes them right after each step, so the marks held are one step's (None
+    when there are none)."""
     if not _MARKED:
         return None
     marks = dict(_MARKED)

@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from nodes.contract import StepNode, Tick, take_constant_marks
+from nodes.contract import StepNode, Tick, take_output_marks
 from nodes.live_params import ParamsInput
 from runtime.cdr.encode import ConstantTails
 from runtime.exchange import prepare_outputs
@@ -41,7 +41,7 @@ class Activation:
             outputs = self.node.step(tick, inputs)
             self.stepped_ns = time.perf_counter_ns()
         except BaseException:
-            take_constant_marks()  # a failed step's marks are no later step's
+            take_output_marks()  # a failed step's marks are no later step's
             raise
         finally:
             for text in self.node.take_notes():

@@ -15,10 +15,10 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from tf2_msgs.msg import TFMessage
 
-from nodes.contract import Tick, take_constant_marks
+from nodes.contract import Tick, take_output_marks
 from plan.timeutil import NS_PER_S
 from runtime.cdr.decode import decode
-from runtime.cdr.encode import ConstantTails, encode
+from runtime.cdr.encode import ConstantTails, encode, header_first, stamped
 
 
 class StepContractError(RuntimeError):
@@ -42,9 +42,10 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
     the tick's stamp; so does every transform of a ``tf2_msgs/TFMessage``. A message its
     step marked constant (``nodes.contract.constant_message``) is serialised once into the
     node's ``tails`` while the step gives the same object (encoded every time without
-    ``tails``). Call it right after the step: it takes the step's marks.
+    ``tails``); one it handed with its bytes (``encoded_message``) gets the stamp written in
+    front of them. Call it right after the step: it takes the step's marks.
     """
-    marks = take_constant_marks()
+    marks = take_output_marks()
     due = set(names) if first else set(names) - latched
     if set(outputs) != due:
         missing = sorted(due - set(outputs))
@@ -65,10 +66,15 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         elif isinstance(msg, TFMessage):
             for transform in msg.transforms:
                 transform.header.stamp = when
-        if marks is not None and tails is not None and marks.get(id(msg)) is msg:
-            items.append((names[own], tails.encode(own, msg)))
-        else:
-            items.append((names[own], encode(msg)))
+        mark = marks.get(id(msg)) if marks is not None else None
+        if mark is not None and mark[0] is msg:
+            if mark[1] is not None and header_first(type(msg)):
+                items.append((names[own], stamped(when, mark[1])))
+                continue
+            if tails is not None:
+                items.append((names[own], tails.encode(own, msg)))
+                continue
+        items.append((names[own], encode(msg)))
     items.sort()
     return items
 

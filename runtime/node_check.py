@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-from nodes.contract import NodeConfig, StepNode, Tick, take_constant_marks
+from nodes.contract import NodeConfig, StepNode, Tick, take_output_marks
 from plan.timeutil import rate_to_period_ns, tick_time_ns
 from runtime.cdr.decode import decode
 from runtime.cdr.encode import encode
@@ -291,7 +291,7 @@ def _episode(label, node, seed, config, ticks, feed, outputs, latched) -> Episod
     for tick, given in zip(ticks, feed, strict=True):
         copies = {topic: decode(data, cls) for topic, (cls, data) in given.items()}
         watched, returned = _watch(lambda t=tick, c=copies: node.step(t, c))
-        take_constant_marks()  # encoded here without them
+        take_output_marks()  # encoded here without them
         node.take_notes()
         if not isinstance(returned, dict) and watched.error is None:
             watched.error = (f"returned {type(returned).__name__}, not a dict of topic -> "

@@ -206,18 +206,18 @@ def test_a_constant_message_gives_rclpy_bytes_at_every_stamp():
 def test_the_marks_are_the_steps_own_and_a_replan_replaces_the_kept_plan():
     from builtin_interfaces.msg import Time
 
-    from nodes.contract import Tick, constant_message, take_constant_marks
+    from nodes.contract import Tick, constant_message, take_output_marks
     from runtime.cdr.encode import ConstantTails
     from runtime.exchange import prepare_outputs
 
-    take_constant_marks()
+    take_output_marks()
     tails = ConstantTails()
     args = ("control", {"/plan": Path}, {"/plan": "/r1/plan"})
     plan = path_message(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 1.5]]), "map", 0.0)
     for k in range(3):  # marked at every step: encoded once, then stamped
         items = prepare_outputs(*args, Tick(k, k * 100_000_000), {"/plan": constant_message(plan)},
                                 tails=tails)
-        assert take_constant_marks() is None  # taken by prepare_outputs
+        assert take_output_marks() is None  # taken by prepare_outputs
         plan_bytes = rclpy_bytes(plan)
         assert plan.header.stamp == Time(sec=0, nanosec=k * 100_000_000)
         assert items == [("/r1/plan", plan_bytes)]

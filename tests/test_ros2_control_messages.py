@@ -77,3 +77,56 @@ def test_an_inactive_trajectory_controllers_state_is_the_empty_message():
     cls = controller_class("joint_trajectory_controller/JointTrajectoryController")
     ctrl = cls("jtc", cls.Params(joints=NAMES, command_interfaces=["position"]))
     same(ctrl.empty_message(STATE), JointTrajectoryControllerState())
+
+
+@pytest.mark.parametrize("joints", [1, 2, 3, 6, 7])
+def test_the_broadcasters_packed_bytes_are_the_encoders(joints):
+    import random
+
+    rng = random.Random(joints)
+    names = [f"joint_{i}" + "x" * (i % 4) for i in range(joints)]  # every alignment
+    packer = fast.BroadcasterPacker(names)
+    for _ in range(3):  # the same layout packed again with other values
+        p, v, e = ([rng.uniform(-1e3, 1e3) for _ in names] for _ in range(3))
+        js = fast.joint_state(names, p, v, e)
+        djs = fast.dynamic_joint_state(names, p, v, e)
+        assert packer.pack_joint_state(p, v, e) == encode(js)[12:]  # past header + stamp
+        assert packer.pack_dynamic(p, v, e) == encode(djs)[12:]
+        assert encode(djs) == canonical_cdr(serialize_message(djs), DynamicJointState)
+
+
+def test_a_message_handed_with_its_bytes_gets_the_ticks_stamp_in_front():
+    from nodes.contract import Tick, encoded_message, take_output_marks
+    from runtime.exchange import prepare_outputs
+
+    take_output_marks()
+    packer = fast.BroadcasterPacker(NAMES)
+    msg = fast.joint_state(NAMES, POS, VEL, EFF)
+    encoded_message(msg, packer.pack_joint_state(POS, VEL, EFF))
+    items = prepare_outputs("physics", {"/joint_states": JointState},
+                            {"/joint_states": "/r/joint_states"}, Tick(7, 1_250_000_000),
+                            {"/joint_states": msg})
+    assert msg.header.stamp.sec == 1 and msg.header.stamp.nanosec == 250_000_000
+    assert items == [("/r/joint_states", encode(msg))]
+    assert take_output_marks() is None
+    bad = JointState(name=["other"])  # a mark is the step's own: not for another message
+    encoded_message(msg, b"stale")
+    items = prepare_outputs("physics", {"/joint_states": JointState},
+                            {"/joint_states": "/joint_states"}, Tick(8, 0), {"/joint_states": bad})
+    assert items == [("/joint_states", encode(bad))]
+
+
+def test_joint_states_read_as_a_mapping_and_as_lists():
+    from nodes.ros2_control.interface import JointReading, JointStates
+
+    state = JointStates(NAMES)
+    assert list(state) == NAMES and len(state) == 3 and state["elbow"] == JointReading(0.0)
+    state.refresh(list(POS), list(VEL), list(EFF))
+    kept = state["shoulder_lift"]
+    assert kept == JointReading(-0.25, 0.3, 0.0) and "elbow" in state and "x" not in state
+    assert dict(state) == {n: JointReading(p, v, e) for n, p, v, e in zip(NAMES, POS, VEL, EFF)}
+    state.refresh([9.0] * 3, [0.0] * 3, [0.0] * 3)
+    assert state["shoulder_lift"].position == 9.0 and kept.position == -0.25  # kept: unchanged
+    assert state.positions == [9.0] * 3
+    with pytest.raises(KeyError):
+        state["x"]

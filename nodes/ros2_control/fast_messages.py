@@ -20,6 +20,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64MultiArray, MultiArrayLayout
 from trajectory_msgs.msg import JointTrajectoryPoint, MultiDOFJointTrajectoryPoint
 
+from nodes.cdr_layout import FixedLayout
 from nodes.physics.fast_messages import CHECK, header
 from nodes.physics.fast_messages import joint_state as _joint_state
 from nodes.physics.fast_messages import odometry as _odometry
@@ -89,12 +90,13 @@ def joint_state(names: list[str], positions, velocities, efforts):
 def dynamic_joint_state(names: list[str], positions, velocities, efforts
                         ) -> DynamicJointState:
     """The broadcaster's control_msgs/DynamicJointState: position, velocity and effort of
-    every joint."""
+    every joint (its values' interface names one list, which no one changes)."""
     values = []
+    interfaces = list(INTERFACES)
     for p, v, e in zip(positions, velocities, efforts, strict=True):
         iv = InterfaceValue.__new__(InterfaceValue)
         iv._check_fields = CHECK
-        iv._interface_names = list(INTERFACES)
+        iv._interface_names = interfaces
         iv._values = array("d", (p, v, e))
         values.append(iv)
     msg = DynamicJointState.__new__(DynamicJointState)
@@ -103,6 +105,29 @@ def dynamic_joint_state(names: list[str], positions, velocities, efforts
     msg._joint_names = list(names)
     msg._interface_values = values
     return msg
+
+
+class BroadcasterPacker:
+    """The CDR bytes past the header's stamp of a joint state broadcaster's JointState and
+    DynamicJointState over fixed joints (at least one), each in one ``struct`` call
+    (``nodes.cdr_layout``): the names, counts and alignments are the same at every update,
+    only the values change."""
+
+    def __init__(self, names: list[str]):
+        n = len(names)
+        self.joint_state = (FixedLayout().strings(names).count(n).doubles(n)
+                            .count(n).doubles(n).count(n).doubles(n))
+        self.dynamic = FixedLayout().strings(names).count(n)
+        for _ in names:
+            self.dynamic.strings(INTERFACES).count(len(INTERFACES)).doubles(len(INTERFACES))
+
+    def pack_joint_state(self, positions, velocities, efforts) -> bytes:
+        """The JointState's bytes past the stamp (a float each per joint, in order)."""
+        return self.joint_state.pack(positions, velocities, efforts)
+
+    def pack_dynamic(self, positions, velocities, efforts) -> bytes:
+        """The DynamicJointState's bytes past the stamp."""
+        return self.dynamic.pack_columns(positions, velocities, efforts)
 
 
 def float64_array(data) -> Float64MultiArray:

@@ -39,7 +39,7 @@ import numpy as np
 
 from nodes.contract import constant_message
 from nodes.ros2_control.hardware import HardwareInfo, hardware_info, unservable
-from nodes.ros2_control.interface import Fresh, JointReading
+from nodes.ros2_control.interface import Fresh, JointStates
 from nodes.ros2_control.manager import ControllerManager, resolve
 from nodes.ros2_control.node import (  # noqa: F401 - the physics node's names for them
     SWITCH_TOPIC,
@@ -68,7 +68,7 @@ class MujocoSystem:
                  wheels: list[int] | None):
         self.info = info
         self.joints = joints
-        self.state: dict[str, JointReading] = {n: JointReading(0.0) for n in joints}
+        self.state = JointStates(joints)
         self.bind(model, qadr, dadr, wheels)
 
     def bind(self, model, qadr, dadr, wheels: list[int] | None) -> None:
@@ -101,11 +101,8 @@ class MujocoSystem:
     def read(self, data) -> None:
         """The joints' positions, velocities and actuator efforts, now (new readings: a
         controller may keep an earlier one)."""
-        q = data.qpos[self.qadr].tolist()
-        v = data.qvel[self.dadr].tolist()
-        e = data.qfrc_actuator[self.dadr].tolist()
-        self.state.update({name: JointReading(p, dv, de) for name, p, dv, de in
-                           zip(self.joints, q, v, e, strict=True)})
+        self.state.refresh(data.qpos[self.qadr].tolist(), data.qvel[self.dadr].tolist(),
+                           data.qfrc_actuator[self.dadr].tolist())
 
     def start(self, data) -> None:
         """Before the first update: every position servo holds where its joint is (where
@@ -176,11 +173,18 @@ class RobotManager:
             commands.update(self.manager.activate(at_start(self.params, self.file),
                                                   system.state).commands)
             self.first = False
-        commands.update(self._switch(mine.get(SWITCH_TOPIC)))
+        switch = mine.get(SWITCH_TOPIC)
+        if switch is not None:
+            commands.update(self._switch(switch))
+        elif self.refused:
+            self.refused = []
         done = self.manager.update(time_ns, period_ns, mine, self.held)
         for text in done.notes:
             self.note(text)
-        commands.update(done.commands)
+        if commands:
+            commands.update(done.commands)
+        else:
+            commands = done.commands
         system.write(data, commands)
         # lockstep wants one message per declared topic and activation: an inactive
         # controller's topics carry an empty message of their type, nothing of the controller
@@ -200,10 +204,9 @@ class RobotManager:
 
     def _switch(self, msg) -> dict[str, float]:
         """The requests of the switch topic (``nodes.ros2_control.requests``) not handled
-        before: a request with an id once, one without when the message is new."""
+        before: a request with an id once, one without when the message is new (those
+        refused at this tick: ``refused``)."""
         self.refused = []
-        if msg is None:
-            return {}
         new = self.fresh(SWITCH_TOPIC, msg)
         commands: dict[str, float] = {}
         for rid, body in request_lines(msg.data):

@@ -10,16 +10,16 @@ and, while active, is updated at the manager's rate (``update(time_ns, period_ns
 returns its commands and the messages it publishes as plain data. It touches no transport.
 
 The hardware's state reaches a controller as ``HardwareState`` loaned at activation (a
-mapping joint -> JointReading, refreshed by the manager before every update): today it is
-filled from the physics node's /joint_states; a MuJoCo system interface can later back the
-same mapping with MjData without changing a controller.
+mapping joint -> JointReading, refreshed before every update): the MuJoCo system interface
+(``nodes.ros2_control.hosted``) backs it with the joints' readings from MjData
+(``JointStates``), a unit test with a plain dict.
 """
 
 from __future__ import annotations
 
 import enum
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
@@ -55,15 +55,70 @@ HardwareState = Mapping[str, JointReading]
 """joint -> its reading, in the hardware's joint order."""
 
 
-@dataclass
+class JointStates(Mapping):
+    """A system interface's ``HardwareState``: its joints' positions, velocities and
+    efforts as three lists in the hardware's joint order (``positions``, ``velocities``,
+    ``efforts``), replaced at every read (``refresh``). A controller that reads every joint
+    in that order (a joint state broadcaster) takes the lists; a lookup by joint gets a
+    JointReading, made for every joint at the first lookup after a read (the lists of a
+    read are never changed, so a reading or list a controller keeps stays what it was)."""
+
+    __slots__ = ("joints", "_known", "positions", "velocities", "efforts", "_readings")
+
+    def __init__(self, joints: list[str]):
+        self.joints = tuple(joints)
+        self._known = frozenset(self.joints)
+        self.refresh([0.0] * len(self.joints), [0.0] * len(self.joints),
+                     [0.0] * len(self.joints))
+
+    def refresh(self, positions: list[float], velocities: list[float],
+                efforts: list[float]) -> None:
+        """The newest readings, each a list in the joints' order (kept, not copied)."""
+        self.positions, self.velocities, self.efforts = positions, velocities, efforts
+        self._readings: dict[str, JointReading] | None = None
+
+    def _by_joint(self) -> dict[str, JointReading]:
+        readings = self._readings
+        if readings is None:
+            readings = self._readings = {
+                name: JointReading(p, v, e) for name, p, v, e in
+                zip(self.joints, self.positions, self.velocities, self.efforts, strict=True)}
+        return readings
+
+    def __getitem__(self, joint: str) -> JointReading:
+        return self._by_joint()[joint]
+
+    def __contains__(self, joint: object) -> bool:
+        return joint in self._known
+
+    def __iter__(self):
+        return iter(self.joints)
+
+    def __len__(self) -> int:
+        return len(self.joints)
+
+
 class Update:
     """What one update of a controller gives: ``commands`` (``joint/interface`` -> value,
     the command interfaces it claims), ``published`` (topic -> message; ``~/x`` is under the
-    controller's name) and ``notes`` (what it refused, for the run's log)."""
+    controller's name) and ``notes`` (what it refused, for the run's log); each empty when
+    not given. (A plain class with slots: one or more are made at every update.)"""
 
-    commands: dict[str, float] = field(default_factory=dict)
-    published: dict[str, Any] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
+    __slots__ = ("commands", "published", "notes")
+
+    def __init__(self, commands: dict[str, float] | None = None,
+                 published: dict[str, Any] | None = None, notes: list[str] | None = None):
+        self.commands = {} if commands is None else commands
+        self.published = {} if published is None else published
+        self.notes = [] if notes is None else notes
+
+    def __eq__(self, other: object) -> bool:
+        return (type(other) is Update and self.commands == other.commands
+                and self.published == other.published and self.notes == other.notes)
+
+    def __repr__(self) -> str:
+        return (f"Update(commands={self.commands!r}, published={self.published!r}, "
+                f"notes={self.notes!r})")
 
 
 class ControllerParams(BaseModel):

@@ -126,6 +126,24 @@ def switch_problem(file: ControllersFile, controllers: Mapping[str, ControllerIn
     return claim_conflict(controllers, after)
 
 
+class Route:
+    """What an update gives a loaded controller and takes from it, named once: its
+    subscriptions (own name, graph name) and its publications (own name -> graph name)."""
+
+    __slots__ = ("name", "controller", "subscriptions", "publications")
+
+    def __init__(self, name: str, controller: ControllerInterface,
+                 subscriptions: tuple[tuple[str, str], ...], publications: dict[str, str]):
+        self.name, self.controller = name, controller
+        self.subscriptions, self.publications = subscriptions, publications
+
+    @classmethod
+    def of(cls, name: str, ctrl: ControllerInterface) -> Route:
+        """The route of controller ``name``."""
+        return cls(name, ctrl, tuple((t, resolve(name, t)) for t in ctrl.subscriptions()),
+                   {t: resolve(name, t) for t in ctrl.publications()})
+
+
 class ControllerManager:
     """The controllers of one file, their lifecycle, switches and updates."""
 
@@ -137,9 +155,7 @@ class ControllerManager:
         self.unloaded: set[str] = set()
         self.held: dict[str, Any] = {}  # topic -> its message at the last tick
         self.unservable: dict[str, str] = {}  # controller -> what the hardware lacks for it
-        # controller -> (the controller, its subscriptions: (own name, graph name)), made
-        # at its first update and again for a controller loaded anew
-        self._routes: dict[str, tuple[ControllerInterface, tuple[tuple[str, str], ...]]] = {}
+        self._routes: list[Route] | None = None  # made at the first update after a load
 
     def states(self) -> dict[str, str]:
         """Every loaded controller's state, in file order."""
@@ -154,6 +170,7 @@ class ControllerManager:
             return problem
         if verb == "load":
             self.controllers[name] = load_one(self.file, name, self.namespace)
+            self._routes = None
             self.unloaded.discard(name)
         elif verb == "unload":
             ctrl = self.controllers[name]
@@ -215,24 +232,25 @@ class ControllerManager:
         out = Update()
         commands, published, notes = out.commands, out.published, out.notes
         routes = self._routes
-        for name, ctrl in self.controllers.items():
-            if ctrl is None:
-                continue
-            route = routes.get(name)
-            if route is None or route[0] is not ctrl:
-                route = routes[name] = (ctrl, tuple(
-                    (topic, resolve(name, topic)) for topic in ctrl.subscriptions()))
-            arrived = [(topic, msg) for topic, graph in route[1]
+        if routes is None:
+            routes = self._routes = [Route.of(name, ctrl) for name, ctrl in
+                                     self.controllers.items() if ctrl is not None]
+        for route in routes:
+            ctrl = route.controller
+            arrived = [(topic, msg) for topic, graph in route.subscriptions
                        if graph in inputs
-                       and (msg := self._arrival(graph, inputs, held)) is not None]
+                       and (msg := self._arrival(graph, inputs, held)) is not None
+                       ] if route.subscriptions else ()
             if ctrl.lifecycle is not LifecycleState.ACTIVE:
                 continue
             for topic, msg in arrived:
                 notes += ctrl.on_message(topic, msg, time_ns)
             done = ctrl.update(time_ns, period_ns)
-            commands.update(done.commands)
+            if done.commands:
+                commands.update(done.commands)
+            names = route.publications
             for topic, msg in done.published.items():
-                published[resolve(name, topic)] = msg
+                published[names.get(topic) or resolve(route.name, topic)] = msg
             if done.notes:
                 notes += done.notes
         return out

@@ -50,7 +50,7 @@ _STAMP = struct.Struct("<iI")
 
 
 @cache
-def _header_first(msg_class: type) -> bool:
+def header_first(msg_class: type) -> bool:
     """Whether a message class's first field is a std_msgs/Header."""
     slots = getattr(msg_class, "SLOT_TYPES", ())
     first = slots[0] if slots else None
@@ -75,13 +75,18 @@ class ConstantTails:
         kept there."""
         last = self._last.get(key)
         if last is None or last[0] is not msg:
-            if not _header_first(type(msg)):
+            if not header_first(type(msg)):
                 return encode(msg)
             data = encode(msg)
             self._last[key] = (msg, data[len(LE_HEADER) + _STAMP.size:])
             return data
-        stamp = msg._header._stamp
-        return LE_HEADER + _STAMP.pack(stamp._sec, stamp._nanosec) + last[1]
+        return stamped(msg._header._stamp, last[1])
+
+
+def stamped(stamp: Any, tail: bytes) -> bytes:
+    """The CDR bytes of a message whose first field is a std_msgs/Header: its
+    builtin_interfaces/Time ``stamp`` in front of ``tail``, its bytes past the stamp."""
+    return LE_HEADER + _STAMP.pack(stamp._sec, stamp._nanosec) + tail
 
 
 @cache

@@ -7,12 +7,14 @@ from control_msgs.msg import DynamicJointState
 from pydantic import Field
 from sensor_msgs.msg import JointState
 
+from nodes.contract import encoded_message
 from nodes.ros2_control import fast_messages as fast
 from nodes.ros2_control.interface import (
     INTERFACES,
     Claim,
     ControllerInterface,
     ControllerParams,
+    JointStates,
     Update,
 )
 from nodes.ros2_control.param_types import OptionalJointNames
@@ -63,18 +65,32 @@ class JointStateBroadcaster(ControllerInterface):
         self.topics = (self._topic("joint_states"),
                        self._topic("dynamic_joint_states")
                        if self.params.publish_dynamic_joint_states else None)
+        # a system interface's every joint in its order: its lists as they are
+        self.whole = (isinstance(self.state, JointStates)
+                      and tuple(self.names) == self.state.joints)
+        self.packer = fast.BroadcasterPacker(self.names) if self.names else None
         return Update()
 
     def update(self, time_ns: int, period_ns: int) -> Update:
         """The joints' states as they are now."""
         names = self.names
         state = self.state
-        readings = [state[n] for n in names]
-        positions = [r.position for r in readings]
-        velocities = [r.velocity for r in readings]
-        efforts = [r.effort for r in readings]
+        if self.whole:
+            positions, velocities, efforts = state.positions, state.velocities, state.efforts
+        else:
+            readings = [state[n] for n in names]
+            positions = [r.position for r in readings]
+            velocities = [r.velocity for r in readings]
+            efforts = [r.effort for r in readings]
         joint_states, dynamic = self.topics
-        out = {joint_states: fast.joint_state(names, positions, velocities, efforts)}
+        packer = self.packer
+        msg = fast.joint_state(names, positions, velocities, efforts)
+        if packer is not None:
+            encoded_message(msg, packer.pack_joint_state(positions, velocities, efforts))
+        out = {joint_states: msg}
         if dynamic is not None:
-            out[dynamic] = fast.dynamic_joint_state(names, positions, velocities, efforts)
+            msg = fast.dynamic_joint_state(names, positions, velocities, efforts)
+            if packer is not None:
+                encoded_message(msg, packer.pack_dynamic(positions, velocities, efforts))
+            out[dynamic] = msg
         return Update(published=out)

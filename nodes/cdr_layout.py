@@ -1,0 +1,99 @@
+"""CDR bytes of a message whose every length is fixed, packed in one ``struct`` call.
+
+A joint state broadcaster publishes the same joints at every update: the names, the counts
+and every alignment of its messages are the same each time, only the float values change.
+``FixedLayout`` lays such a message out once, as CDR (little endian, XCDR1, which rmw_fastrtps
+writes) lays it out from the byte after the stamp of its std_msgs/Header, and packs each
+update's values into it. Such bytes go to the runtime with their message
+(``nodes.contract.encoded_message``); tests compare them with the runtime's encoder and
+rclpy's ``serialize_message`` (tests/test_ros2_control_messages.py).
+"""
+
+from __future__ import annotations
+
+import struct
+
+_U32 = struct.Struct("<I")
+
+
+class FixedLayout:
+    """A message's bytes past its header's stamp, written field by field in CDR order
+    (``string``, ``count``, ``doubles``), then packed with the values of its ``doubles``
+    in order (``pack``)."""
+
+    def __init__(self, frame_id: str = ""):
+        """Start right after the stamp (alignment counts from the CDR body's start, 8 bytes
+        before: the stamp's two 4-byte fields) with the header's ``frame_id``."""
+        self._at = 8
+        self._formats = ["<"]
+        self._constant = bytearray()
+        self._args: list = []
+        self._slots: list[int] = []  # where each run of doubles starts in the arguments
+        self._struct: struct.Struct | None = None
+        self.string(frame_id)
+
+    def _add(self, data: bytes, align: int = 1) -> None:
+        pad = bytes(-self._at % align)
+        self._constant += pad + data
+        self._at += len(pad) + len(data)
+
+    def string(self, text: str) -> FixedLayout:
+        """A string: its length with the terminating zero, its UTF-8 bytes, the zero."""
+        raw = text.encode()
+        self._add(_U32.pack(len(raw) + 1) + raw + b"\0", 4)
+        return self
+
+    def strings(self, texts: list[str] | tuple[str, ...]) -> FixedLayout:
+        """A sequence of strings: its count, then each string."""
+        self.count(len(texts))
+        for text in texts:
+            self.string(text)
+        return self
+
+    def count(self, n: int) -> FixedLayout:
+        """A sequence's element count."""
+        self._add(_U32.pack(n), 4)
+        return self
+
+    def doubles(self, n: int) -> FixedLayout:
+        """``n`` float64 values whose value ``pack`` is given (a float64 sequence's
+        elements, after its ``count``; none for n = 0)."""
+        if n:
+            self._add(b"", 8)
+            self._formats.append(f"{len(self._constant)}s{n}d")
+            self._args.append(bytes(self._constant))
+            self._slots.append(len(self._args))
+            self._args += [0.0] * n
+            self._constant.clear()
+            self._at += 8 * n
+        return self
+
+    def _finish(self) -> struct.Struct:
+        if self._struct is None:
+            self._formats.append(f"{len(self._constant)}s")
+            self._args.append(bytes(self._constant))
+            self._struct = struct.Struct("".join(self._formats))
+        return self._struct
+
+    def pack(self, *runs) -> bytes:
+        """The bytes, with each run of ``doubles`` given its values (a sequence of floats
+        each, of the run's length, in the order they were laid out)."""
+        packer = self._finish()
+        args = self._args
+        for start, values in zip(self._slots, runs, strict=True):
+            args[start:start + len(values)] = values
+        return packer.pack(*args)
+
+    def pack_columns(self, *columns) -> bytes:
+        """The bytes of a layout of equal runs of ``doubles`` (a run per element of a
+        sequence of messages): value i of every run from ``columns[i]`` (a sequence with a
+        float per run, in order)."""
+        packer = self._finish()
+        args = self._args
+        slots = self._slots
+        first = slots[0]
+        stride = slots[1] - first if len(slots) > 1 else len(args)
+        end = first + stride * len(slots)
+        for i, column in enumerate(columns):
+            args[first + i:end:stride] = column
+        return packer.pack(*args)
