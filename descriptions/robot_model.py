@@ -146,6 +146,8 @@ class RobotModel:
     site_frames: tuple[Link, ...] = ()  # the TF frames on sites of an MJCF robot (its tool
     # flange, its lidar), in the order /tf_static sends them; a described robot's are links
     camera_frames: tuple[CameraLink, ...] = ()  # the TF frames of an MJCF robot's cameras
+    controllers_files: tuple[str, ...] = ()  # the controllers files its description's
+    # ros2_control plugin tag names (<gazebo><plugin><parameters>), resolved, in order
 
     @property
     def frame_prefix(self) -> str:

@@ -27,6 +27,7 @@ convention) or, for an optical frame (REP-103, a link named ``*optical*``), alon
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -37,7 +38,7 @@ import numpy as np
 
 from descriptions import urdf_geometry as geo
 from descriptions.description_error import DescriptionError
-from descriptions.packages import PackageResolver
+from descriptions.packages import PackageNotFound, PackageResolver
 from descriptions.robot_model import (
     ActuatedJoint,
     ControlInterfaces,
@@ -147,8 +148,26 @@ def load_urdf(path: Path | str, options: UrdfOptions | None = None) -> LoadedUrd
         control=tuple(ControlInterfaces(name, cj.commands, cj.states,
                                         tuple((k, v) for k, v in cj.initial.items()
                                               if k in INITIAL))
-                      for name, cj in urdf.control.items()))
+                      for name, cj in urdf.control.items()),
+        controllers_files=_controllers_files(urdf.controllers_files, resolver, path.parent))
     return LoadedUrdf(expanded.urdf, spec, urdf, robot, notes)
+
+
+def _controllers_files(given: list[str], resolver: PackageResolver, base: Path
+                       ) -> tuple[str, ...]:
+    """The ros2_control plugin's ``<parameters>`` files as paths: ``$(find PKG)`` (left by a
+    plain .urdf, which xacro did not expand) and ``package://PKG/`` through the packages, a
+    relative path from the description's folder; a text naming an unknown package stays as
+    it is (the scenario's check says the file is not there)."""
+    out = []
+    for text in given:
+        try:
+            found = re.sub(r"\$\(find\s+([^)\s]+)\s*\)",
+                           lambda m: str(resolver.find(m[1])), text)
+            out.append(str(resolver.resolve_uri(found, base).resolve()))
+        except PackageNotFound:
+            out.append(text)
+    return tuple(out)
 
 
 def _base_link(urdf: Urdf, description: str) -> str:

@@ -1,6 +1,8 @@
 """A URDF document read into plain data: links (inertial, visuals, collisions), joints
-(kind, axis, limits), the ``<ros2_control>`` joints and their interfaces, and the
-``<gazebo reference=...>`` sensor tags and friction. Nothing here loads MuJoCo."""
+(kind, axis, limits), the ``<ros2_control>`` joints and their interfaces, the
+``<gazebo reference=...>`` sensor tags and friction, and the controllers files a
+gz_ros2_control or mujoco_ros2_control plugin tag names (``<parameters>``). Nothing here
+loads MuJoCo."""
 
 from __future__ import annotations
 
@@ -78,7 +80,8 @@ class GazeboSensor:
 @dataclass
 class Urdf:
     """The whole document: robot name, links and joints in file order, the root link,
-    ros2_control joints, Gazebo sensors and per-link friction (``mu1``)."""
+    ros2_control joints, Gazebo sensors, per-link friction (``mu1``) and the text of each
+    ``<parameters>`` of its ros2_control plugin tag, in order (``controllers_files``)."""
 
     name: str
     links: dict[str, UrdfLink]
@@ -88,6 +91,7 @@ class Urdf:
     sensors: list[GazeboSensor]
     friction: dict[str, float]
     unsupported: list[str]
+    controllers_files: list[str] = field(default_factory=list)
 
     def children(self, link: str) -> list[UrdfJoint]:
         """The joints whose parent is ``link``."""
@@ -139,7 +143,7 @@ def parse_urdf(text: str, description: str) -> Urdf:
     unsupported = sorted({el.tag for el in root if el.tag not in (
         "link", "joint", "material", "gazebo", "ros2_control", "transmission", "mujoco")})
     return Urdf(root.get("name", ""), links, joints, roots[0], _ros2_control(root),
-                sensors, friction, unsupported)
+                sensors, friction, unsupported, _plugin_parameters(root))
 
 
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...]:
@@ -215,6 +219,20 @@ def _ros2_control(root: ET.Element) -> dict[str, ControlJoint]:
                 {c.get("name", ""): (_param(c, "min"), _param(c, "max")) for c in commands},
                 {k: v for k, v in initial.items() if v is not None})
     return joints
+
+
+def _plugin_parameters(root: ET.Element) -> list[str]:
+    """The ``<parameters>`` texts of the ros2_control simulator plugin, in file order: a
+    ``<plugin>`` of a top-level ``<gazebo>`` (gz_ros2_control, gazebo_ros2_control,
+    ign_ros2_control) or ``<mujoco>`` tag whose filename or name says ros2_control."""
+    found = []
+    for holder in [*root.findall("gazebo"), *root.findall("mujoco")]:
+        for plugin in holder.iter("plugin"):
+            named = (plugin.get("filename", "") + " " + plugin.get("name", "")).lower()
+            if "ros2_control" in named:
+                found += [p.text.strip() for p in plugin.findall("parameters")
+                          if p.text and p.text.strip()]
+    return found
 
 
 def _number(text: str | None) -> float | int | None:

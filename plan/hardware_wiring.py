@@ -1,8 +1,9 @@
 """A robot's controller manager folded into the physics node by the plan.
 
 A node class with ``hardware_role`` (the controller manager, kind ``ros2_control``) is
-declared by the scenario (or added for every robot by ``robots.controllers``,
-:func:`with_robot_managers`) and checked as a node of its own; then :func:`fold_managers`
+declared by the scenario (or added for every robot by ``robots.controllers``, or by the
+``<parameters>`` of the description's gz_ros2_control plugin tag, :func:`with_robot_managers`)
+and checked as a node of its own; then :func:`fold_managers`
 takes it out of the node list and gives it to the physics node (its parameter
 ``controller_manager``), which runs it in its step over MjData, as mujoco_ros2_control's
 system interface does (nodes/ros2_control/hosted.py). The manager's inputs (its
@@ -58,10 +59,12 @@ def hand_wiring_notices(path: Path, model: ScenarioModel) -> list[ScenarioNotice
     return out
 
 
-def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int]
+def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int],
+                  one_line: str | None = None
                   ) -> tuple[ScenarioModel, list[ScenarioNotice] | None]:
     """The checked, expanded model with every controller manager node folded into the
-    physics node (module docstring); ``params``: each node's checked parameters, by index.
+    physics node (module docstring); ``params``: each node's checked parameters, by index;
+    ``one_line``: the robots: key that made the managers (``with_robot_managers``).
     Notices for physics' inputs that the controllers replace (None: no manager, nothing
     changed). Exit 2 where a manager cannot
     run in physics' step: no physics node, a rate not physics' / n, managers for some
@@ -94,7 +97,7 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
                                                                    "the scenario's robot")
                             + " only.", "for_each: robot without robots: (every robot).")
     spec = nodes[first]
-    check_manager_rate(path, model, params, origins)
+    check_manager_rate(path, model, params, origins, one_line)
     cls = classes[first]
     hosted = cls.hosted_params(params[first], spec.name.partition("@")[0])
     joints, base = cls.takes_hardware(params[first])
@@ -150,12 +153,13 @@ def fold_managers(path: Path, model: ScenarioModel, params: dict, origins: dict[
     return model.model_copy(update={"nodes": nodes}), notices
 
 
-def check_manager_rate(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int]
-                       ) -> None:
+def check_manager_rate(path: Path, model: ScenarioModel, params: dict, origins: dict[str, int],
+                       one_line: str | None = None) -> None:
     """Exit 2 where the controller manager's update_rate is not the physics node's rate / n
-    for a whole n (naming the controllers file, its key and the rates accepted); nothing
-    without a manager or a physics node (said by ``fold_managers``). Checked before the
-    world's timestep fits physics' period, so that a ratio such as 1.5 names the file."""
+    for a whole n (naming the controllers file, its key and the rates accepted; the robots:
+    key that made the managers, ``one_line``, else the node's); nothing without a manager
+    or a physics node (said by ``fold_managers``). Checked before the world's timestep fits
+    physics' period, so that a ratio such as 1.5 names the file."""
     nodes = model.nodes
     classes = {i: class_of(spec) for i, spec in enumerate(nodes)}
     managers = [i for i, cls in classes.items() if getattr(cls, "hardware_role", False)]
@@ -166,9 +170,10 @@ def check_manager_rate(path: Path, model: ScenarioModel, params: dict, origins: 
     spec, physics = nodes[first], nodes[w]
     ratio = Fraction(spec.period_ns) / Fraction(physics.period_ns)
     if ratio.denominator != 1 or ratio < 1:  # update_rate = physics' rate / n
-        one_line = model.robots is not None and model.robots.controllers is not None
+        if one_line is None and model.robots is not None and model.robots.controllers:
+            one_line = ROBOTS_CONTROLLERS
         key = _key(nodes, origins, first)
-        raise _rate_error(path, "robots.controllers" if one_line else f"{key}.rate",
+        raise _rate_error(path, one_line or f"{key}.rate",
                           _key(nodes, origins, w), spec.period_ns, physics.period_ns,
                           getattr(params.get(first), "controllers", None))
 
@@ -189,9 +194,11 @@ def _external_topics(nodes: list[NodeSpec]) -> dict[str, str]:
 
 
 def _rate_error(path: Path, key: str, physics_key: str, period_ns, physics_ns,
-                controllers: str | None) -> ScenarioError:
+                controllers: str | list[str] | None) -> ScenarioError:
     """The manager's update_rate is not physics' rate / n for a whole n: which file and key,
     and the rates accepted."""
+    if isinstance(controllers, list):
+        controllers = " + ".join(controllers)
     hz = lambda ns: f"{float(NS_PER_S / ns):g}"  # noqa: E731 - one short format
     rate, physics_rate = hz(period_ns), hz(physics_ns)
     where = (f"{controllers}: controller_manager.ros__parameters.update_rate"
@@ -212,6 +219,8 @@ def _key(nodes: list[NodeSpec], origins: dict[str, int], i: int) -> str:
 
 
 MANAGER_NAME = "controller_manager"
+ROBOTS_CONTROLLERS = "robots.controllers"
+ROBOTS_DESCRIPTION = "robots.description"
 
 
 def hardware_kind() -> str | None:
@@ -226,26 +235,55 @@ def hardware_kind() -> str | None:
     return None
 
 
-def with_robot_managers(path: Path, model: ScenarioModel) -> ScenarioModel:
+def with_robot_managers(path: Path, model: ScenarioModel, description: str = "",
+                        tagged: tuple[str, ...] = ()
+                        ) -> tuple[ScenarioModel, str | None, list[ScenarioNotice]]:
     """The model with ``robots.controllers`` made a node: ``controller_manager``,
     ``for_each: robot``, at the file's update_rate, taking same tick each of its
     controllers' topics that a robot's node or physics publishes (by the node's own names,
-    as templates' topics are the robot's). Exit 2 naming ``robots.controllers`` where the
-    file is wrong or a node of the scenario already has the name."""
+    as templates' topics are the robot's); the robots: key that named the file (None: no
+    manager added); notices. Without ``robots.controllers``, the files ``tagged`` by the
+    ``<parameters>`` of the robot ``description``'s ros2_control plugin tag (as
+    gz_ros2_control reads them; several merged in order) make it, unless a node of the
+    scenario runs a manager already; with both, ``robots.controllers`` wins and a notice
+    says so where they differ. Exit 2 naming the key where the file is missing or wrong or
+    a node of the scenario already has the name."""
     robots = model.robots
-    if robots is None or robots.controllers is None:
-        return model
-    key = "robots.controllers"
+    if robots is None:
+        return model, None, []
+    notices = []
+    if robots.controllers is not None:
+        key, files = ROBOTS_CONTROLLERS, robots.controllers
+        if tagged and [str((path.parent / files).resolve())] != list(tagged):
+            notices.append(ScenarioNotice(
+                path, key, f"the robot description's ros2_control plugin tag names "
+                f"{' + '.join(tagged)} (<parameters>); {files} is used instead.",
+                "one of the two, or both naming the same file."))
+    elif tagged and not any(getattr(class_of(spec), "hardware_role", False)
+                            for spec in model.nodes):
+        key = ROBOTS_DESCRIPTION
+        files = tagged[0] if len(tagged) == 1 else list(tagged)
+        for file in tagged:
+            if not Path(file).is_file():
+                raise ScenarioError(
+                    path, key, f"robot description {description}: its ros2_control plugin "
+                    f"tag's <parameters> names a controllers file that does not exist (tried "
+                    f"{file}).", "<parameters>$(find PKG)/config/FILE.yaml</parameters> (or "
+                    "package://PKG/...) with PKG in robots.urdf.packages, or "
+                    "robots.controllers naming the controllers file.")
+    else:
+        return model, None, notices
     if any(spec.name == MANAGER_NAME for spec in model.nodes):
         raise ScenarioError(path, key, f"the scenario also has a node named {MANAGER_NAME}.",
-                            "robots.controllers, or that node (not both).")
+                            "robots.controllers, or that node (not both)."
+                            if key == ROBOTS_CONTROLLERS else "rename that node.")
     kind = hardware_kind()
     cls = class_of(NodeSpec(name=MANAGER_NAME, kind=kind, rate=1)) if kind else None
     if cls is None:
         raise ScenarioError(path, key, "no node kind runs a controller manager here.",
                             "leave robots.controllers out.")
     try:
-        params = cls.Params.model_validate({"controllers": robots.controllers},
+        params = cls.Params.model_validate({"controllers": files},
                                            context={"scenario_dir": path.parent})
         rate, fed = cls.natural_rate(params), set(cls.client_inputs(params))
     except Exception as exc:  # noqa: BLE001 - the controllers file's problem, said as it is
@@ -265,8 +303,8 @@ def with_robot_managers(path: Path, model: ScenarioModel) -> ScenarioModel:
             continue
     inputs = [InputSpec(topic=t, mode="same_tick") for t in sorted(fed & published)]
     manager = NodeSpec(name=MANAGER_NAME, kind=kind, rate=rate, for_each="robot",
-                       params={"controllers": robots.controllers}, inputs=inputs)
-    return model.model_copy(update={"nodes": [*model.nodes, manager]})
+                       params={"controllers": files}, inputs=inputs)
+    return model.model_copy(update={"nodes": [*model.nodes, manager]}), key, notices
 
 
 def _said(exc: Exception) -> str:

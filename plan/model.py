@@ -176,7 +176,9 @@ class RobotsSpec(Strict):
                                     "(controller_manager: ros__parameters: ...), relative to "
                                     "this file: every robot gets its controller manager from "
                                     "it, a node controller_manager (for_each: robot) at the "
-                                    "file's update_rate, wired to physics by cosim")
+                                    "file's update_rate, wired to physics by cosim; default: "
+                                    "the file(s) a URDF description's gz_ros2_control "
+                                    "plugin tag names (its parameters elements), if any")
 
 
 class SuccessSpec(Strict):

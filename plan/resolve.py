@@ -70,7 +70,8 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     layout = client_robots(path, model, layout, worlds)  # and those clients may bring in
     model = read_settings_out(model)
     hand_wired = hand_wiring_notices(path, model)
-    model = with_robot_managers(path, model)  # robots.controllers
+    model, one_line, told = with_robot_managers(path, model, *tagged_controllers(layout, worlds))
+    hand_wired += told
     model, origins = expand_nodes(path, model, layout)
     model = complete_model(path, model)
     model = with_event_files(path, model, found, worlds)
@@ -84,7 +85,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
             params[i] = where.node_params(i, spec, classes[i][1])
             where.check_finite(where.node_key(i, "params"), params[i].model_dump())
     with found.collecting():  # before the world's timestep against physics' period
-        check_manager_rate(path, model, params, origins)
+        check_manager_rate(path, model, params, origins, one_line)
     needs_world = any(cls.needs_world for _, cls in classes.values())
     world = world_model = None
     with found.collecting():
@@ -109,7 +110,7 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
     # the checks go on without the fold, so that independent mistakes are reported together
     folded = None
     if not found.errors:
-        model, folded = fold_managers(path, model, params, origins)
+        model, folded = fold_managers(path, model, params, origins, one_line)
     if folded is not None:  # the node list changed: its classes and parameters again
         hand_wired += folded
         where = ScenarioChecks(path, model, origins, worlds, found)
@@ -184,6 +185,18 @@ def own_periods(where: ScenarioChecks, spec, cls, params, tick_ns,
     node = spec.period_ns // tick_ns
     ticks = {topic: int(period / tick_ns) for topic, period in own.items()}
     return {topic: t for topic, t in ticks.items() if t != node}
+
+
+def tagged_controllers(layout: RobotsLayout | None, worlds: WorldReader
+                       ) -> tuple[str, tuple[str, ...]]:
+    """(the robots: section's description, the controllers files the ``<parameters>`` of
+    its ros2_control plugin tag name: gz_ros2_control's ``<gazebo><plugin>``); ('', ())
+    without a robots: section or a described robot."""
+    if layout is None or not layout.names:
+        return "", ()
+    robot = worlds.described_robot(layout, layout.names[0])
+    files = tuple(getattr(robot, "controllers_files", ()))
+    return (str(layout.description), files) if files else ("", ())
 
 
 def entering_robots(path: Path, model: ScenarioModel, layout: RobotsLayout | None,
