@@ -20,9 +20,9 @@ from plan.events import EventSpec
 from plan.robots import RobotsLayout
 from plan.timeutil import Ns
 
-_MARKED: dict[int, tuple[Any, bytes | None]] = {}  # id -> (a message marked since the
-# runtime last took the marks, its bytes past the stamp or None): the message itself is held,
-# so that an id cannot be reused while it is marked
+_MARKED: dict[int, tuple[Any, bytes | None, bool]] = {}  # id -> (a message marked since
+# the runtime last took the marks, its bytes past the stamp or None, whether it may be left
+# out): the message itself is held, so that an id cannot be reused while it is marked
 
 
 def constant_message(msg: Any) -> Any:
@@ -32,7 +32,18 @@ def constant_message(msg: Any) -> Any:
     sets: the runtime may then serialise it once and write each stamp into those bytes
     (``runtime.exchange.prepare_outputs``). A mark holds for the step that makes it: mark
     the message at every step that returns it. Returns ``msg``."""
-    _MARKED[id(msg)] = (msg, None)
+    _MARKED[id(msg)] = (msg, None, False)
+    return msg
+
+
+def quiet_message(msg: Any) -> Any:
+    """Mark ``msg`` as ``constant_message`` does, and as standing for nothing published:
+    what a topic carries while its publisher has nothing to say (an inactive controller's
+    topics: upstream's publishes nothing). Lockstep wants a message of every due topic, so
+    the step gives one; the runtime leaves it out where no node of the run takes the topic
+    (``NodePlan.unconsumed``: nothing waits for it), and publishes it where one does.
+    Returns ``msg``."""
+    _MARKED[id(msg)] = (msg, None, True)
     return msg
 
 
@@ -43,13 +54,14 @@ def encoded_message(msg: Any, tail: bytes) -> Any:
     at once hands the bytes with it, and the runtime only writes the tick's stamp in front
     of them. The maker answers for the bytes (a test compares them with ``encode``). A mark
     holds for the step that makes it. Returns ``msg``."""
-    _MARKED[id(msg)] = (msg, tail)
+    _MARKED[id(msg)] = (msg, tail, False)
     return msg
 
 
-def take_output_marks() -> dict[int, tuple[Any, bytes | None]] | None:
-    """The messages marked (``constant_message``, ``encoded_message``) since the last
-    call, by id, with their bytes past the stamp (None for a constant one), forgotten here:
+def take_output_marks() -> dict[int, tuple[Any, bytes | None, bool]] | None:
+    """The messages marked (``constant_message``, ``quiet_message``, ``encoded_message``)
+    since the last call, by id, with their bytes past the stamp (None for a constant one)
+    and whether they may be left out, forgotten here:
     the runtime takes them right after each step, so the marks held are one step's (None
     when there are none)."""
     if not _MARKED:

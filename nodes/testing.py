@@ -204,3 +204,29 @@ class TrajectoryOnceNode(StepNode):
                                                time_from_start=Duration(sec=self.params.seconds))]
             self.sent = True
         return {self.TOPIC: msg}
+
+
+class TakerParams(BaseModel):
+    """Parameters of a taker: its output topic."""
+
+    model_config = ConfigDict(extra="forbid")
+    output: str
+
+
+class TakerNode(StepNode):
+    """Takes any topics (any message type) and publishes an Int64: the stamps' nanoseconds
+    of what it took at this activation, summed (0 for a message without a header): a node
+    of the run that takes a topic, whatever it carries."""
+
+    Params = TakerParams
+
+    @classmethod
+    def outputs(cls, params: TakerParams) -> dict[str, type]:
+        """One Int64 topic."""
+        return {params.output: Int64}
+
+    def step(self, tick: Tick, inputs: dict[str, Any]) -> dict[str, Any]:
+        """Sum the stamps taken."""
+        total = sum(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+                    for m in inputs.values() if hasattr(m, "header"))
+        return {self.params.output: Int64(data=total)}

@@ -129,16 +129,19 @@ def _resolve(path: Path, model: ScenarioModel, sha: str, overrides: dict, worlds
               for i, spec in enumerate(model.nodes)}
     found.raise_any()  # what follows reads every node's inputs, the tick and the world
     nodes: dict[str, NodePlan] = {}
-    edges: list[Edge] = []
+    edges = [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode)
+             for i, spec in enumerate(model.nodes) for inp in inputs[i]]
+    taken = {edge.topic for edge in edges}
     for i, spec in enumerate(model.nodes):
-        edges += [Edge(spec.name, inp.producer, inp.graph_topic, inp.mode) for inp in inputs[i]]
         nodes[spec.name] = NodePlan(
             name=spec.name, spec=spec, class_ref=classes[i][0], params=params[i],
             period_ticks=spec.period_ns // tick_ns, outputs=outputs[i][0],
             output_names=outputs[i][1], inputs=inputs[i], latched=outputs[i][2],
             role=role_of(spec, classes[i][0], getattr(params[i], "gate", "auto"),
                          catalogue().external),
-            output_periods=own_periods(where, spec, classes[i][1], params[i], tick_ns))
+            output_periods=own_periods(where, spec, classes[i][1], params[i], tick_ns),
+            unconsumed=frozenset(own for own, graph in outputs[i][1].items()
+                                 if graph not in taken))
     with found.collecting():
         where.check_cycles(edges)
     with found.collecting():

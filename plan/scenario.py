@@ -56,6 +56,8 @@ class NodePlan:
     relatch: set[int] = field(default_factory=set)  # ticks its latched outputs are due again
     output_periods: dict[str, int] = field(default_factory=dict)  # own output name -> its
     # period in ticks, a multiple of the node's (published at those activations only)
+    unconsumed: frozenset[str] = frozenset()  # own names of the outputs no node of the run
+    # takes: a message its step marks quiet there is left out (nodes.contract.quiet_message)
 
     def windowed(self, tick: int, first: bool) -> tuple[dict[str, str], frozenset[str], bool]:
         """(own -> graph names, latched own names, first) of the outputs due at ``tick``

@@ -54,7 +54,7 @@ class Activation:
             if getattr(self.node, "holds_outputs", False):  # it holds every topic: the due
                 outputs = {own: msg for own, msg in outputs.items() if own in names}
         items = prepare_outputs(self.plan.name, self.plan.declared_outputs, names, tick,
-                                outputs, latched, first, self.tails)
+                                outputs, latched, first, self.tails, self.plan.unconsumed)
         self.first = False
         return items
 

@@ -32,8 +32,8 @@ def stamp(tick: Tick) -> Time:
 
 def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str], tick: Tick,
                     outputs: dict[str, Any], latched: frozenset[str] = frozenset(),
-                    first: bool = False,
-                    tails: ConstantTails | None = None) -> list[tuple[str, bytes]]:
+                    first: bool = False, tails: ConstantTails | None = None,
+                    unconsumed: frozenset[str] = frozenset()) -> list[tuple[str, bytes]]:
     """Check, stamp and serialise a step's outputs: [(graph topic, CDR bytes)] sorted by topic.
 
     ``declared`` maps the node's own topic names to message classes and ``names`` maps them
@@ -43,7 +43,9 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
     step marked constant (``nodes.contract.constant_message``) is serialised once into the
     node's ``tails`` while the step gives the same object (encoded every time without
     ``tails``); one it handed with its bytes (``encoded_message``) gets the stamp written in
-    front of them. Call it right after the step: it takes the step's marks.
+    front of them. A message marked quiet (``quiet_message``) on an output no node of the run
+    takes (``unconsumed``, own names) is left out. Call it right after the step: it takes
+    the step's marks.
     """
     marks = take_output_marks()
     due = set(names) if first else set(names) - latched
@@ -60,14 +62,18 @@ def prepare_outputs(node: str, declared: dict[str, type], names: dict[str, str],
         if not isinstance(msg, declared[own]):
             raise StepContractError(f"node {node} returned {type(msg).__name__} on {own}, "
                                     f"declared {declared[own].__name__}")
+        mark = marks.get(id(msg)) if marks is not None else None
+        if mark is not None and mark[0] is not msg:
+            mark = None
+        if mark is not None and mark[2] and own in unconsumed:
+            continue
         header = getattr(msg, "header", None)
         if header is not None and hasattr(header, "stamp"):
             header.stamp = when
         elif isinstance(msg, TFMessage):
             for transform in msg.transforms:
                 transform.header.stamp = when
-        mark = marks.get(id(msg)) if marks is not None else None
-        if mark is not None and mark[0] is msg:
+        if mark is not None:
             if mark[1] is not None and header_first(type(msg)):
                 items.append((names[own], stamped(when, mark[1])))
                 continue

@@ -153,3 +153,30 @@ def test_an_update_rate_other_than_physics_rate_over_n_names_the_file_key_and_ra
     assert "(100 Hz," in text and "(50 Hz, nodes[0] (physics).rate)" in text
     assert "update_rate: one of 50, 25, 10, 5, 2, 1 Hz in" in text
     assert "physics' rate: a whole multiple of 100" in text
+
+
+def test_an_inactive_controller_publishes_nothing_where_no_node_of_the_run_takes_its_topics(
+        tmp_path):
+    """As upstream: the trajectory controller of arm_control is loaded and never activated;
+    its ~/controller_state is in no node's inputs, so the run records none of it (the empty
+    message its step gives stands for nothing), while a node that takes it gets one at each
+    tick (lockstep waits for it)."""
+    from orchestrator import api
+
+    state = "/joint_trajectory_controller/controller_state"
+    scenario = load_scenario(SCENARIOS / "arm_control.yaml")
+    assert state in scenario.nodes["physics"].unconsumed
+    assert "/joint_states" not in scenario.nodes["physics"].unconsumed  # the arm takes it
+    run = api.run(SCENARIOS / "arm_control.yaml", out=tmp_path / "runs", duration="1s",
+                  in_process=True, picture=False)
+    assert state not in run.manifest["topic_digests"]
+    assert "/dynamic_joint_states" in run.manifest["topic_digests"]
+    text = (SCENARIOS / "arm_control.yaml").read_text().replace(
+        "nodes:\n", "nodes:\n  - name: taker\n    module: nodes.testing:TakerNode\n"
+        "    rate: 10\n    params: {output: /taken}\n"
+        f"    inputs: [{{topic: {state}, mode: delayed}}]\n", 1)
+    taken = load_scenario(_copy(tmp_path, "taken.yaml", text))
+    assert state not in taken.nodes["physics"].unconsumed
+    run = api.run(tmp_path / "taken.yaml", out=tmp_path / "runs", duration="1s",
+                  in_process=True, picture=False)
+    assert state in run.manifest["topic_digests"]

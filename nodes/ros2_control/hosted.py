@@ -37,7 +37,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from nodes.contract import constant_message
+from nodes.contract import quiet_message
 from nodes.ros2_control.hardware import HardwareInfo, hardware_info, unservable
 from nodes.ros2_control.interface import Fresh, JointStates
 from nodes.ros2_control.manager import ControllerManager, resolve
@@ -188,7 +188,8 @@ class RobotManager:
         system.write(data, commands)
         # lockstep wants one message per declared topic and activation: an inactive
         # controller's topics carry an empty message of their type, nothing of the controller
-        # (made once, and its bytes once: the runtime only stamps it with the tick's time)
+        # (made once, and its bytes once: the runtime only stamps it with the tick's time),
+        # which the runtime leaves out where no node of the run takes the topic
         published = done.published
         for topic, graph, cls in self.outputs:
             msg = published.get(topic)
@@ -199,7 +200,7 @@ class RobotManager:
                     ctrl = self.manager.controllers.get(name)
                     msg = self.empty[topic] = (cls() if ctrl is None
                                                else ctrl.empty_message(own))
-                constant_message(msg)
+                quiet_message(msg)
             out[graph] = msg
 
     def _switch(self, msg) -> dict[str, float]:
