@@ -79,6 +79,8 @@ def tick_time_ns(tick: int, tick_ns: Ns) -> int:
     integer arithmetic. Exact (no rounding) when the tick is a whole number of ns. Every
     /clock value, header stamp and bag time comes from here, so they agree in every process.
     """
+    if type(tick_ns) is int:  # the common case, at every tick: no Fraction made
+        return tick * tick_ns
     t = Fraction(tick_ns)
     return (2 * tick * t.numerator + t.denominator) // (2 * t.denominator)
 
@@ -86,6 +88,8 @@ def tick_time_ns(tick: int, tick_ns: Ns) -> int:
 def tick_at_ns(ns: int, tick_ns: Ns) -> int:
     """The last tick whose time (``tick_time_ns``) is at or before ``ns``: the inverse of
     ``tick_time_ns`` on its values, and ``ns // tick_ns`` for a whole-ns tick."""
+    if type(tick_ns) is int:
+        return ns // tick_ns
     t = Fraction(tick_ns)
     # tick_time_ns(k) <= ns  <=>  k * t < ns + 1/2: the largest such k, with integers only
     return -(-(2 * ns + 1) * t.denominator // (2 * t.numerator)) - 1

@@ -59,6 +59,15 @@ from plan.robots import namespaced
 from plan.timeutil import NS_PER_S
 
 
+def _index(addresses) -> slice | np.ndarray:
+    """Addresses into an MjData array: a slice where they run one after another (a robot's
+    joints mostly do; a slice reads cheaper than an index array), else the array."""
+    index = np.asarray(addresses, dtype=np.int64)
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
+
+
 class MujocoSystem:
     """One robot's hardware over MjData: its joints' state read into ``state`` (the mapping
     the controllers are loaned, refreshed in place), command interfaces written to the
@@ -76,8 +85,8 @@ class MujocoSystem:
         world recompiled with a robot in or out moves them (the robot's joints, actuators
         and the state its controllers were loaned stay what they were)."""
         info = self.info
-        self.qadr = np.asarray(qadr, dtype=np.int64)
-        self.dadr = np.asarray(dadr, dtype=np.int64)
+        self.qadr = _index(qadr)
+        self.dadr = _index(dadr)
         self.actuator: dict[str, int] = {}  # 'joint/interface' -> actuator id
         for c in info.commands:
             if c.interface:

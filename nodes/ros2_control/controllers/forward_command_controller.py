@@ -72,13 +72,15 @@ class ForwardCommandController(ControllerInterface):
         if not all(math.isfinite(v) for v in values):
             return [f"{self.name}/commands refused: a value is not finite"]
         self.command = [float(v) for v in values]
+        self.commands = dict(zip(self.keys, self.command, strict=True))
         return []
 
     def update(self, time_ns: int, period_ns: int) -> Update:
-        """The latest command (nothing before the first)."""
+        """The latest command (nothing before the first; the same mapping until the next,
+        which no one changes)."""
         if self.command is None:
             return Update()
-        return Update(commands=dict(zip(self.keys, self.command, strict=True)))
+        return Update(commands=self.commands)
 
 
 class JointGroupController(ForwardCommandController):
