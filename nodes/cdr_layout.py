@@ -3,8 +3,8 @@
 A joint state broadcaster publishes the same joints at every update: the names, the counts
 and every alignment of its messages are the same each time, only the float values change.
 ``FixedLayout`` lays such a message out once, as CDR (little endian, XCDR1, which rmw_fastrtps
-writes) lays it out from the byte after the stamp of its std_msgs/Header, and packs each
-update's values into it. Such bytes go to the runtime with their message
+writes) lays it out from the byte after the stamp of its std_msgs/Header, and makes a function
+that packs each update's values into it in one call. Such bytes go to the runtime with their message
 (``nodes.contract.encoded_message``); tests compare them with the runtime's encoder and
 rclpy's ``serialize_message`` (tests/test_ros2_control_messages.py).
 """
@@ -18,8 +18,8 @@ _U32 = struct.Struct("<I")
 
 class FixedLayout:
     """A message's bytes past its header's stamp, written field by field in CDR order
-    (``string``, ``count``, ``doubles``), then packed with the values of its ``doubles``
-    in order (``pack``)."""
+    (``string``, ``strings``, ``count``, ``doubles``), then packed with the values of its
+    ``doubles`` by the function ``packer_of_runs`` or ``packer_of_columns`` makes."""
 
     def __init__(self, frame_id: str = ""):
         """Start right after the stamp (alignment counts from the CDR body's start, 8 bytes
@@ -75,25 +75,38 @@ class FixedLayout:
             self._struct = struct.Struct("".join(self._formats))
         return self._struct
 
-    def pack(self, *runs) -> bytes:
-        """The bytes, with each run of ``doubles`` given its values (a sequence of floats
-        each, of the run's length, in the order they were laid out)."""
+    def _compile(self, arguments: list[str], parameters: str):
+        """A function of ``parameters`` packing the constant bytes and ``arguments`` (the
+        values of the runs of doubles, in order, as expressions) in one call."""
         packer = self._finish()
-        args = self._args
-        for start, values in zip(self._slots, runs, strict=True):
-            args[start:start + len(values)] = values
-        return packer.pack(*args)
+        constants = {f"C{i}": a for i, a in enumerate(self._args) if isinstance(a, bytes)}
+        values = iter(arguments)
+        parts = [f"C{i}" if isinstance(a, bytes) else next(values)
+                 for i, a in enumerate(self._args)]
+        source = f"def pack({parameters}):\n    return P({', '.join(parts)})\n"
+        namespace = {"P": packer.pack, **constants}
+        exec(compile(source, "<cdr fixed layout>", "exec"), namespace)  # noqa: S102
+        return namespace["pack"]
 
-    def pack_columns(self, *columns) -> bytes:
-        """The bytes of a layout of equal runs of ``doubles`` (a run per element of a
-        sequence of messages): value i of every run from ``columns[i]`` (a sequence with a
-        float per run, in order)."""
-        packer = self._finish()
-        args = self._args
-        slots = self._slots
-        first = slots[0]
-        stride = slots[1] - first if len(slots) > 1 else len(args)
-        end = first + stride * len(slots)
-        for i, column in enumerate(columns):
-            args[first + i:end:stride] = column
-        return packer.pack(*args)
+    def packer_of_runs(self):
+        """``pack(*runs)``: the bytes with each run of ``doubles`` given its values (a
+        sequence of floats each, of the run's length, in the order they were laid out)."""
+        lengths = [self._length(start) for start in self._slots]
+        arguments = [f"r{k}[{i}]" for k, n in enumerate(lengths) for i in range(n)]
+        return self._compile(arguments, ", ".join(f"r{k}" for k in range(len(lengths))))
+
+    def packer_of_columns(self, columns: int):
+        """``pack(*columns)`` for a layout of equal runs of ``columns`` doubles each (a run
+        per element of a sequence of messages): value i of every run from ``columns[i]``
+        (a sequence with a float per run, in order)."""
+        if any(self._length(start) != columns for start in self._slots):
+            raise ValueError(f"every run of doubles must have {columns} values")
+        arguments = [f"c{i}[{k}]" for k in range(len(self._slots)) for i in range(columns)]
+        return self._compile(arguments, ", ".join(f"c{i}" for i in range(columns)))
+
+    def _length(self, start: int) -> int:
+        """How many doubles the run at argument ``start`` has."""
+        end = start
+        while end < len(self._args) and not isinstance(self._args[end], bytes):
+            end += 1
+        return end - start

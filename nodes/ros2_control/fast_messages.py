@@ -92,13 +92,13 @@ def dynamic_joint_state(names: list[str], positions, velocities, efforts
     """The broadcaster's control_msgs/DynamicJointState: position, velocity and effort of
     every joint (its values' interface names one list, which no one changes)."""
     values = []
-    interfaces = list(INTERFACES)
+    append, new, interfaces = values.append, InterfaceValue.__new__, list(INTERFACES)
     for p, v, e in zip(positions, velocities, efforts, strict=True):
-        iv = InterfaceValue.__new__(InterfaceValue)
+        iv = new(InterfaceValue)
         iv._check_fields = CHECK
         iv._interface_names = interfaces
         iv._values = array("d", (p, v, e))
-        values.append(iv)
+        append(iv)
     msg = DynamicJointState.__new__(DynamicJointState)
     msg._check_fields = CHECK
     msg._header = header("")
@@ -115,19 +115,15 @@ class BroadcasterPacker:
 
     def __init__(self, names: list[str]):
         n = len(names)
-        self.joint_state = (FixedLayout().strings(names).count(n).doubles(n)
-                            .count(n).doubles(n).count(n).doubles(n))
-        self.dynamic = FixedLayout().strings(names).count(n)
+        self.pack_joint_state = (FixedLayout().strings(names).count(n).doubles(n).count(n)
+                                 .doubles(n).count(n).doubles(n).packer_of_runs())
+        """``pack_joint_state(positions, velocities, efforts)``: the JointState's bytes past
+        the stamp (a float each per joint, in order)."""
+        dynamic = FixedLayout().strings(names).count(n)
         for _ in names:
-            self.dynamic.strings(INTERFACES).count(len(INTERFACES)).doubles(len(INTERFACES))
-
-    def pack_joint_state(self, positions, velocities, efforts) -> bytes:
-        """The JointState's bytes past the stamp (a float each per joint, in order)."""
-        return self.joint_state.pack(positions, velocities, efforts)
-
-    def pack_dynamic(self, positions, velocities, efforts) -> bytes:
-        """The DynamicJointState's bytes past the stamp."""
-        return self.dynamic.pack_columns(positions, velocities, efforts)
+            dynamic.strings(INTERFACES).count(len(INTERFACES)).doubles(len(INTERFACES))
+        self.pack_dynamic = dynamic.packer_of_columns(len(INTERFACES))
+        """``pack_dynamic(positions, velocities, efforts)``: the DynamicJointState's."""
 
 
 def float64_array(data) -> Float64MultiArray:

@@ -87,6 +87,8 @@ class MujocoSystem:
         info = self.info
         self.qadr = _index(qadr)
         self.dadr = _index(dadr)
+        self._viewed, self._views = None, None  # the MjData read last, views into it
+        self._written, self._rows = None, []  # the commands written last: (actuator, value)
         self.actuator: dict[str, int] = {}  # 'joint/interface' -> actuator id
         for c in info.commands:
             if c.interface:
@@ -110,8 +112,18 @@ class MujocoSystem:
     def read(self, data) -> None:
         """The joints' positions, velocities and actuator efforts, now (new readings: a
         controller may keep an earlier one)."""
-        self.state.refresh(data.qpos[self.qadr].tolist(), data.qvel[self.dadr].tolist(),
-                           data.qfrc_actuator[self.dadr].tolist())
+        if data is not self._viewed:  # views of its joints' slices, kept while the MjData is
+            self._viewed = data
+            self._views = ((data.qpos[self.qadr], data.qvel[self.dadr],
+                            data.qfrc_actuator[self.dadr])
+                           if type(self.qadr) is slice and type(self.dadr) is slice else None)
+        views = self._views
+        if views is not None:
+            q, v, e = views
+            self.state.refresh(q.tolist(), v.tolist(), e.tolist())
+        else:
+            self.state.refresh(data.qpos[self.qadr].tolist(), data.qvel[self.dadr].tolist(),
+                               data.qfrc_actuator[self.dadr].tolist())
 
     def start(self, data) -> None:
         """Before the first update: every position servo holds where its joint is (where
@@ -129,13 +141,15 @@ class MujocoSystem:
         Jazzy's controller manager saturates a command with ``enforce_command_limits: true``
         (the value range only; it also bounds a position step by the velocity limit, which
         cosim does not)."""
+        if commands is not self._written:  # a mapping given again is the same commands
+            targets = self.targets
+            self._written, self._rows = commands, [
+                (target[0], min(max(value, target[1]), target[2]))
+                for interface, value in commands.items()
+                if (target := targets.get(interface)) is not None]
         ctrl = data.ctrl
-        targets = self.targets
-        for interface, value in commands.items():
-            target = targets.get(interface)
-            if target is not None:
-                a, low, high = target
-                ctrl[a] = min(max(value, low), high)
+        for a, value in self._rows:
+            ctrl[a] = value
 
 
 class RobotManager:
@@ -161,6 +175,7 @@ class RobotManager:
         self.graph = {t: namespaced(namespace, t) for t in [*self.inputs, *self.declared]}
         self.held = frozenset(t for t in self.inputs if self.graph[t] in held)
         self.routes = [(t, self.graph[t]) for t in self.inputs]  # (own, physics' name)
+        self.same_names = all(own == graph for own, graph in self.routes)  # at the root
         self.outputs = [(t, self.graph[t], cls) for t, cls in self.declared.items()]
         self.empty: dict[str, Any] = {}  # topic -> what it carries while not published
         self.fresh = Fresh()
@@ -175,7 +190,10 @@ class RobotManager:
         """Read, update, write; what the controllers publish into ``out`` (physics' names)."""
         system = self.system
         system.read(data)
-        mine = {t: msg for t, graph in self.routes if (msg := inputs.get(graph)) is not None}
+        # the manager looks up only its own topics: physics' inputs will do where they are
+        # named alike (a robot at the root)
+        mine = inputs if self.same_names else {
+            t: msg for t, graph in self.routes if (msg := inputs.get(graph)) is not None}
         commands: dict[str, float] = {}
         if self.first:
             system.start(data)

@@ -102,7 +102,9 @@ class Update:
     """What one update of a controller gives: ``commands`` (``joint/interface`` -> value,
     the command interfaces it claims), ``published`` (topic -> message; ``~/x`` is under the
     controller's name) and ``notes`` (what it refused, for the run's log); each empty when
-    not given. (A plain class with slots: one or more are made at every update.)"""
+    not given. No one changes ``commands`` once given: a controller may give the same
+    mapping again while its commands hold, and the hardware writes it as it wrote it. (A
+    plain class with slots: one or more are made at every update.)"""
 
     __slots__ = ("commands", "published", "notes")
 

@@ -130,12 +130,14 @@ class Route:
     """What an update gives a loaded controller and takes from it, named once: its
     subscriptions (own name, graph name) and its publications (own name -> graph name)."""
 
-    __slots__ = ("name", "controller", "subscriptions", "publications")
+    __slots__ = ("name", "controller", "subscriptions", "publications", "absolute")
 
     def __init__(self, name: str, controller: ControllerInterface,
                  subscriptions: tuple[tuple[str, str], ...], publications: dict[str, str]):
         self.name, self.controller = name, controller
         self.subscriptions, self.publications = subscriptions, publications
+        # every topic it publishes is named as the graph names it (no ~/x)
+        self.absolute = all(own == graph for own, graph in publications.items())
 
     @classmethod
     def of(cls, name: str, ctrl: ControllerInterface) -> Route:
@@ -231,6 +233,7 @@ class ControllerManager:
         ``held``: the topics the external node feeds (see the module)."""
         out = Update()
         commands, published, notes = out.commands, out.published, out.notes
+        owned = True  # ``commands`` is this update's own (not a controller's, passed on)
         routes = self._routes
         if routes is None:
             routes = self._routes = [Route.of(name, ctrl) for name, ctrl in
@@ -246,11 +249,20 @@ class ControllerManager:
             for topic, msg in arrived:
                 notes += ctrl.on_message(topic, msg, time_ns)
             done = ctrl.update(time_ns, period_ns)
-            if done.commands:
-                commands.update(done.commands)
-            names = route.publications
-            for topic, msg in done.published.items():
-                published[names.get(topic) or resolve(route.name, topic)] = msg
+            if done.commands:  # one controller's commands passed on as they are
+                if not commands:
+                    commands = out.commands = done.commands
+                else:
+                    if not owned:
+                        commands = out.commands = dict(commands)
+                    commands.update(done.commands)
+                owned = commands is not done.commands
+            if route.absolute:
+                published.update(done.published)
+            else:
+                names = route.publications
+                for topic, msg in done.published.items():
+                    published[names.get(topic) or resolve(route.name, topic)] = msg
             if done.notes:
                 notes += done.notes
         return out
