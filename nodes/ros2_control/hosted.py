@@ -249,13 +249,17 @@ class RobotManager:
                     self.refused.append(rid)
         return commands
 
-    def metrics(self) -> dict[str, float]:
+    def metrics(self, prefix: str = "") -> dict[str, float]:
         """Each controller's state (``active:<name>`` 1 or 0; ``state:<name>`` 0 unloaded,
         1 unconfigured, 2 inactive, 3 active), each trajectory controller's newest goal
         (number, state, result code, the joint that broke a tolerance), the newest request
-        handled (``request``) and those refused at this tick (``refused:<id>`` 1)."""
-        return {**self.manager.metrics(), "request": float(self.request),
-                **{f"refused:{r}": 1.0 for r in self.refused}}
+        handled (``request``) and those refused at this tick (``refused:<id>`` 1); every key
+        after ``prefix``."""
+        out = self.manager.metrics(prefix)
+        out[prefix + "request"] = float(self.request)
+        for r in self.refused:
+            out[f"{prefix}refused:{r}"] = 1.0
+        return out
 
 
 def manager_period_ns(params: HostedManagerParams, physics_period_ns):
@@ -332,8 +336,10 @@ class HostedManagers:
 
     def metrics(self) -> dict[str, float]:
         """Each manager's metrics under ``metric_prefix``."""
+        if len(self.managers) == 1:
+            manager = self.managers[0]
+            return manager.metrics(metric_prefix(self.params.name, manager.robot))
         out: dict[str, float] = {}
         for manager in self.managers:
-            prefix = metric_prefix(self.params.name, manager.robot)
-            out.update({prefix + k: v for k, v in manager.metrics().items()})
+            out.update(manager.metrics(metric_prefix(self.params.name, manager.robot)))
         return out

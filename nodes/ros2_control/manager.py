@@ -158,6 +158,8 @@ class ControllerManager:
         self.held: dict[str, Any] = {}  # topic -> its message at the last tick
         self.unservable: dict[str, str] = {}  # controller -> what the hardware lacks for it
         self._routes: list[Route] | None = None  # made at the first update after a load
+        # prefix -> controller -> its metrics' keys (active, state, own metric -> key)
+        self._metric_keys: dict[str, dict[str, tuple[str, str, dict[str, str]]]] = {}
 
     def states(self) -> dict[str, str]:
         """Every loaded controller's state, in file order."""
@@ -281,17 +283,31 @@ class ControllerManager:
         same = same_message(last, msg) if topic in held else last == msg
         return None if same else msg
 
-    def metrics(self) -> dict[str, float]:
-        """``active:<name>`` (1 or 0) of every controller, then each one's own
-        (``<metric>:<name>``)."""
-        out = {f"active:{n}": float(c is not None and c.active)
-               for n, c in self.controllers.items()}
-        out.update({f"state:{n}": STATE_CODES["unloaded" if n in self.unloaded else
-                                              state_of(c)]
-                    for n, c in self.controllers.items()})
+    def metrics(self, prefix: str = "") -> dict[str, float]:
+        """``active:<name>`` (1 or 0) of every controller, its ``state:<name>`` (0 unloaded,
+        1 unconfigured, 2 inactive, 3 active), then each one's own (``<metric>:<name>``);
+        every key after ``prefix``. (Asked at every tick of a multi-process run: the keys
+        are made once.)"""
+        keys = self._metric_keys.get(prefix)
+        if keys is None:
+            keys = self._metric_keys[prefix] = {}
+        out: dict[str, float] = {}
+        unloaded = self.unloaded
+        for name, ctrl in self.controllers.items():
+            named = keys.get(name)
+            if named is None:
+                named = keys[name] = (f"{prefix}active:{name}", f"{prefix}state:{name}", {})
+            active, state, own = named
+            out[active] = float(ctrl is not None and ctrl.active)
+            out[state] = STATE_CODES["unloaded" if name in unloaded else state_of(ctrl)]
         for name, ctrl in self.controllers.items():
             if ctrl is not None:
-                out.update({f"{k}:{name}": v for k, v in ctrl.metrics().items()})
+                own = keys[name][2]
+                for metric, value in ctrl.metrics().items():
+                    key = own.get(metric)
+                    if key is None:
+                        key = own[metric] = f"{prefix}{metric}:{name}"
+                    out[key] = value
         return out
 
 
