@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> None:
     m = {name: statistics.median(values) for name, values in loops.items()}
 
     def ratio(case: str, base: str) -> str:
-        return f"{m[case]:.2f} s / {m[base]:.2f} s = {m[case] / m[base]:.2f}x"
+        return f"{m[case]:.3f} s / {m[base]:.3f} s = {m[case] / m[base]:.3f}x"
 
     print(f"{args.seconds} s simulated, median of {args.repeats}:")
     print(f"  arm, manager at 100 Hz vs /joint_commands: multi-process "
