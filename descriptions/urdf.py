@@ -262,6 +262,9 @@ def _arm_actuators(spec: mujoco.MjSpec, urdf: Urdf, description: str, options: U
                          f"commands the first, {usable[0]}")
         wanted[name] = (usable[0], cj.states or ("position", "velocity"),
                         *cj.limits.get(usable[0], (None, None)))
+    for name, states in urdf.control_sensors.items():
+        notes.append(f"<ros2_control> sensor {name!r} ({', '.join(states)}): not simulated, "
+                     "no state interfaces (list_hardware_interfaces omits them)")
     for name, interface in options.interfaces.items():
         if name not in urdf.joints or urdf.joints[name].kind == "fixed":
             raise DescriptionError(description, "the joint given an interface is not a "

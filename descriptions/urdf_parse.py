@@ -80,8 +80,10 @@ class GazeboSensor:
 @dataclass
 class Urdf:
     """The whole document: robot name, links and joints in file order, the root link,
-    ros2_control joints, Gazebo sensors, per-link friction (``mu1``) and the text of each
-    ``<parameters>`` of its ros2_control plugin tag, in order (``controllers_files``)."""
+    ros2_control joints, Gazebo sensors, per-link friction (``mu1``), the text of each
+    ``<parameters>`` of its ros2_control plugin tag, in order (``controllers_files``), and
+    the ``<ros2_control>`` blocks' ``<sensor>`` elements with their state interfaces
+    (``control_sensors``: cosim gives them none, and says so)."""
 
     name: str
     links: dict[str, UrdfLink]
@@ -92,6 +94,7 @@ class Urdf:
     friction: dict[str, float]
     unsupported: list[str]
     controllers_files: list[str] = field(default_factory=list)
+    control_sensors: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def children(self, link: str) -> list[UrdfJoint]:
         """The joints whose parent is ``link``."""
@@ -143,7 +146,9 @@ def parse_urdf(text: str, description: str) -> Urdf:
     unsupported = sorted({el.tag for el in root if el.tag not in (
         "link", "joint", "material", "gazebo", "ros2_control", "transmission", "mujoco")})
     return Urdf(root.get("name", ""), links, joints, roots[0], _ros2_control(root),
-                sensors, friction, unsupported, _plugin_parameters(root))
+                sensors, friction, unsupported, _plugin_parameters(root),
+                {s.get("name", ""): tuple(i.get("name", "") for i in s.findall("state_interface"))
+                 for block in root.findall("ros2_control") for s in block.findall("sensor")})
 
 
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...]:
