@@ -22,10 +22,10 @@ from tests.helpers import ROOT
 
 UR = ROOT / "tests" / "scenarios" / "ur5e_control.yaml"
 ARM = ROOT / "scenarios" / "robots" / "myarm_description" / "urdf" / "myarm.urdf.xacro"
-UR_XACRO = ROOT / "tests" / "robots" / "ur5e_description" / "urdf" / "ur_mocked.urdf.xacro"
-UR_PACKAGES = {"ur5e_description": str(ROOT / "tests" / "robots" / "ur5e_description")}
+UR_XACRO = ROOT / "tests" / "robots" / "ur_description" / "urdf" / "ur_mocked.urdf.xacro"
+UR_PACKAGES = {"ur_description": str(ROOT / "tests" / "robots" / "ur_description")}
 PACKAGES = {"myarm_description": str(ROOT / "scenarios" / "robots" / "myarm_description")}
-# tests/robots/ur5e_description/config/initial_positions.yaml, as UR's mock hardware starts
+# tests/robots/ur_description/config/initial_positions.yaml, as UR's mock hardware starts
 INITIAL = {"shoulder_pan_joint": 0.0, "shoulder_lift_joint": -1.57, "elbow_joint": 0.0,
            "wrist_1_joint": -1.57, "wrist_2_joint": 0.0, "wrist_3_joint": 0.0}
 TICK_NS = 10_000_000
@@ -90,11 +90,13 @@ def test_the_hardware_clamps_a_command_to_the_blocks_min_and_max():
 def test_list_hardware_interfaces_lists_what_the_block_declares(ur):
     hardware = manager_hardware(ur, "physics", "ur")
     command, state = interfaces(hardware, ["shoulder_pan_joint/position"])
+    # UR's block offers position and velocity commands: cosim commands the first, position
     assert [(i.name, i.is_claimed) for i in command] == [
         (f"{j}/position", j == "shoulder_pan_joint") for j in sorted(INITIAL)]
-    # the block declares position and velocity state interfaces: no effort
+    # the block declares position, velocity and effort state interfaces (its <sensor>s,
+    # tcp_fts_sensor and tcp_pose, are not simulated: no interfaces)
     assert [i.name for i in state] == [f"{j}/{i}" for j in sorted(INITIAL)
-                                       for i in ("position", "velocity")]
+                                       for i in ("effort", "position", "velocity")]
 
 
 def test_physics_does_not_build_the_joint_states_a_broadcaster_replaces(ur, monkeypatch):

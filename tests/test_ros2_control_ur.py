@@ -1,11 +1,13 @@
-"""A published arm's shape, driven as its users drive it (issue 48's first done-when item):
-a UR5e-shaped xacro (tests/robots/ur5e_description, ``ur_mocked.urdf.xacro ur_type:=ur5e``:
-xacro arguments, a ``world`` root link, its own ``<ros2_control>`` block on
-mock_components/GenericSystem) in a ``robots:`` section, its controllers file as UR users
-write it (joints unprefixed) named once in ``robots.controllers``, and a plain rclpy
-FollowJointTrajectory client as a MoveIt user's script: SUCCESSFUL within the goal
-tolerance, INVALID_JOINTS for an unknown joint, a cancel that leaves the arm holding; one
-digest for the multi-process run, its in-process replay and a second in-process run."""
+"""A published arm description, driven as its users drive it (issue 48's first done-when
+item): Universal Robots' own ur_description, vendored unmodified (tests/robots/
+ur_description, 2.4.5: ``ur_mocked.urdf.xacro ur_type:=ur5e name:=ur``: xacro arguments,
+``$(find ur_description)``, a ``world`` root link, COLLADA and STL meshes, its own
+``<ros2_control>`` block on mock_components/GenericSystem) in a ``robots:`` section, its
+controllers file as UR users write it (joints unprefixed) named once in
+``robots.controllers``, and a plain rclpy FollowJointTrajectory client as a MoveIt user's
+script: SUCCESSFUL within the goal tolerance, INVALID_JOINTS for an unknown joint, a cancel
+that leaves the arm holding; one digest for the multi-process run, its in-process replay
+and a second in-process run."""
 
 from __future__ import annotations
 
@@ -71,7 +73,7 @@ def ur_session(sim: SimClient, checks: bool) -> int:
     return int(stop.error_message.split("before tick ")[1].split()[0])
 
 
-def test_a_moveit_users_client_drives_the_ur_shaped_arm(tmp_path, ros_node):
+def test_a_moveit_users_client_drives_urs_own_ur5e_description(tmp_path, ros_node):
     (live,) = live_runs(ros_node, SCENARIO, tmp_path, ur_session, times=1)
     assert live.returncode == 0, live.stderr[-3000:]
     with BagReader(live.run_dir / "bag") as bag:
