@@ -17,7 +17,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported
 import nodes  # noqa: E402, F401 - provides the node kinds to the plan (plan.kinds)
 from bench.common import ROOT  # noqa: E402
 from descriptions.load import load_scenario  # noqa: E402
-from nodes.contract import Tick  # noqa: E402
+from nodes.contract import Tick, take_output_marks  # noqa: E402
 from orchestrator.lockstep.inprocess import make_node  # noqa: E402
 
 NAV = ROOT / "scenarios" / "nav.yaml"
@@ -27,9 +27,11 @@ def mean_step_ms(scenario, name: str, inputs: dict, repeats: int) -> float:
     """Mean wall time of ``repeats`` steps of node ``name`` (after one warm-up step)."""
     node = make_node(scenario, name)
     node.step(Tick(0, 0), inputs)
+    take_output_marks()  # as the runtime takes them after every step
     start = time.perf_counter()
     for k in range(1, repeats + 1):
         node.step(Tick(k, k * scenario.tick_ns), inputs)
+        take_output_marks()
     return (time.perf_counter() - start) / repeats * 1e3
 
 

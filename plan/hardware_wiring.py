@@ -246,10 +246,11 @@ def with_robot_managers(path: Path, model: ScenarioModel, description: str = "",
     ``<parameters>`` of the robot ``description``'s ros2_control plugin tag (as
     gz_ros2_control reads them; several merged in order) make it, unless a node of the
     scenario runs a manager already; with both, ``robots.controllers`` wins and a notice
-    says so where they differ. Exit 2 naming the key where the file is missing or wrong or
-    a node of the scenario already has the name."""
+    says so where they differ; ``robots.controllers: false`` adds none. Exit 2 naming the
+    key where the file is missing or wrong or a node of the scenario already has the
+    name."""
     robots = model.robots
-    if robots is None:
+    if robots is None or robots.controllers is False:  # false: no manager, tag or not
         return model, None, []
     notices = []
     if robots.controllers is not None:
@@ -269,8 +270,9 @@ def with_robot_managers(path: Path, model: ScenarioModel, description: str = "",
                     path, key, f"robot description {description}: its ros2_control plugin "
                     f"tag's <parameters> names a controllers file that does not exist (tried "
                     f"{file}).", "<parameters>$(find PKG)/config/FILE.yaml</parameters> (or "
-                    "package://PKG/...) with PKG in robots.urdf.packages, or "
-                    "robots.controllers naming the controllers file.")
+                    "package://PKG/...) with PKG in robots.urdf.packages, "
+                    "robots.controllers naming the controllers file, or robots.controllers: "
+                    "false for none.")
     else:
         return model, None, notices
     if any(spec.name == MANAGER_NAME for spec in model.nodes):

@@ -172,13 +172,14 @@ class RobotsSpec(Strict):
                                  "from its goal's yaw that count")
     success_fraction: float = Field(1.0, gt=0, le=1, description="the fraction of robots that "
                                     "must reach their goals for the run to succeed")
-    controllers: str | None = Field(None, description="a ros2_control controllers file "
-                                    "(controller_manager: ros__parameters: ...), relative to "
-                                    "this file: every robot gets its controller manager from "
-                                    "it, a node controller_manager (for_each: robot) at the "
-                                    "file's update_rate, wired to physics by cosim; default: "
-                                    "the file(s) a URDF description's gz_ros2_control "
-                                    "plugin tag names (its parameters elements), if any")
+    controllers: str | Literal[False] | None = Field(
+        None, description="a ros2_control controllers file (controller_manager: "
+        "ros__parameters: ...), relative to this file: every robot gets its controller manager "
+        "from it, a node controller_manager (for_each: robot) at the file's update_rate, "
+        "wired to physics by cosim; default: the file(s) a URDF description's "
+        "gz_ros2_control plugin tag names (its parameters elements), if any; false: no "
+        "controller manager, whatever the description names (the robots driven on cmd_vel "
+        "and joint_commands)")
 
 
 class SuccessSpec(Strict):

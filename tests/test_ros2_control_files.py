@@ -68,7 +68,7 @@ PLUGIN = ('<gazebo><plugin filename="gz_ros2_control-system" '
           'name="gz_ros2_control::GazeboSimROS2ControlPlugin">{}</plugin></gazebo>')
 
 
-def tagged_swarm(tmp_path, *parameters: str, controllers: str | None = None,
+def tagged_swarm(tmp_path, *parameters: str, controllers: str | bool | None = None,
                  name: str = "swarm"):
     """swarm_urdf_control.yaml (as ``name``.yaml) over a copy of mybot_description whose
     xacro carries the gz_ros2_control plugin tag with these ``<parameters>`` (made once in
@@ -132,6 +132,16 @@ def test_a_tag_naming_a_missing_file_is_exit_2_naming_the_description_and_the_ta
     assert "mybot.urdf.xacro" in text and "<parameters>" in text
     assert str(tmp_path / "mybot_description" / "config" / "missing.yaml") in text
     assert "robots.controllers" in text  # the fix names the other way
+
+
+def test_robots_controllers_false_leaves_the_tag_alone(tmp_path):
+    path = tagged_swarm(tmp_path, "$(find mybot_description)/config/missing.yaml",
+                        controllers=False)
+    scenario = load_scenario(path)  # the missing file is not read: no manager at all
+    physics = scenario.nodes["physics"]
+    assert physics.params.controller_manager is None
+    assert not any("controller" in i.graph_topic for i in physics.inputs)
+    assert not any("controller" in t for t in physics.outputs)
 
 
 def test_several_parameters_tags_merge_in_order_and_package_uris_resolve(tmp_path):
