@@ -150,7 +150,10 @@ def account(loaded: LoadedUrdf, options: UrdfOptions) -> str:
         what = "not commanded"
         if j.name in commanded:
             a = commanded[j.name]
-            what = (f"command {a.interface} -> actuator {a.actuator}; state "
+            how = a.interface if not a.modes else (
+                f"{' or '.join(m.interface for m in a.modes)} (one actuator, its mode "
+                "switched to the interface an activated controller claims)")
+            what = (f"command {how} -> actuator {a.actuator}; state "
                     f"{'/'.join(a.state_interfaces)}")
         elif j.name in wheels:
             side = "left" if j.name == wheels[0] else "right"

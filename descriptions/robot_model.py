@@ -55,13 +55,30 @@ class Joint:
 
 
 @dataclass(frozen=True)
+class ActuatorMode:
+    """One command interface a joint's actuator can be switched to, as MuJoCo's shortcut
+    for it sets the actuator: ``position`` (gain kp, bias 0, -kp, -kv), ``velocity`` (gain
+    kv, bias 0, 0, -kv), ``effort`` (a motor: gain 1, no bias); ``ctrlrange`` the commands
+    it takes (None: unlimited)."""
+
+    interface: CommandInterface
+    kp: float = 0.0
+    kv: float = 0.0
+    ctrlrange: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
 class ActuatedJoint:
-    """A joint cosim commands: its MuJoCo joint and actuator, and the command interface."""
+    """A joint cosim commands: its MuJoCo joint and actuator, and the command interface the
+    actuator is built for. ``modes``: every command interface the robot's ``<ros2_control>``
+    block declares for it, the built one first (the hardware switches the actuator to
+    another when a controller claiming it is activated); () where it has only ``interface``."""
 
     joint: str
     actuator: str
     interface: CommandInterface = "position"
     state_interfaces: tuple[str, ...] = ("position", "velocity")
+    modes: tuple[ActuatorMode, ...] = ()
 
 
 @dataclass(frozen=True)

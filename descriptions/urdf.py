@@ -9,12 +9,16 @@ name or by ``wheel``, ``position``, ``velocity``, ``effort``):
 
 - each drive wheel: a velocity actuator ``JOINT_velocity`` (kv), force limited by the
   joint's ``<limit effort>``;
-- each commanded joint, by its command interface (from ``<ros2_control>``, else the
+- each commanded joint, by its first command interface (from ``<ros2_control>``, else the
   scenario's ``interfaces``): ``position`` a position servo ``JOINT_position`` (kp, kv)
   over the joint's ``<limit lower upper>``, ``velocity`` a velocity actuator
   ``JOINT_velocity`` (kv) within ``<limit velocity>``, ``effort`` a motor ``JOINT_effort``
   within ``<limit effort>`` (the ``min``/``max`` params of the block's command interface
-  narrow the range: the hardware clamps a command to it, ``MujocoSystem.write``);
+  narrow the range: the hardware clamps a command to it, ``MujocoSystem.write``). A joint
+  whose block declares several of them keeps one actuator, and every declared interface
+  as a mode of it (``ActuatedJoint.modes``, the same gains and ranges: a velocity mode's kv
+  is the joint's ``kv``, else ``velocity``'s, default 10): the hardware switches the
+  actuator's mode when a controller claiming another interface of the joint is activated;
 - the ``initial_value`` params of a joint's position and velocity state interfaces, where
   the joint starts (``RobotModel.control``; physics sets them at reset).
 
@@ -41,6 +45,7 @@ from descriptions.description_error import DescriptionError
 from descriptions.packages import PackageNotFound, PackageResolver
 from descriptions.robot_model import (
     ActuatedJoint,
+    ActuatorMode,
     ControlInterfaces,
     Drive,
     Joint,
@@ -242,7 +247,8 @@ def _add_wheel(spec: mujoco.MjSpec, urdf: Urdf, joint: str,
 
 def _arm_actuators(spec: mujoco.MjSpec, urdf: Urdf, description: str, options: UrdfOptions,
                    wheels: tuple[str, str] | None, notes: list[str]) -> list[ActuatedJoint]:
-    wanted: dict[str, tuple[str, tuple[str, ...], float | None, float | None]] = {}
+    wanted: dict[str, tuple[tuple[str, ...], tuple[str, ...],
+                            Mapping[str, tuple[float | None, float | None]]]] = {}
     for name, cj in urdf.control.items():
         if name not in urdf.joints:
             raise DescriptionError(description, "<ros2_control> names a joint that is not in "
@@ -257,11 +263,16 @@ def _arm_actuators(spec: mujoco.MjSpec, urdf: Urdf, description: str, options: U
             notes.append(f"joint {name!r}: no position, velocity or effort command interface "
                          f"in <ros2_control> ({list(cj.commands)}): not commanded")
             continue
-        if len(cj.commands) > 1:
-            notes.append(f"joint {name!r}: <ros2_control> offers {list(cj.commands)}; cosim "
-                         f"commands the first, {usable[0]}")
-        wanted[name] = (usable[0], cj.states or ("position", "velocity"),
-                        *cj.limits.get(usable[0], (None, None)))
+        if len(usable) > 1:
+            notes.append(f"joint {name!r}: <ros2_control> offers {list(cj.commands)}: several "
+                         f"command interfaces: the actuator ({usable[0]} at the start) "
+                         "switches mode when a controller claims another")
+        dropped = [c for c in cj.commands if c not in INTERFACES]
+        if dropped and len(cj.commands) > 1:
+            notes.append(f"joint {name!r}: command interfaces {dropped} are not realised "
+                         "(cosim realises position, velocity and effort)")
+        wanted[name] = (tuple(dict.fromkeys(usable)), cj.states or ("position", "velocity"),
+                        cj.limits)
     for name, states in urdf.control_sensors.items():
         notes.append(f"<ros2_control> sensor {name!r} ({', '.join(states)}): not simulated, "
                      "no state interfaces (list_hardware_interfaces omits them)")
@@ -273,37 +284,55 @@ def _arm_actuators(spec: mujoco.MjSpec, urdf: Urdf, description: str, options: U
         if interface not in INTERFACES:
             raise DescriptionError(description, f"interface {interface!r} is not one of "
                                    f"{INTERFACES}", joint=name, fix="position, velocity or effort")
-        wanted[name] = (interface, ("position", "velocity"), None, None)
+        wanted[name] = ((interface,), ("position", "velocity"), {})
     return [_add_arm_actuator(spec, urdf, name, *spec_, options.gains)
             for name, spec_ in wanted.items()]
 
 
-def _add_arm_actuator(spec: mujoco.MjSpec, urdf: Urdf, name: str, interface: str,
-                      states: tuple[str, ...], cmin: float | None, cmax: float | None,
-                      gains: Mapping[str, Mapping[str, float]]) -> ActuatedJoint:
+def _mode(urdf: Urdf, name: str, interface: str, cmin: float | None, cmax: float | None,
+          gains: Mapping[str, Mapping[str, float]]) -> ActuatorMode:
+    """Joint ``name``'s actuator as ``interface`` commands it: gains and command range."""
     joint = urdf.joints[name]
-    act = spec.add_actuator(name=f"{name}_{interface}", target=name,
-                            trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    kp = kv = 0.0
     if interface == "position":
-        act.set_to_position(kp=_gain(gains, name, interface, "kp"),
-                            kv=_gain(gains, name, interface, "kv"))
+        kp, kv = _gain(gains, name, interface, "kp"), _gain(gains, name, interface, "kv")
         limits = _range(joint.lower, joint.upper) if joint.kind != "continuous" else None
     elif interface == "velocity":
-        act.set_to_velocity(kv=_gain(gains, name, interface, "kv"))
+        kv = _gain(gains, name, interface, "kv")
         limits = None if not joint.velocity else (-joint.velocity, joint.velocity)
     else:
-        act.set_to_motor()
         limits = None if not joint.effort else (-joint.effort, joint.effort)
     narrowed = _range(cmin, cmax)
     if narrowed is not None:
         limits = narrowed if limits is None else (max(limits[0], narrowed[0]),
                                                   min(limits[1], narrowed[1]))
-    if limits is not None:
-        act.ctrllimited, act.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, list(limits)
-    if joint.effort and interface != "effort":
+    return ActuatorMode(interface, kp, kv, limits)  # type: ignore[arg-type]
+
+
+def _add_arm_actuator(spec: mujoco.MjSpec, urdf: Urdf, name: str, interfaces: tuple[str, ...],
+                      states: tuple[str, ...],
+                      ranges: Mapping[str, tuple[float | None, float | None]],
+                      gains: Mapping[str, Mapping[str, float]]) -> ActuatedJoint:
+    joint = urdf.joints[name]
+    modes = tuple(_mode(urdf, name, i, *ranges.get(i, (None, None)), gains)
+                  for i in interfaces)
+    first = modes[0]
+    interface = first.interface
+    act = spec.add_actuator(name=f"{name}_{interface}", target=name,
+                            trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    if interface == "position":
+        act.set_to_position(kp=first.kp, kv=first.kv)
+    elif interface == "velocity":
+        act.set_to_velocity(kv=first.kv)
+    else:
+        act.set_to_motor()
+    if first.ctrlrange is not None:
+        act.ctrllimited, act.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, list(first.ctrlrange)
+    if joint.effort and (interface != "effort" or len(modes) > 1):  # a servo mode's bound
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.forcerange = [-joint.effort, joint.effort]
-    return ActuatedJoint(name, f"{name}_{interface}", interface, tuple(states))
+    return ActuatedJoint(name, f"{name}_{interface}", interface, tuple(states),
+                         modes if len(modes) > 1 else ())
 
 
 def _sensors(spec: mujoco.MjSpec, urdf: Urdf, description: str, named: Mapping[str, str],

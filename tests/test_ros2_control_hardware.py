@@ -90,9 +90,11 @@ def test_the_hardware_clamps_a_command_to_the_blocks_min_and_max():
 def test_list_hardware_interfaces_lists_what_the_block_declares(ur):
     hardware = manager_hardware(ur, "physics", "ur")
     command, state = interfaces(hardware, ["shoulder_pan_joint/position"])
-    # UR's block offers position and velocity commands: cosim commands the first, position
+    # UR's block offers position and velocity commands: both listed (the joint's actuator
+    # switches to the one an activated controller claims)
     assert [(i.name, i.is_claimed) for i in command] == [
-        (f"{j}/position", j == "shoulder_pan_joint") for j in sorted(INITIAL)]
+        (f"{j}/{i}", j == "shoulder_pan_joint" and i == "position")
+        for j in sorted(INITIAL) for i in ("position", "velocity")]
     # the block declares position, velocity and effort state interfaces (its <sensor>s,
     # tcp_fts_sensor and tcp_pose, are not simulated: no interfaces)
     assert [i.name for i in state] == [f"{j}/{i}" for j in sorted(INITIAL)

@@ -37,6 +37,7 @@ and wheels.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from dataclasses import replace
 from fractions import Fraction
@@ -336,6 +337,11 @@ class PhysicsNode(StepNode):
             self.model = live.model
         else:
             self.model = load_model(world, self.config.layout)
+            if self.params.controller_manager is not None and any(
+                    a.modes for r in self.config.robots for a in r.actuated):
+                # a controller's activation may switch an actuator's mode in the model
+                # (nodes.ros2_control.hosted): this node's own, not the process's cached one
+                self.model = copy.copy(self.model)
         self.data = mujoco.MjData(self.model)
         if self.params.threads > 1:
             mujoco.mju_threadpool(self.data, self.params.threads)

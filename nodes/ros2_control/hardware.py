@@ -3,6 +3,13 @@ exports (``HardwareInfo``, from the robot model and its MuJoCo actuators: each c
 interface is one a joint's actuator realises, a mobile base's wheels take velocities). The
 physics step reads and writes it over MjData (``nodes.ros2_control.hosted.MujocoSystem``).
 
+A joint whose ``<ros2_control>`` block declares several command interfaces (UR's position
+and velocity) exports them all over its one actuator, whose mode the hardware switches to
+the interface an activated controller claims (``ActuatedJoint.modes``), as ros2_control's
+``perform_command_mode_switch`` does; one command interface of a joint is claimed at a
+time (two active controllers claiming the joint's position and velocity are refused, as
+upstream's hardware rejects the switch in ``prepare_command_mode_switch``).
+
 A command interface a controller claims and MuJoCo cannot realise (a velocity command for
 a joint whose actuator is a position servo, a joint no actuator drives), or a state
 interface the robot's ``<ros2_control>`` block does not declare (a robot with one), is a
@@ -18,15 +25,43 @@ import mujoco
 
 from nodes.ros2_control.interface import Claim
 
+MODES = ("position", "velocity", "effort")  # the command interfaces an actuator switches to
+
 
 @dataclass(frozen=True)
 class CommandJoint:
     """A joint physics takes commands for: its name, the interface its MuJoCo actuator
-    realises (None: none of position, velocity, effort), the actuator."""
+    realises as built (None: none of position, velocity, effort), the actuator, and the
+    modes it can be switched to (``descriptions.robot_model.ActuatorMode``, the built one
+    first; (): only ``interface``)."""
 
     name: str
     interface: str | None
     actuator: str
+    modes: tuple = ()
+
+    @property
+    def interfaces(self) -> tuple[str, ...]:
+        """Every command interface it can be commanded by."""
+        if self.modes:
+            return tuple(m.interface for m in self.modes)
+        return (self.interface,) if self.interface else ()
+
+
+def joint_mode_conflict(claims: list[tuple[str, tuple[str, ...]]]) -> tuple[str, ...] | None:
+    """The first joint two command interfaces (position, velocity, effort) of ``claims``
+    ((controller, command interfaces), in order) command at once: (joint, interface,
+    its controller, other interface, its controller), or None."""
+    seen: dict[str, tuple[str, str]] = {}
+    for name, command in claims:
+        for interface in command:
+            joint, _, kind = interface.rpartition("/")
+            if kind not in MODES:
+                continue
+            other = seen.setdefault(joint, (interface, name))
+            if other[0] != interface:
+                return joint, other[0], other[1], interface, name
+    return None
 
 
 @dataclass(frozen=True)
@@ -53,7 +88,7 @@ class HardwareInfo:
 
     def command_interfaces(self) -> set[str]:
         """Every command interface the hardware exports (``joint/interface``)."""
-        out = {f"{c.name}/{c.interface}" for c in self.commands if c.interface}
+        out = {f"{c.name}/{i}" for c in self.commands for i in c.interfaces}
         if self.drive is not None:
             out |= {f"{self.drive.left}/velocity", f"{self.drive.right}/velocity"}
         return out
@@ -72,6 +107,11 @@ class HardwareInfo:
         for name in claim.command:
             if name not in exported:
                 return [self._missing(name)]
+        both = joint_mode_conflict([("", claim.command)])
+        if both is not None:
+            return [(f"joint {both[0]!r}: the claim has {both[1]} and {both[3]}: its actuator "
+                     "takes one command interface at a time.", "one command interface per "
+                     "joint.")]
         if self.states is not None and not claim.every_state:
             for name in claim.state:
                 joint, _, interface = name.rpartition("/")
@@ -90,8 +130,9 @@ class HardwareInfo:
     def _missing(self, name: str) -> tuple[str, str]:
         joint, _, interface = name.rpartition("/")
         have = next((c for c in self.commands if c.name == joint), None)
-        if have is not None and have.interface:
-            why = f"its MuJoCo actuator {have.actuator!r} takes {have.interface} commands"
+        if have is not None and have.interfaces:
+            why = (f"its MuJoCo actuator {have.actuator!r} takes "
+                   f"{' or '.join(have.interfaces)} commands")
         elif have is not None:
             why = (f"its MuJoCo actuator {have.actuator!r} is no position, velocity or motor "
                    "actuator")
@@ -147,12 +188,17 @@ def hardware_info(model, robot, command_joints: list[str] | None = None) -> Hard
     else:  # a node made outside a scenario, no robot model: the world's position servos
         wanted = [names[int(model.actuator_trnid[a, 0])] for a in range(model.nu)
                   if actuator_interface(model, a) == "position"]
+    modes = {local(a.joint): a.modes for a in robot.actuated} if robot is not None else {}
     commands = []
     for joint in wanted:
         a = actuators.get(prefix + joint)
         if a is None:
             continue
-        commands.append(CommandJoint(joint, actuator_interface(model, a), model.actuator(a).name))
+        interface = actuator_interface(model, a)
+        switchable = modes.get(joint, ())
+        if switchable and switchable[0].interface != interface:
+            switchable = ()  # not the actuator the description built
+        commands.append(CommandJoint(joint, interface, model.actuator(a).name, switchable))
     drive = None
     if robot is not None and robot.drive is not None:
         d = robot.drive

@@ -2,19 +2,23 @@
 ``MujocoSystemInterface`` runs ros2_control inside the simulator's loop.
 
 The plan folds a scenario's controller manager (a ``ros2_control`` node, or the one
-``robots.controllers`` adds for every robot) into the physics node (``plan.hardware_wiring``):
-physics' parameters carry it (``HostedManagerParams``) and physics makes one
-``HostedManagers``, which keeps a ``ControllerManager`` and a ``MujocoSystem`` per robot. At
-every activation of physics, after integrating up to the tick, each manager reads its robot's
-joints straight from MjData into the controllers' ``HardwareState`` (``read``), takes the
-messages and requests of its topics, updates its active controllers, and writes their
-commands straight into MjData's actuator controls (``write``): a position, velocity or
-effort command to the joint's MuJoCo actuator, a diff drive's wheel speeds to the wheels'
-velocity actuators (physics' own drive and its limiter stand aside: one limiter, the
-controller's). The commands act over the next period, as ros2_control's read, update, write
-come before the simulator's next step. No topic runs between controllers and hardware; the
-controllers' own topics (``~/x`` under the controller's name, the switch topic) are physics'
-inputs and outputs under the names a separate manager had, each robot's under its
+``robots.controllers`` adds for every robot) into the physics node
+(``plan.hardware_wiring``): physics' parameters carry it (``HostedManagerParams``) and
+physics makes one ``HostedManagers``, which keeps a ``ControllerManager`` and a
+``MujocoSystem`` per robot. At every activation of physics, after integrating up to the
+tick, each manager reads its robot's joints straight from MjData into the controllers'
+``HardwareState`` (``read``), takes the messages and requests of its topics, updates its
+active controllers, and writes their commands straight into MjData's actuator controls
+(``write``): a position, velocity or effort command to the joint's MuJoCo actuator, a diff
+drive's wheel speeds to the wheels' velocity actuators (physics' own drive and its limiter
+stand aside: one limiter, the controller's). A joint whose block declares several command
+interfaces has one actuator whose mode (gains, bias, command range) is rewritten in the
+model at the update a controller claiming another of them is activated
+(``MujocoSystem.claim``), in the physics step at that tick, so every driver gives one
+digest. The commands act over the next period, as ros2_control's read, update, write come
+before the simulator's next step. No topic runs between controllers and hardware; the
+controllers' own topics (``~/x`` under the controller's name, the switch topic) are
+physics' inputs and outputs under the names a separate manager had, each robot's under its
 namespace in a swarm.
 
 The manager runs at the controllers file's ``update_rate``, physics' rate or physics' rate / n
@@ -68,16 +72,40 @@ def _index(addresses) -> slice | np.ndarray:
     return index
 
 
+def set_mode(model, actuator: int, mode) -> None:
+    """Make ``actuator`` of ``model`` what MuJoCo's shortcut for ``mode``'s interface makes it
+    (``<position>``: gain kp, bias 0, -kp, -kv; ``<velocity>``: gain kv, bias 0, 0, -kv;
+    ``<motor>``: gain 1, no bias), over ``mode.ctrlrange``."""
+    gain, bias = model.actuator_gainprm[actuator], model.actuator_biasprm[actuator]
+    gain[:] = 0.0
+    bias[:] = 0.0
+    if mode.interface == "position":
+        gain[0], bias[1], bias[2] = mode.kp, -mode.kp, -mode.kv
+        model.actuator_biastype[actuator] = mujoco.mjtBias.mjBIAS_AFFINE
+    elif mode.interface == "velocity":
+        gain[0], bias[2] = mode.kv, -mode.kv
+        model.actuator_biastype[actuator] = mujoco.mjtBias.mjBIAS_AFFINE
+    else:
+        gain[0] = 1.0
+        model.actuator_biastype[actuator] = mujoco.mjtBias.mjBIAS_NONE
+    model.actuator_gaintype[actuator] = mujoco.mjtGain.mjGAIN_FIXED
+    model.actuator_ctrllimited[actuator] = mode.ctrlrange is not None
+    if mode.ctrlrange is not None:
+        model.actuator_ctrlrange[actuator] = mode.ctrlrange
+
+
 class MujocoSystem:
     """One robot's hardware over MjData: its joints' state read into ``state`` (the mapping
     the controllers are loaned, refreshed in place), command interfaces written to the
-    actuators that realise them."""
+    actuators that realise them. A joint with several command interfaces has one actuator,
+    in the mode of the interface claimed last (``claim``): ``mode``, joint -> interface."""
 
     def __init__(self, model, info: HardwareInfo, joints: list[str], qadr, dadr,
                  wheels: list[int] | None):
         self.info = info
         self.joints = joints
         self.state = JointStates(joints)
+        self.mode = {c.name: c.interface for c in info.commands if c.modes}
         self.bind(model, qadr, dadr, wheels)
 
     def bind(self, model, qadr, dadr, wheels: list[int] | None) -> None:
@@ -85,25 +113,36 @@ class MujocoSystem:
         world recompiled with a robot in or out moves them (the robot's joints, actuators
         and the state its controllers were loaned stay what they were)."""
         info = self.info
+        self.model = model
         self.qadr = _index(qadr)
         self.dadr = _index(dadr)
         self._viewed, self._views = None, None  # the MjData read last, views into it
         self._written, self._rows = None, []  # the commands written last: (actuator, value)
         self.actuator: dict[str, int] = {}  # 'joint/interface' -> actuator id
+        self.modes: dict[str, Any] = {}  # 'joint/interface' -> the actuator's mode for it
         for c in info.commands:
-            if c.interface:
-                self.actuator[f"{c.name}/{c.interface}"] = mujoco.mj_name2id(
-                    model, mujoco.mjtObj.mjOBJ_ACTUATOR, c.actuator)
+            a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, c.actuator)
+            for interface in c.interfaces:
+                self.actuator[f"{c.name}/{interface}"] = a
+            for mode in c.modes:
+                self.modes[f"{c.name}/{mode.interface}"] = mode
+        for joint, interface in self.mode.items():  # a recompiled world: its modes again
+            if interface != next(c.interface for c in info.commands if c.name == joint):
+                key = f"{joint}/{interface}"
+                set_mode(model, self.actuator[key], self.modes[key])
         if info.drive is not None and wheels is not None:
             self.actuator[f"{info.drive.left}/velocity"] = int(wheels[0])
             self.actuator[f"{info.drive.right}/velocity"] = int(wheels[1])
         # 'joint/interface' -> (min, max) the command is clamped to: the actuator's control
         # range, which the <ros2_control> block's min/max params narrow (descriptions.urdf)
+        # (a mode's own range, for a joint with several command interfaces)
         self.limits: dict[str, tuple[float, float]] = {
             interface: (float(model.actuator_ctrlrange[a, 0]),
                         float(model.actuator_ctrlrange[a, 1]))
             for interface, a in self.actuator.items()
-            if a >= 0 and model.actuator_ctrllimited[a]}
+            if a >= 0 and model.actuator_ctrllimited[a] and interface not in self.modes}
+        self.limits.update({interface: mode.ctrlrange for interface, mode in self.modes.items()
+                            if mode.ctrlrange is not None})
         # 'joint/interface' -> (actuator, min, max), unbounded where no limits
         self.targets: dict[str, tuple[int, float, float]] = {
             interface: (a, *self.limits.get(interface, (-math.inf, math.inf)))
@@ -131,8 +170,31 @@ class MujocoSystem:
         other command is zero."""
         for interface, a in self.actuator.items():
             joint, _, kind = interface.rpartition("/")
+            if self.mode.get(joint, kind) != kind:
+                continue  # the actuator is in another of the joint's modes
             reading = self.state.get(joint)
             data.ctrl[a] = reading.position if kind == "position" and reading else 0.0
+
+    def claim(self, data, claimed) -> None:
+        """Switch each joint with several command interfaces that a controller claims
+        through another interface than its actuator's mode to that interface's mode
+        (``claimed``: the active controllers' command interfaces, just after a switch), as
+        ros2_control's ``perform_command_mode_switch``; until the controller commands, the
+        actuator holds: a position mode where the joint is, a velocity or effort mode 0."""
+        if not self.modes:
+            return
+        for interface in claimed:
+            mode = self.modes.get(interface)
+            if mode is None:
+                continue
+            joint = interface.rpartition("/")[0]
+            if self.mode[joint] == mode.interface:
+                continue
+            self.mode[joint] = mode.interface
+            a = self.actuator[interface]
+            set_mode(self.model, a, mode)
+            reading = self.state.get(joint)
+            data.ctrl[a] = reading.position if mode.interface == "position" and reading else 0.0
 
     def write(self, data, commands: dict[str, float]) -> None:
         """The controllers' commands into the actuators (an interface no controller
@@ -199,10 +261,12 @@ class RobotManager:
             system.start(data)
             commands.update(self.manager.activate(at_start(self.params, self.file),
                                                   system.state).commands)
+            system.claim(data, self.manager.claimed())
             self.first = False
         switch = mine.get(SWITCH_TOPIC)
         if switch is not None:
             commands.update(self._switch(switch))
+            system.claim(data, self.manager.claimed())
         elif self.refused:
             self.refused = []
         done = self.manager.update(time_ns, period_ns, mine, self.held)

@@ -19,6 +19,7 @@ from functools import cache
 from typing import Any
 
 from nodes.ros2_control.config import ControllersFile
+from nodes.ros2_control.hardware import joint_mode_conflict
 from nodes.ros2_control.interface import (
     ControllerInterface,
     HardwareState,
@@ -95,15 +96,26 @@ def lifecycle_problem(file: ControllersFile, controllers: Mapping[str, object],
 
 def claim_conflict(controllers: Mapping[str, ControllerInterface | None],
                    active: Iterable[str]) -> str | None:
-    """The first command interface two of the ``active`` controllers claim, said, or None."""
+    """The first command interface two of the ``active`` controllers claim, or the first
+    joint they command through two interfaces (its position and velocity: its actuator
+    takes one at a time, as upstream's hardware rejects it), said, or None."""
     owner: dict[str, str] = {}
+    claims = []
     for name in active:
         ctrl = controllers.get(name)
-        for interface in ctrl.claim().command if ctrl is not None else ():
+        command = ctrl.claim().command if ctrl is not None else ()
+        claims.append((name, command))
+        for interface in command:
             if interface in owner:
                 return (f"{interface} is claimed by {owner[interface]!r} and {name!r}, both "
                         "active")
             owner[interface] = name
+    both = joint_mode_conflict(claims)
+    if both is not None:
+        joint, first, by, second, by_second = both
+        return (f"joint {joint!r} would be commanded through {first} by {by!r} and {second} "
+                f"by {by_second!r}, both active: its hardware takes one command interface "
+                "per joint at a time")
     return None
 
 
@@ -191,6 +203,11 @@ class ControllerManager:
     def active(self) -> list[str]:
         """The active controllers, in file order."""
         return [n for n, c in self.controllers.items() if c is not None and c.active]
+
+    def claimed(self) -> list[str]:
+        """The command interfaces the active controllers claim, in file order."""
+        return [i for n, c in self.controllers.items() if c is not None and c.active
+                for i in c.claim().command]
 
     def notes(self) -> list[str]:
         """What the controllers read and do not act on, and the types cosim cannot run."""

@@ -6,14 +6,18 @@ switched (a name not loaded, an unconfigured or already active controller to act
 inactive one to deactivate); ``BEST_EFFORT`` (1) leaves such controllers out and switches the
 rest; 0 (unset) is the manager's default, ``best_effort``; ``AUTO`` (3) and ``FORCE_AUTO``
 (4) are not implemented upstream either and act as ``BEST_EFFORT``. Two active controllers
-claiming one command interface is refused whatever the strictness. The messages are
-upstream's.
+claiming one command interface is refused whatever the strictness, and so are two claiming
+two command interfaces of one joint (its position and velocity: cosim's hardware takes one
+per joint at a time, as upstream's rejects it in ``prepare_command_mode_switch``). The
+messages are upstream's.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+
+from nodes.ros2_control.hardware import joint_mode_conflict
 
 BEST_EFFORT, STRICT, AUTO, FORCE_AUTO = 1, 2, 3, 4
 STRICTNESS = {BEST_EFFORT: "BEST_EFFORT", STRICT: "STRICT", AUTO: "AUTO",
@@ -88,6 +92,15 @@ def plan_switch(states: Mapping[str, str], claims: Mapping[str, tuple[str, ...]]
                                   f"command interface '{interface}' will be used by another "
                                   "controller that is being activated.")
             coming.add(interface)
+    after = [(n, claims.get(n, ())) for n, s in states.items() if s == "active"
+             and n not in off] + [(n, claims.get(n, ())) for n in on]
+    both = joint_mode_conflict(after)
+    if both is not None:
+        joint, first, by, second, by_second = both
+        return SwitchPlan(False, "Could not switch controllers since prepare command mode "
+                          f"switch was rejected: joint '{joint}' would be commanded through "
+                          f"'{first}' by '{by}' and '{second}' by '{by_second}' (one command "
+                          "interface per joint at a time).")
     message = "Successfully switched controllers!"
     if not strict:
         if off:

@@ -9,7 +9,8 @@ state interfaces are those the robot's ``<ros2_control>`` block declares
 (``RobotModel.control``); a robot without one (an MJCF robot) has cosim's defaults: every
 joint (its hinges and slides) has position, velocity and effort state interfaces (what its
 ``HardwareState`` carries). Every command interface is one a MuJoCo actuator realises (for
-a URDF robot, the block's first position, velocity or effort command interface).
+a URDF robot, every position, velocity or effort command interface the block declares: a
+joint's one actuator switches to the mode an activated controller claims).
 """
 
 from __future__ import annotations
