@@ -124,7 +124,8 @@ def test_joint_states_read_as_a_mapping_and_as_lists():
     state.refresh(list(POS), list(VEL), list(EFF))
     kept = state["shoulder_lift"]
     assert kept == JointReading(-0.25, 0.3, 0.0) and "elbow" in state and "x" not in state
-    assert dict(state) == {n: JointReading(p, v, e) for n, p, v, e in zip(NAMES, POS, VEL, EFF)}
+    assert dict(state) == {n: JointReading(p, v, e) for n, p, v, e in
+                           zip(NAMES, POS, VEL, EFF, strict=True)}
     state.refresh([9.0] * 3, [0.0] * 3, [0.0] * 3)
     assert state["shoulder_lift"].position == 9.0 and kept.position == -0.25  # kept: unchanged
     assert state.positions == [9.0] * 3
