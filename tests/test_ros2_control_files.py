@@ -60,6 +60,25 @@ def test_several_files_merge_in_order_a_later_parameter_over_an_earlier(tmp_path
     assert read_controllers_file(base).named("jtc").params.joints == ["a", "b"]
 
 
+def test_a_nodes_own_block_wins_over_any_files_wildcard_as_rclcpp_resolves(tmp_path):
+    """rclcpp applies the merged ``/**`` block before the node's own, whatever the files'
+    order: a later file's ``/**`` does not override an earlier file's node block."""
+    first = write(tmp_path / "first.yaml", {
+        "/**": {"ros__parameters": {"allow_partial_joints_goal": False}},
+        **manager(50, jtc=JTC), **jtc("a", "b", allow_partial_joints_goal=True)})
+    later = write(tmp_path / "later.yaml", {
+        "/**": {"ros__parameters": {"allow_partial_joints_goal": False,
+                                    "allow_nonzero_velocity_at_trajectory_end": True}},
+        **jtc("c", "d")})
+    merged = read_controllers_file(first, later).named("jtc").params
+    assert merged.allow_partial_joints_goal is True  # first's own block over later's /**
+    assert merged.joints == ["c", "d"] and merged.allow_nonzero_velocity_at_trajectory_end is True
+    alone = write(tmp_path / "alone.yaml", {**manager(50, jtc=JTC), **jtc("a", "b"),
+                                            "/**": {"ros__parameters": {
+                                                "allow_partial_joints_goal": True}}})
+    assert read_controllers_file(alone).named("jtc").params.allow_partial_joints_goal is True
+
+
 # The Gazebo-style tag: a description written for gz_ros2_control names its controllers
 # file in its plugin's <parameters>, and cosim reads it as robots.controllers.
 

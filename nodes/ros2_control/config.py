@@ -188,18 +188,23 @@ def _node_keys(path: Path, text: str) -> dict[str, list[str]]:
 
 def _parameters(files: list[tuple[Path, dict[str, list[str]]]], node: str
                 ) -> dict[str, Any] | None:
-    """The parameters the node ``node`` gets from the files (each file's ``/**`` first,
-    then its own blocks in file order; a later file's parameter over an earlier's), nested
-    again at their dots; None when no block names it."""
+    """The parameters the node ``node`` gets from the files, nested again at their dots
+    (None when no block names it), as rclcpp resolves a node's overrides: every file's
+    ``/**`` block first, then the node's own blocks (each in file order, a later file's
+    parameter over an earlier's), so a node's own block wins over any file's ``/**``."""
+    wildcard: dict[str, Any] = {}
     flat: dict[str, Any] = {}
     named = False
     for path, keys in files:
+        if WILDCARD in keys:
+            wildcard.update(_flat_parameters(path, [WILDCARD]))
         own = keys.get(node)
         if own:
             named = True
             flat.update(_flat_parameters(path, own))
     if not named:
         return None
+    flat = {**wildcard, **flat}
     nested: dict[str, Any] = {}
     for dotted, value in flat.items():
         *parents, leaf = dotted.split(".")
@@ -215,13 +220,13 @@ def _parameters(files: list[tuple[Path, dict[str, list[str]]]], node: str
 
 
 def _flat_parameters(path: Path, own: list[str]) -> dict[str, Any]:
-    """The dotted parameters of the file's blocks ``own`` (with ``/**``), by rclpy's reader."""
+    """The dotted parameters of the file's blocks ``own`` (in order), by rclpy's reader."""
     # rclpy only here: importing it loads its native library, and an orchestrator that has
     # it loaded may no longer fork its node processes (supervisor.fork_is_safe)
     from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
 
     try:
-        flat = parameter_dict_from_yaml_file(str(path), use_wildcard=True, target_nodes=own)
+        flat = parameter_dict_from_yaml_file(str(path), use_wildcard=False, target_nodes=own)
     except (RuntimeError, TypeError, ValueError) as exc:
         raise ControllersFileError(path, own[0], f"is not a ROS parameter block: {exc}",
                                    f"{own[0]}: {{{PARAMS}: {{name: value, ...}}}}.") from None
