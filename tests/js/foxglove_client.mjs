@@ -37,14 +37,21 @@ function connect(triesLeft) {
   const ws = new WebSocket(url, ["foxglove.sdk.v1", FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
   ws.on("error", () => {});
   const client = new FoxgloveClient({ ws });
+  let abandoned = false; // retried on a new connection: this one is closed and ignored
   client.on("error", (e) => {
+    if (abandoned) return;
     if (triesLeft > 0 && summary.times === 0 && readers.size === 0) {
+      // an error need not close the socket: close it, or the server counts (and feeds) this
+      // client beside its retry (a CI run once saw 3 clients at once where 2 connected)
+      abandoned = true;
+      try { client.close(); } catch { /* already closed */ }
       setTimeout(() => connect(triesLeft - 1), 200);
     } else {
       summary.errors.push(String(e));
     }
   });
   client.on("advertise", (channels) => {
+    if (abandoned) return;
     for (const channel of channels) {
       if (!wanted.has(channel.topic)) continue;
       summary.schemas[channel.topic] = [channel.encoding, channel.schemaEncoding, channel.schemaName];
@@ -54,6 +61,7 @@ function connect(triesLeft) {
     if (stall) setTimeout(() => ws._socket.pause(), 200);
   });
   client.on("message", ({ subscriptionId, timestamp, data }) => {
+    if (abandoned) return;
     const [topic, reader] = readers.get(subscriptionId);
     const msg = reader.readMessage(data);
     const entry = (summary.topics[topic] ??= { count: 0, first: null, last: null });
@@ -63,11 +71,13 @@ function connect(triesLeft) {
     entry.last = brief;
   });
   client.on("time", ({ timestamp }) => {
+    if (abandoned) return;
     summary.times += 1;
     summary.first_time ??= Number(timestamp);
     summary.last_time = Number(timestamp);
   });
   client.on("advertiseServices", (list) => {
+    if (abandoned) return;
     for (const service of list) {
       services.set(service.name, service);
       summary.services.push([service.name, service.type]);
@@ -77,12 +87,14 @@ function connect(triesLeft) {
     }
   });
   client.on("serviceCallResponse", ({ callId: id, data }) => {
+    if (abandoned) return;
     const [what, reader] = pending.get(id);
     summary[what] = reader.readMessage(data);
     if (what === "step") setTimeout(() => call("/cosim/pause", { data: false }, "resume"), 300);
   });
   client.on("serviceCallFailure", (failure) => summary.errors.push(failure.message));
   client.on("close", () => {
+    if (abandoned) return;
     if (readers.size > 0 || summary.times > 0) finish();
   });
 
