@@ -113,9 +113,10 @@ def test_physics_does_not_build_the_joint_states_a_broadcaster_replaces(ur, monk
     assert sorted(out["/joint_states"].name) == sorted(INITIAL)  # the broadcaster's
 
 
-def ur_with_an_acceleration_controller(tmp_path, inactive: list[str]):
-    """ur5e_control with its manager written as a node, its file given a second trajectory
-    controller reading acceleration, which the arm's block does not declare."""
+def ur_with(tmp_path, name: str, inactive: list[str], edit):
+    """ur5e_control with its manager written as a node (``inactive`` loaded inactive), its
+    scenario and controllers file as ``edit(doc, controllers)`` changes them; written in
+    ``tmp_path`` as NAME.yaml, its path."""
     import yaml
 
     doc = yaml.safe_load(UR.read_text())
@@ -125,18 +126,28 @@ def ur_with_an_acceleration_controller(tmp_path, inactive: list[str]):
     robots["description"] = str((here / robots["description"]).resolve())
     robots["urdf"]["packages"] = UR_PACKAGES
     controllers = yaml.safe_load((here / robots.pop("controllers")).read_text())
-    manager = controllers["controller_manager"]["ros__parameters"]
-    manager["accel_jtc"] = {"type": "joint_trajectory_controller/JointTrajectoryController"}
-    jtc = controllers["joint_trajectory_controller"]["ros__parameters"]
-    controllers["accel_jtc"] = {"ros__parameters": {
-        **jtc, "state_interfaces": ["position", "velocity", "acceleration"]}}
+    edit(doc, controllers)
     (tmp_path / "controllers.yaml").write_text(yaml.safe_dump(controllers))
     params = {"controllers": str(tmp_path / "controllers.yaml"), "inactive": inactive}
     doc["nodes"].append({"name": "controller_manager", "kind": "ros2_control", "rate": 100,
                          "for_each": "robot", "params": params})
-    path = tmp_path / "ur_accel.yaml"
+    path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
+
+
+def ur_with_an_acceleration_controller(tmp_path, inactive: list[str]):
+    """ur5e_control with its manager written as a node, its file given a second trajectory
+    controller reading acceleration, which the arm's block does not declare."""
+
+    def edit(doc, controllers):
+        manager = controllers["controller_manager"]["ros__parameters"]
+        manager["accel_jtc"] = {"type": "joint_trajectory_controller/JointTrajectoryController"}
+        jtc = controllers["joint_trajectory_controller"]["ros__parameters"]
+        controllers["accel_jtc"] = {"ros__parameters": {
+            **jtc, "state_interfaces": ["position", "velocity", "acceleration"]}}
+
+    return ur_with(tmp_path, "ur_accel", inactive, edit)
 
 
 def test_a_state_interface_the_block_does_not_declare_is_refused(tmp_path):

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import mujoco
 import pytest
-import yaml
 from std_msgs.msg import Float64MultiArray, String
 
 from descriptions.describe import account
@@ -22,7 +21,7 @@ from nodes.ros2_control.switching import STRICT, plan_switch
 from orchestrator.lockstep.inprocess import run_in_process
 from orchestrator.ros_surface.controller_hardware import interfaces, manager_hardware
 from runtime.build import make_node
-from tests.test_ros2_control_hardware import INITIAL, TICK_NS, UR, UR_PACKAGES, UR_XACRO
+from tests.test_ros2_control_hardware import INITIAL, TICK_NS, UR_PACKAGES, UR_XACRO, ur_with
 
 JOINTS = list(INITIAL)
 SWITCH = "/controller_manager/cosim/switch"
@@ -36,26 +35,16 @@ def ur_with_a_velocity_controller(tmp_path, inactive: list[str]):
     """ur5e_control with UR's forward_velocity_controller (ForwardCommandController on
     velocity, as UR's ur_controllers.yaml has it) in its controllers file, its manager
     written as a node (``inactive`` loaded inactive), and a velocity kv for the arm."""
-    doc = yaml.safe_load(UR.read_text())
-    here = UR.parent
-    doc["world"] = str((here / doc["world"]).resolve())
-    robots = doc["robots"]
-    robots["description"] = str((here / robots["description"]).resolve())
-    robots["urdf"]["packages"] = UR_PACKAGES
-    robots["urdf"]["gains"]["velocity"] = {"kv": 300}
-    controllers = yaml.safe_load((here / robots.pop("controllers")).read_text())
-    manager = controllers["controller_manager"]["ros__parameters"]
-    manager["forward_velocity_controller"] = {
-        "type": "forward_command_controller/ForwardCommandController"}
-    controllers["forward_velocity_controller"] = {"ros__parameters": {
-        "joints": JOINTS, "interface_name": "velocity"}}
-    (tmp_path / "controllers.yaml").write_text(yaml.safe_dump(controllers))
-    params = {"controllers": str(tmp_path / "controllers.yaml"), "inactive": inactive}
-    doc["nodes"].append({"name": "controller_manager", "kind": "ros2_control", "rate": 100,
-                         "for_each": "robot", "params": params})
-    path = tmp_path / "ur_modes.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    return path
+
+    def edit(doc, controllers):
+        doc["robots"]["urdf"]["gains"]["velocity"] = {"kv": 300}
+        manager = controllers["controller_manager"]["ros__parameters"]
+        manager["forward_velocity_controller"] = {
+            "type": "forward_command_controller/ForwardCommandController"}
+        controllers["forward_velocity_controller"] = {"ros__parameters": {
+            "joints": JOINTS, "interface_name": "velocity"}}
+
+    return ur_with(tmp_path, "ur_modes", inactive, edit)
 
 
 @pytest.fixture(scope="module")
