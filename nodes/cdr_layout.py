@@ -25,11 +25,8 @@ class FixedLayout:
         """Start right after the stamp (alignment counts from the CDR body's start, 8 bytes
         before: the stamp's two 4-byte fields) with the header's ``frame_id``."""
         self._at = 8
-        self._formats = ["<"]
-        self._constant = bytearray()
-        self._args: list = []
-        self._slots: list[int] = []  # where each run of doubles starts in the arguments
-        self._struct: struct.Struct | None = None
+        self._constant = bytearray()  # the constant bytes since the last run of doubles
+        self._parts: list[bytes | int] = []  # constant bytes, or a run's count of doubles
         self.string(frame_id)
 
     def _add(self, data: bytes, align: int = 1) -> None:
@@ -60,30 +57,28 @@ class FixedLayout:
         elements, after its ``count``; none for n = 0)."""
         if n:
             self._add(b"", 8)
-            self._formats.append(f"{len(self._constant)}s{n}d")
-            self._args.append(bytes(self._constant))
-            self._slots.append(len(self._args))
-            self._args += [0.0] * n
+            self._parts += [bytes(self._constant), n]
             self._constant.clear()
             self._at += 8 * n
         return self
 
-    def _finish(self) -> struct.Struct:
-        if self._struct is None:
-            self._formats.append(f"{len(self._constant)}s")
-            self._args.append(bytes(self._constant))
-            self._struct = struct.Struct("".join(self._formats))
-        return self._struct
+    @property
+    def _runs(self) -> list[int]:
+        """The counts of the runs of doubles, in order."""
+        return [part for part in self._parts if isinstance(part, int)]
 
     def _compile(self, arguments: list[str], parameters: str):
         """A function of ``parameters`` packing the constant bytes and ``arguments`` (the
         values of the runs of doubles, in order, as expressions) in one call."""
-        packer = self._finish()
-        constants = {f"C{i}": a for i, a in enumerate(self._args) if isinstance(a, bytes)}
+        parts = [*self._parts, bytes(self._constant)]
+        packer = struct.Struct("<" + "".join(
+            f"{len(part)}s" if isinstance(part, bytes) else f"{part}d" for part in parts))
+        constants = {f"C{i}": part for i, part in enumerate(parts) if isinstance(part, bytes)}
         values = iter(arguments)
-        parts = [f"C{i}" if isinstance(a, bytes) else next(values)
-                 for i, a in enumerate(self._args)]
-        source = f"def pack({parameters}):\n    return P({', '.join(parts)})\n"
+        expressions = [f"C{i}" if isinstance(part, bytes) else
+                       ", ".join(next(values) for _ in range(part))
+                       for i, part in enumerate(parts)]
+        source = f"def pack({parameters}):\n    return P({', '.join(expressions)})\n"
         namespace = {"P": packer.pack, **constants}
         exec(compile(source, "<cdr fixed layout>", "exec"), namespace)  # noqa: S102
         return namespace["pack"]
@@ -91,22 +86,16 @@ class FixedLayout:
     def packer_of_runs(self):
         """``pack(*runs)``: the bytes with each run of ``doubles`` given its values (a
         sequence of floats each, of the run's length, in the order they were laid out)."""
-        lengths = [self._length(start) for start in self._slots]
-        arguments = [f"r{k}[{i}]" for k, n in enumerate(lengths) for i in range(n)]
-        return self._compile(arguments, ", ".join(f"r{k}" for k in range(len(lengths))))
+        runs = self._runs
+        arguments = [f"r{k}[{i}]" for k, n in enumerate(runs) for i in range(n)]
+        return self._compile(arguments, ", ".join(f"r{k}" for k in range(len(runs))))
 
     def packer_of_columns(self, columns: int):
         """``pack(*columns)`` for a layout of equal runs of ``columns`` doubles each (a run
         per element of a sequence of messages): value i of every run from ``columns[i]``
         (a sequence with a float per run, in order)."""
-        if any(self._length(start) != columns for start in self._slots):
+        runs = self._runs
+        if any(n != columns for n in runs):
             raise ValueError(f"every run of doubles must have {columns} values")
-        arguments = [f"c{i}[{k}]" for k in range(len(self._slots)) for i in range(columns)]
+        arguments = [f"c{i}[{k}]" for k in range(len(runs)) for i in range(columns)]
         return self._compile(arguments, ", ".join(f"c{i}" for i in range(columns)))
-
-    def _length(self, start: int) -> int:
-        """How many doubles the run at argument ``start`` has."""
-        end = start
-        while end < len(self._args) and not isinstance(self._args[end], bytes):
-            end += 1
-        return end - start
