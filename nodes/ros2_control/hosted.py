@@ -172,8 +172,13 @@ class MujocoSystem:
             joint, _, kind = interface.rpartition("/")
             if self.mode.get(joint, kind) != kind:
                 continue  # the actuator is in another of the joint's modes
-            reading = self.state.get(joint)
-            data.ctrl[a] = reading.position if kind == "position" and reading else 0.0
+            data.ctrl[a] = self._hold(joint, kind)
+
+    def _hold(self, joint: str, kind: str) -> float:
+        """What an actuator commanded through interface ``kind`` holds before a controller
+        commands it: a position where the joint is, a velocity or effort 0."""
+        reading = self.state.get(joint)
+        return reading.position if kind == "position" and reading else 0.0
 
     def claim(self, data, claimed) -> None:
         """Switch each joint with several command interfaces that a controller claims
@@ -193,8 +198,7 @@ class MujocoSystem:
             self.mode[joint] = mode.interface
             a = self.actuator[interface]
             set_mode(self.model, a, mode)
-            reading = self.state.get(joint)
-            data.ctrl[a] = reading.position if mode.interface == "position" and reading else 0.0
+            data.ctrl[a] = self._hold(joint, mode.interface)
 
     def write(self, data, commands: dict[str, float]) -> None:
         """The controllers' commands into the actuators (an interface no controller
